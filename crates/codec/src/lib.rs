@@ -1,0 +1,22 @@
+//! Pure Modbus encoding for optobus: CRC-16/MODBUS, RTU and TCP frames in both directions,
+//! and register value codecs.
+//!
+//! No I/O, no async, no allocator: the crate is `no_std`, so firmware talking to these
+//! sensors from a microcontroller can use it as well as the async drivers.
+//!
+//! Device framing quirks are data: a [`FrameShape`] says how exceptions are framed and which
+//! FC06 writes carry four data bytes, and the same decoder serves every device.
+#![no_std]
+#![forbid(unsafe_code)]
+
+pub mod crc;
+mod pdu;
+pub mod rtu;
+pub mod tcp;
+pub mod value;
+
+pub use pdu::{
+    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, PayloadWidth,
+    ReadFunction, Request, Response, Words, WriteValue, EXCEPTION_BIT, MAX_READ_WORDS,
+    WRITE_SINGLE,
+};

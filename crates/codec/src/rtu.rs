@@ -1,0 +1,279 @@
+//! Modbus RTU framing: `slave pdu… crc_lo crc_hi`.
+//!
+//! Encoders write into the caller's buffer and return the frame length. Decoders are
+//! incremental: give them the bytes received so far and they answer
+//! [`Decoded::NeedMore`], [`Decoded::Frame`] (with how many bytes it used), or a typed
+//! [`DecodeError`]. A decoded frame always has a valid CRC.
+
+use crate::crc::{crc16, is_valid_frame};
+use crate::pdu::{
+    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, ReadFunction,
+    Request, Response, Words, EXCEPTION_BIT, WRITE_SINGLE,
+};
+
+/// The longest RTU frame Modbus allows.
+pub const MAX_FRAME_LEN: usize = 256;
+
+/// An RTU frame: the slave address and a PDU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Frame<T> {
+    /// Slave address (0 is broadcast).
+    pub slave: u8,
+    /// The protocol data unit.
+    pub pdu: T,
+}
+
+/// Frames `pdu_len` bytes written by `write_pdu` with `slave` in front and the CRC behind.
+fn frame(
+    out: &mut [u8],
+    slave: u8,
+    pdu_len: usize,
+    write_pdu: impl FnOnce(&mut [u8]) -> Result<(), EncodeError>,
+) -> Result<usize, EncodeError> {
+    let len = pdu_len + 3;
+    let Some(out) = out.get_mut(..len) else {
+        return Err(EncodeError::BufferTooSmall { needed: len });
+    };
+    write_pdu(&mut out[1..=pdu_len])?;
+    out[0] = slave;
+    let crc = crc16(&out[..=pdu_len]);
+    out[pdu_len + 1..].copy_from_slice(&crc.to_le_bytes());
+    Ok(len)
+}
+
+/// Encodes a request to `slave`; returns the frame length.
+///
+/// ```
+/// use optobus_codec::{rtu, ReadFunction, Request};
+/// let mut buf = [0; rtu::MAX_FRAME_LEN];
+/// let read = Request::Read { function: ReadFunction::Input, address: 0, count: 6 };
+/// let len = rtu::encode_request(&mut buf, 1, &read).unwrap();
+/// assert_eq!(&buf[..len], &[0x01, 0x04, 0x00, 0x00, 0x00, 0x06, 0x70, 0x08]);
+/// ```
+pub fn encode_request(out: &mut [u8], slave: u8, request: &Request) -> Result<usize, EncodeError> {
+    request.check()?;
+    frame(out, slave, request.pdu_len(), |pdu| {
+        request.write_pdu(pdu);
+        Ok(())
+    })
+}
+
+/// Encodes a device's successful reply; returns the frame length.
+pub fn encode_response(
+    out: &mut [u8],
+    slave: u8,
+    response: &Response<'_>,
+) -> Result<usize, EncodeError> {
+    response.check()?;
+    frame(out, slave, response.pdu_len(), |pdu| {
+        response.write_pdu(pdu);
+        Ok(())
+    })
+}
+
+/// Encodes an exception reply to a request with function code `function`, in `shape`.
+pub fn encode_exception(
+    out: &mut [u8],
+    slave: u8,
+    function: u8,
+    code: ExceptionCode,
+    shape: ExceptionShape,
+) -> Result<usize, EncodeError> {
+    // Validate before touching the buffer, so that an error leaves it as it was.
+    if shape == ExceptionShape::Standard && code.0 > 0xFF {
+        return Err(EncodeError::CodeTooWide { code });
+    }
+    frame(out, slave, shape.pdu_len(), |pdu| {
+        shape.write_pdu(pdu, function, code)
+    })
+}
+
+pub(crate) fn check_crc(frame: &[u8]) -> Result<(), DecodeError> {
+    let (body, crc) = frame.split_at(frame.len() - 2);
+    let computed = crc16(body);
+    let received = u16::from_le_bytes([crc[0], crc[1]]);
+    if computed == received {
+        Ok(())
+    } else {
+        Err(DecodeError::BadCrc { computed, received })
+    }
+}
+
+/// Returns `NeedMore` from the enclosing decoder when `$buf` is shorter than `$len`.
+macro_rules! need {
+    ($buf:expr, $len:expr) => {{
+        let (have, want) = ($buf.len(), $len);
+        if have < want {
+            return Ok(Decoded::NeedMore {
+                at_least: want - have,
+            });
+        }
+    }};
+}
+pub(crate) use need;
+
+/// Decodes a request as a device sees it. `shape` says which FC06 addresses carry four bytes.
+///
+/// RTU frames are delimited by line silence, so a request with a function code this codec does
+/// not know is recognised only when the whole of `buf` is one CRC-valid frame; it is then
+/// reported as [`DecodeError::UnsupportedFunction`] (a device answers exception 01).
+pub fn decode_request(
+    buf: &[u8],
+    shape: &FrameShape<'_>,
+) -> Result<Decoded<Frame<Request>>, DecodeError> {
+    need!(buf, 2);
+    let function = buf[1];
+    let pdu_len = match function {
+        0x03 | 0x04 => 5,
+        WRITE_SINGLE => {
+            need!(buf, 4);
+            3 + shape
+                .write_width(u16::from_be_bytes([buf[2], buf[3]]))
+                .bytes()
+        }
+        _ if buf.len() >= 4 && is_valid_frame(buf) => {
+            return Err(DecodeError::UnsupportedFunction { function });
+        }
+        _ => {
+            return Ok(Decoded::NeedMore {
+                at_least: 4usize.saturating_sub(buf.len()).max(1),
+            })
+        }
+    };
+    let len = pdu_len + 3;
+    need!(buf, len);
+    check_crc(&buf[..len])?;
+    let width = shape.write_width(u16::from_be_bytes([buf[2], buf[3]]));
+    Ok(Decoded::Frame {
+        frame: Frame {
+            slave: buf[0],
+            pdu: Request::parse_pdu(&buf[1..=pdu_len], width),
+        },
+        consumed: len,
+    })
+}
+
+/// What a reply to `request` may look like, from its function code on.
+pub(crate) enum ReplyKind {
+    Normal,
+    Exception,
+}
+
+/// Classifies a reply PDU from its first bytes (`pdu` holds at least the function code), or
+/// says how many more bytes of PDU are needed to tell its length.
+pub(crate) fn reply_pdu_len(
+    pdu: &[u8],
+    request: &Request,
+    exception: ExceptionShape,
+) -> Result<Result<(ReplyKind, usize), usize>, DecodeError> {
+    let expected = request.function_code();
+    let received = pdu[0];
+    if received == expected {
+        match *request {
+            Request::Read { count, .. } => {
+                let Some(&byte_count) = pdu.get(1) else {
+                    return Ok(Err(1));
+                };
+                let expected_count = 2 * usize::from(count);
+                if usize::from(byte_count) != expected_count {
+                    return Err(DecodeError::BadByteCount {
+                        expected: u8::try_from(expected_count).unwrap_or(u8::MAX),
+                        received: byte_count,
+                    });
+                }
+                let pdu_len = 2 + expected_count;
+                Ok(Ok((ReplyKind::Normal, pdu_len)))
+            }
+            Request::Write { .. } => {
+                let pdu_len = request.pdu_len();
+                Ok(Ok((ReplyKind::Normal, pdu_len)))
+            }
+        }
+    } else if received == expected | EXCEPTION_BIT {
+        if exception == ExceptionShape::CountedWord {
+            match pdu.get(1) {
+                None => return Ok(Err(1)),
+                Some(&2) => {}
+                Some(&other) => {
+                    return Err(DecodeError::BadByteCount {
+                        expected: 2,
+                        received: other,
+                    })
+                }
+            }
+        }
+        Ok(Ok((ReplyKind::Exception, exception.pdu_len())))
+    } else {
+        Err(DecodeError::UnexpectedFunction { expected, received })
+    }
+}
+
+/// Interprets a whole, integrity-checked reply PDU.
+pub(crate) fn parse_reply<'b>(
+    pdu: &'b [u8],
+    kind: ReplyKind,
+    request: &Request,
+    exception: ExceptionShape,
+) -> Result<Response<'b>, DecodeError> {
+    match (kind, *request) {
+        (ReplyKind::Exception, _) => Err(DecodeError::Exception {
+            function: request.function_code(),
+            code: exception.parse_pdu(pdu)?,
+        }),
+        (ReplyKind::Normal, Request::Read { function, .. }) => Ok(Response::Read {
+            function: ReadFunction::from_code(pdu[0]).unwrap_or(function),
+            words: Words::from_even(&pdu[2..]),
+        }),
+        (ReplyKind::Normal, Request::Write { address, value }) => {
+            let (received_address, received_value) = Request::parse_write(pdu, value.width());
+            if (received_address, received_value) != (address, value) {
+                return Err(DecodeError::EchoMismatch {
+                    address,
+                    value: value.as_u32(),
+                    received_address,
+                    received_value: received_value.as_u32(),
+                });
+            }
+            Ok(Response::Write { address, value })
+        }
+    }
+}
+
+/// Decodes the reply to `request`, sent to `slave`, from a device framing exceptions in
+/// `exception` shape. An exception reply becomes [`DecodeError::Exception`].
+///
+/// ```
+/// use optobus_codec::{rtu, Decoded, ExceptionShape, ReadFunction, Request, Response};
+/// let read = Request::Read { function: ReadFunction::Input, address: 0, count: 2 };
+/// let reply = [0x01, 0x04, 0x04, 0x00, 0x36, 0xB0, 0xBE, 0xEE, 0x3A];
+/// let Ok(Decoded::Frame { frame: Response::Read { words, .. }, consumed: 9 }) =
+///     rtu::decode_response(&reply, 1, &read, ExceptionShape::Standard)
+/// else { panic!() };
+/// assert_eq!(words.get(1), Some(0xB0BE));
+/// ```
+pub fn decode_response<'b>(
+    buf: &'b [u8],
+    slave: u8,
+    request: &Request,
+    exception: ExceptionShape,
+) -> Result<Decoded<Response<'b>>, DecodeError> {
+    need!(buf, 2);
+    let (kind, pdu_len) = match reply_pdu_len(&buf[1..], request, exception)? {
+        Ok(known) => known,
+        Err(more) => return Ok(Decoded::NeedMore { at_least: more }),
+    };
+    let len = pdu_len + 3;
+    need!(buf, len);
+    check_crc(&buf[..len])?;
+    if buf[0] != slave {
+        return Err(DecodeError::UnexpectedSlave {
+            expected: slave,
+            received: buf[0],
+        });
+    }
+    let response = parse_reply(&buf[1..=pdu_len], kind, request, exception)?;
+    Ok(Decoded::Frame {
+        frame: response,
+        consumed: len,
+    })
+}

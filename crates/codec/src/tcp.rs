@@ -1,0 +1,221 @@
+//! Modbus TCP framing: the MBAP header (transaction id, protocol id 0, length, unit id) and a
+//! PDU, with no CRC.
+//!
+//! Same conventions as [`crate::rtu`]: encoders write into the caller's buffer, decoders are
+//! incremental and shape-driven, and errors are typed.
+
+use crate::pdu::{
+    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, Request,
+    Response, WRITE_SINGLE,
+};
+use crate::rtu::{need, parse_reply, reply_pdu_len};
+
+/// Bytes of the MBAP header, unit id included.
+pub const HEADER_LEN: usize = 7;
+
+/// The longest Modbus TCP frame (7-byte header and a 253-byte PDU).
+pub const MAX_FRAME_LEN: usize = 260;
+
+/// The largest value of the MBAP length field (unit id and a 253-byte PDU).
+const MAX_LENGTH_FIELD: u16 = 254;
+
+/// The MBAP fields a client chooses and a server copies into its reply.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub struct Header {
+    /// Transaction id, echoed by the server.
+    pub transaction: u16,
+    /// Unit identifier (the slave address behind a gateway).
+    pub unit: u8,
+}
+
+/// A Modbus TCP frame: header and PDU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Frame<T> {
+    /// The MBAP header fields.
+    pub header: Header,
+    /// The protocol data unit.
+    pub pdu: T,
+}
+
+fn frame(
+    out: &mut [u8],
+    header: Header,
+    pdu_len: usize,
+    write_pdu: impl FnOnce(&mut [u8]) -> Result<(), EncodeError>,
+) -> Result<usize, EncodeError> {
+    let len = HEADER_LEN + pdu_len;
+    let Some(out) = out.get_mut(..len) else {
+        return Err(EncodeError::BufferTooSmall { needed: len });
+    };
+    write_pdu(&mut out[HEADER_LEN..])?;
+    // PDUs are at most 253 bytes, so the length field fits.
+    let length = (pdu_len + 1) as u16;
+    out[0..2].copy_from_slice(&header.transaction.to_be_bytes());
+    out[2..4].copy_from_slice(&[0, 0]);
+    out[4..6].copy_from_slice(&length.to_be_bytes());
+    out[6] = header.unit;
+    Ok(len)
+}
+
+/// Encodes a request; returns the frame length.
+///
+/// ```
+/// use optobus_codec::{tcp, ReadFunction, Request};
+/// let mut buf = [0; tcp::MAX_FRAME_LEN];
+/// let read = Request::Read { function: ReadFunction::Holding, address: 0, count: 3 };
+/// let len = tcp::encode_request(&mut buf, tcp::Header { transaction: 0, unit: 1 }, &read).unwrap();
+/// assert_eq!(&buf[..len], &[0, 0, 0, 0, 0, 6, 1, 3, 0, 0, 0, 3]);
+/// ```
+pub fn encode_request(
+    out: &mut [u8],
+    header: Header,
+    request: &Request,
+) -> Result<usize, EncodeError> {
+    request.check()?;
+    frame(out, header, request.pdu_len(), |pdu| {
+        request.write_pdu(pdu);
+        Ok(())
+    })
+}
+
+/// Encodes a successful reply; returns the frame length.
+pub fn encode_response(
+    out: &mut [u8],
+    header: Header,
+    response: &Response<'_>,
+) -> Result<usize, EncodeError> {
+    response.check()?;
+    frame(out, header, response.pdu_len(), |pdu| {
+        response.write_pdu(pdu);
+        Ok(())
+    })
+}
+
+/// Encodes an exception reply to a request with function code `function`.
+pub fn encode_exception(
+    out: &mut [u8],
+    header: Header,
+    function: u8,
+    code: ExceptionCode,
+    shape: ExceptionShape,
+) -> Result<usize, EncodeError> {
+    if shape == ExceptionShape::Standard && code.0 > 0xFF {
+        return Err(EncodeError::CodeTooWide { code });
+    }
+    frame(out, header, shape.pdu_len(), |pdu| {
+        shape.write_pdu(pdu, function, code)
+    })
+}
+
+/// The MBAP fields of a header whose first six bytes are in `buf`.
+struct Mbap {
+    transaction: u16,
+    length: u16,
+}
+
+fn parse_mbap(buf: &[u8]) -> Result<Mbap, DecodeError> {
+    let protocol = u16::from_be_bytes([buf[2], buf[3]]);
+    if protocol != 0 {
+        return Err(DecodeError::BadProtocolId { received: protocol });
+    }
+    let length = u16::from_be_bytes([buf[4], buf[5]]);
+    if !(2..=MAX_LENGTH_FIELD).contains(&length) {
+        return Err(DecodeError::BadLength {
+            expected: length.clamp(2, MAX_LENGTH_FIELD),
+            received: length,
+        });
+    }
+    Ok(Mbap {
+        transaction: u16::from_be_bytes([buf[0], buf[1]]),
+        length,
+    })
+}
+
+/// The length of the whole frame starting at `buf`, once its header says so: lets a server
+/// skip a frame it could not decode.
+pub fn frame_len(buf: &[u8]) -> Option<usize> {
+    let length = u16::from_be_bytes([*buf.get(4)?, *buf.get(5)?]);
+    Some(6 + usize::from(length))
+}
+
+fn check_length(expected_pdu_len: usize, mbap: &Mbap) -> Result<(), DecodeError> {
+    let expected = (expected_pdu_len + 1) as u16;
+    if mbap.length == expected {
+        Ok(())
+    } else {
+        Err(DecodeError::BadLength {
+            expected,
+            received: mbap.length,
+        })
+    }
+}
+
+/// Decodes a request as a server sees it. `shape` says which FC06 addresses carry four bytes.
+pub fn decode_request(
+    buf: &[u8],
+    shape: &FrameShape<'_>,
+) -> Result<Decoded<Frame<Request>>, DecodeError> {
+    need!(buf, HEADER_LEN + 1);
+    let mbap = parse_mbap(buf)?;
+    let function = buf[HEADER_LEN];
+    let pdu_len = match function {
+        0x03 | 0x04 => 5,
+        WRITE_SINGLE => {
+            need!(buf, HEADER_LEN + 3);
+            let address = u16::from_be_bytes([buf[HEADER_LEN + 1], buf[HEADER_LEN + 2]]);
+            3 + shape.write_width(address).bytes()
+        }
+        _ => return Err(DecodeError::UnsupportedFunction { function }),
+    };
+    check_length(pdu_len, &mbap)?;
+    let len = HEADER_LEN + pdu_len;
+    need!(buf, len);
+    let pdu = &buf[HEADER_LEN..len];
+    let width = shape.write_width(u16::from_be_bytes([pdu[1], pdu[2]]));
+    Ok(Decoded::Frame {
+        frame: Frame {
+            header: Header {
+                transaction: mbap.transaction,
+                unit: buf[6],
+            },
+            pdu: Request::parse_pdu(pdu, width),
+        },
+        consumed: len,
+    })
+}
+
+/// Decodes the reply to `request`, sent with `header`. An exception reply becomes
+/// [`DecodeError::Exception`].
+pub fn decode_response<'b>(
+    buf: &'b [u8],
+    header: Header,
+    request: &Request,
+    exception: ExceptionShape,
+) -> Result<Decoded<Response<'b>>, DecodeError> {
+    need!(buf, HEADER_LEN + 1);
+    let mbap = parse_mbap(buf)?;
+    if mbap.transaction != header.transaction {
+        return Err(DecodeError::UnexpectedTransaction {
+            expected: header.transaction,
+            received: mbap.transaction,
+        });
+    }
+    if buf[6] != header.unit {
+        return Err(DecodeError::UnexpectedSlave {
+            expected: header.unit,
+            received: buf[6],
+        });
+    }
+    let (kind, pdu_len) = match reply_pdu_len(&buf[HEADER_LEN..], request, exception)? {
+        Ok(known) => known,
+        Err(more) => return Ok(Decoded::NeedMore { at_least: more }),
+    };
+    check_length(pdu_len, &mbap)?;
+    let len = HEADER_LEN + pdu_len;
+    need!(buf, len);
+    let response = parse_reply(&buf[HEADER_LEN..len], kind, request, exception)?;
+    Ok(Decoded::Frame {
+        frame: response,
+        consumed: len,
+    })
+}

@@ -1,0 +1,543 @@
+//! Register value codecs: integers across words, packed bytes, bit fields, invalid-reading
+//! sentinels, the order of split writes, and exact fixed-point numbers.
+
+use core::fmt;
+use core::num::NonZeroU32;
+
+/// Which 16-bit word of a 32-bit value sits at the lower register address.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum WordOrder {
+    /// High word at the lower address (every manual here; "big-endian word order").
+    #[default]
+    HighFirst,
+    /// Low word at the lower address.
+    LowFirst,
+}
+
+/// Joins two words, listed in address order, into a `u32`.
+pub const fn join_u32(words: [u16; 2], order: WordOrder) -> u32 {
+    let [first, second] = words;
+    let (high, low) = match order {
+        WordOrder::HighFirst => (first, second),
+        WordOrder::LowFirst => (second, first),
+    };
+    ((high as u32) << 16) | low as u32
+}
+
+/// Splits a `u32` into two words in address order.
+pub const fn split_u32(value: u32, order: WordOrder) -> [u16; 2] {
+    let (high, low) = ((value >> 16) as u16, value as u16);
+    match order {
+        WordOrder::HighFirst => [high, low],
+        WordOrder::LowFirst => [low, high],
+    }
+}
+
+/// Joins two words, listed in address order, into an `i32` (two's complement).
+pub const fn join_i32(words: [u16; 2], order: WordOrder) -> i32 {
+    join_u32(words, order) as i32
+}
+
+/// Splits an `i32` into two words in address order.
+pub const fn split_i32(value: i32, order: WordOrder) -> [u16; 2] {
+    split_u32(value as u32, order)
+}
+
+/// A 16-bit register read as a signed value.
+pub const fn word_to_i16(word: u16) -> i16 {
+    word as i16
+}
+
+/// A signed value as the 16-bit register it is written as.
+pub const fn i16_to_word(value: i16) -> u16 {
+    value as u16
+}
+
+/// A register whose high and low bytes are separate fields.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub struct BytePair {
+    /// Bits 15..8.
+    pub high: u8,
+    /// Bits 7..0.
+    pub low: u8,
+}
+
+impl BytePair {
+    /// Splits a register value.
+    pub const fn from_word(word: u16) -> Self {
+        let [high, low] = word.to_be_bytes();
+        Self { high, low }
+    }
+
+    /// Joins the bytes into a register value.
+    pub const fn to_word(self) -> u16 {
+        u16::from_be_bytes([self.high, self.low])
+    }
+}
+
+/// A run of bits inside a register value (for example the rangefinder's 8-bit parity above a
+/// 24-bit baud rate).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct BitField {
+    /// Position of the least significant bit.
+    pub shift: u8,
+    /// Number of bits, 1 to 32.
+    pub width: u8,
+}
+
+impl BitField {
+    const fn mask(self) -> u32 {
+        if self.width >= 32 {
+            u32::MAX
+        } else {
+            (1u32 << self.width) - 1
+        }
+    }
+
+    /// The field's value in `word`.
+    pub const fn get(self, word: u32) -> u32 {
+        match word.checked_shr(self.shift as u32) {
+            Some(shifted) => shifted & self.mask(),
+            None => 0,
+        }
+    }
+
+    /// `word` with the field set to `value`; `None` when `value` does not fit the field.
+    pub const fn set(self, word: u32, value: u32) -> Option<u32> {
+        let mask = self.mask();
+        if value & !mask != 0 || self.shift >= 32 {
+            return None;
+        }
+        let shift = self.shift as u32;
+        Some((word & !(mask << shift)) | (value << shift))
+    }
+}
+
+/// A raw value the device uses to mean "no valid reading".
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Sentinel(pub u32);
+
+impl Sentinel {
+    /// `None` when `raw` is the sentinel, else `Some(raw)`.
+    pub const fn check(self, raw: u32) -> Option<u32> {
+        if raw == self.0 {
+            None
+        } else {
+            Some(raw)
+        }
+    }
+}
+
+/// The order in which the two halves of a 32-bit register pair are written with two FC06s.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum WriteOrder {
+    /// High word first (the natural order).
+    #[default]
+    HighWordFirst,
+    /// Low word first (the P series latches the pair when the high word arrives).
+    LowWordFirst,
+}
+
+/// One FC06 of a split 32-bit write: `offset` is 0 or 1 from the pair's first address.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct WordWrite {
+    /// Offset from the pair's first (lower) register address.
+    pub offset: u16,
+    /// The 16-bit value to write there.
+    pub value: u16,
+}
+
+/// The two single-register writes that store `value` in a register pair laid out in
+/// `word_order`, in the sequence `write_order` demands.
+///
+/// ```
+/// use optobus_codec::value::{u32_writes, WordOrder, WordWrite, WriteOrder};
+/// // P series slope 2.0 (×2^20 = 0x0020_0000) at registers 27 (high) and 28 (low):
+/// // write register 28 first, then 27.
+/// let writes = u32_writes(0x0020_0000, WordOrder::HighFirst, WriteOrder::LowWordFirst);
+/// assert_eq!(writes, [WordWrite { offset: 1, value: 0x0000 }, WordWrite { offset: 0, value: 0x0020 }]);
+/// ```
+pub const fn u32_writes(
+    value: u32,
+    word_order: WordOrder,
+    write_order: WriteOrder,
+) -> [WordWrite; 2] {
+    let words = split_u32(value, word_order);
+    let (high_offset, low_offset) = match word_order {
+        WordOrder::HighFirst => (0, 1),
+        WordOrder::LowFirst => (1, 0),
+    };
+    let high = WordWrite {
+        offset: high_offset,
+        value: words[high_offset as usize],
+    };
+    let low = WordWrite {
+        offset: low_offset,
+        value: words[low_offset as usize],
+    };
+    match write_order {
+        WriteOrder::HighWordFirst => [high, low],
+        WriteOrder::LowWordFirst => [low, high],
+    }
+}
+
+/// The size of one raw step of a fixed-point register, exactly.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Scale {
+    /// One step is `10^exponent` units (×1e6 mm readings: exponent −6).
+    Decimal {
+        /// Power of ten.
+        exponent: i8,
+    },
+    /// One step is `numerator / denominator` units (a slope ×2^20: 1/1048576).
+    Ratio {
+        /// Numerator.
+        numerator: u32,
+        /// Denominator.
+        denominator: NonZeroU32,
+    },
+}
+
+impl Scale {
+    /// One step is one unit.
+    pub const ONE: Self = Self::Decimal { exponent: 0 };
+
+    /// `numerator / denominator`; `None` when the denominator is zero.
+    pub const fn ratio(numerator: u32, denominator: u32) -> Option<Self> {
+        match NonZeroU32::new(denominator) {
+            Some(denominator) => Some(Self::Ratio {
+                numerator,
+                denominator,
+            }),
+            None => None,
+        }
+    }
+
+    /// The step as `(numerator, denominator)`, or `None` if it overflows 128 bits.
+    fn as_fraction(self) -> Option<(i128, i128)> {
+        match self {
+            Self::Decimal { exponent } if exponent >= 0 => {
+                Some((pow10(exponent.unsigned_abs())?, 1))
+            }
+            Self::Decimal { exponent } => Some((1, pow10(exponent.unsigned_abs())?)),
+            Self::Ratio {
+                numerator,
+                denominator,
+            } => Some((i128::from(numerator), i128::from(denominator.get()))),
+        }
+    }
+}
+
+impl fmt::Display for Scale {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Decimal { exponent } => write!(f, "1e{exponent}"),
+            Self::Ratio {
+                numerator,
+                denominator,
+            } => write!(f, "{numerator}/{denominator}"),
+        }
+    }
+}
+
+fn pow10(exponent: u8) -> Option<i128> {
+    10i128.checked_pow(u32::from(exponent))
+}
+
+/// A fixed-point number kept exactly: an integer count of `scale` steps.
+///
+/// `Fixed::new(3_584_190, Scale::Decimal { exponent: -6 })` is exactly 3.584190 (whole
+/// nanometres for a mm reading); it prints as `3.584190`, and converting to `f64` is the
+/// caller's choice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Fixed {
+    raw: i64,
+    scale: Scale,
+}
+
+/// Why text could not be read as an exact fixed-point value.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum ParseFixedError {
+    /// Not a decimal number (`[+-]digits[.digits]`).
+    Malformed,
+    /// More digits than can be held exactly.
+    TooManyDigits,
+    /// The value is not a whole number of steps (it would need rounding).
+    NotRepresentable {
+        /// The step size.
+        scale: Scale,
+    },
+    /// The number of steps does not fit in 64 bits.
+    OutOfRange,
+}
+
+impl fmt::Display for ParseFixedError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Malformed => f.write_str("not a decimal number"),
+            Self::TooManyDigits => f.write_str("too many digits"),
+            Self::NotRepresentable { scale } => {
+                write!(f, "not a whole multiple of the register's step {scale}")
+            }
+            Self::OutOfRange => f.write_str("value out of range"),
+        }
+    }
+}
+
+impl core::error::Error for ParseFixedError {}
+
+/// Digits of a decimal number: `magnitude / 10^decimals`, negated if `negative`.
+struct DecimalText {
+    negative: bool,
+    magnitude: i128,
+    decimals: u8,
+}
+
+fn parse_decimal(text: &str) -> Result<DecimalText, ParseFixedError> {
+    let bytes = text.trim().as_bytes();
+    let (negative, digits) = match bytes.split_first() {
+        Some((b'-', rest)) => (true, rest),
+        Some((b'+', rest)) => (false, rest),
+        _ => (false, bytes),
+    };
+    let mut magnitude: i128 = 0;
+    let mut decimals: u8 = 0;
+    let mut seen_point = false;
+    let mut seen_digit = false;
+    for &byte in digits {
+        match byte {
+            b'0'..=b'9' => {
+                seen_digit = true;
+                magnitude = magnitude
+                    .checked_mul(10)
+                    .and_then(|m| m.checked_add(i128::from(byte - b'0')))
+                    .filter(|m| *m < 10i128.pow(36))
+                    .ok_or(ParseFixedError::TooManyDigits)?;
+                if seen_point {
+                    decimals = decimals
+                        .checked_add(1)
+                        .filter(|d| *d <= 36)
+                        .ok_or(ParseFixedError::TooManyDigits)?;
+                }
+            }
+            b'.' if !seen_point => seen_point = true,
+            _ => return Err(ParseFixedError::Malformed),
+        }
+    }
+    if !seen_digit {
+        return Err(ParseFixedError::Malformed);
+    }
+    Ok(DecimalText {
+        negative,
+        magnitude,
+        decimals,
+    })
+}
+
+impl Fixed {
+    /// `raw` steps of `scale`.
+    pub const fn new(raw: i64, scale: Scale) -> Self {
+        Self { raw, scale }
+    }
+
+    /// The integer the register holds.
+    pub const fn raw(self) -> i64 {
+        self.raw
+    }
+
+    /// The size of one step.
+    pub const fn scale(self) -> Scale {
+        self.scale
+    }
+
+    /// The value, rounded to the nearest `f64`.
+    pub fn to_f64(self) -> f64 {
+        let raw = self.raw as f64;
+        match self.scale {
+            Self::DECIMAL_ZERO => raw,
+            Scale::Decimal { exponent } => {
+                // Powers of ten up to 1e22 are exact in f64, so one multiplication or division
+                // rounds once.
+                let mut power = 1f64;
+                for _ in 0..exponent.unsigned_abs() {
+                    power *= 10.0;
+                }
+                if exponent > 0 {
+                    raw * power
+                } else {
+                    raw / power
+                }
+            }
+            Scale::Ratio {
+                numerator,
+                denominator,
+            } => raw * f64::from(numerator) / f64::from(denominator.get()),
+        }
+    }
+
+    const DECIMAL_ZERO: Scale = Scale::Decimal { exponent: 0 };
+
+    /// Reads decimal text such as `-12.5` exactly; fails rather than round.
+    ///
+    /// ```
+    /// use optobus_codec::value::{Fixed, Scale};
+    /// let um = Scale::Decimal { exponent: -6 };
+    /// assert_eq!(Fixed::parse("0.5", um).unwrap().raw(), 500_000);
+    /// assert!(Fixed::parse("0.0000001", um).is_err());
+    /// let slope = Scale::ratio(1, 1 << 20).unwrap();
+    /// assert_eq!(Fixed::parse("2", slope).unwrap().raw(), 2 << 20);
+    /// ```
+    pub fn parse(text: &str, scale: Scale) -> Result<Self, ParseFixedError> {
+        let text = parse_decimal(text)?;
+        let (step_num, step_den) = scale.as_fraction().ok_or(ParseFixedError::OutOfRange)?;
+        // value = magnitude / 10^decimals; raw = value / (step_num / step_den).
+        let numerator = text
+            .magnitude
+            .checked_mul(step_den)
+            .ok_or(ParseFixedError::OutOfRange)?;
+        let denominator = pow10(text.decimals)
+            .and_then(|p| p.checked_mul(step_num))
+            .ok_or(ParseFixedError::OutOfRange)?;
+        if denominator == 0 {
+            return Err(ParseFixedError::NotRepresentable { scale });
+        }
+        if numerator % denominator != 0 {
+            return Err(ParseFixedError::NotRepresentable { scale });
+        }
+        let magnitude = numerator / denominator;
+        let signed = if text.negative { -magnitude } else { magnitude };
+        let raw = i64::try_from(signed).map_err(|_| ParseFixedError::OutOfRange)?;
+        Ok(Self { raw, scale })
+    }
+}
+
+/// Prints the exact value: a decimal scale with exactly its number of decimals
+/// (`3.584190`), a ratio scale with the shortest exact decimal (`0.00000095367431640625`).
+impl fmt::Display for Fixed {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let Some((step_num, step_den)) = self.scale.as_fraction() else {
+            return write!(f, "{}×{}", self.raw, self.scale);
+        };
+        let Some(value_num) = i128::from(self.raw).checked_mul(step_num) else {
+            return write!(f, "{}×{}", self.raw, self.scale);
+        };
+        let negative = value_num < 0;
+        let magnitude = value_num.unsigned_abs();
+        let den = step_den.unsigned_abs();
+        let (whole, mut remainder) = (magnitude / den, magnitude % den);
+        let fixed_decimals = match self.scale {
+            Scale::Decimal { exponent } if exponent < 0 => Some(exponent.unsigned_abs()),
+            Scale::Decimal { .. } => Some(0),
+            Scale::Ratio { .. } => None,
+        };
+        if negative && (whole != 0 || remainder != 0) {
+            f.write_str("-")?;
+        }
+        write!(f, "{whole}")?;
+        let mut written = 0u8;
+        let limit = fixed_decimals.unwrap_or(u8::MAX);
+        while written < limit && (remainder != 0 || fixed_decimals.is_some()) {
+            if written == 0 {
+                f.write_str(".")?;
+            }
+            if written == 60 {
+                // A ratio whose decimal expansion does not end: say so rather than loop.
+                return f.write_str("…");
+            }
+            remainder *= 10;
+            write!(f, "{}", remainder / den)?;
+            remainder %= den;
+            written += 1;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::string::ToString;
+
+    const MICRO: Scale = Scale::Decimal { exponent: -6 };
+    const TENTH: Scale = Scale::Decimal { exponent: -1 };
+
+    #[test]
+    fn prints_exact_decimals() {
+        assert_eq!(Fixed::new(3_584_190, MICRO).to_string(), "3.584190");
+        assert_eq!(Fixed::new(-5, TENTH).to_string(), "-0.5");
+        assert_eq!(Fixed::new(0, TENTH).to_string(), "0.0");
+        assert_eq!(
+            Fixed::new(12, Scale::Decimal { exponent: 2 }).to_string(),
+            "1200"
+        );
+        let slope = Scale::ratio(1, 1 << 20).unwrap();
+        assert_eq!(Fixed::new(2 << 20, slope).to_string(), "2");
+        assert_eq!(Fixed::new(1, slope).to_string(), "0.00000095367431640625");
+        let third = Scale::ratio(1, 3).unwrap();
+        assert!(Fixed::new(1, third).to_string().ends_with('…'));
+    }
+
+    #[test]
+    fn parses_exactly() {
+        assert_eq!(Fixed::parse("3.584190", MICRO).unwrap().raw(), 3_584_190);
+        assert_eq!(Fixed::parse("-26", TENTH).unwrap().raw(), -260);
+        assert_eq!(Fixed::parse("+0.5", TENTH).unwrap().raw(), 5);
+        assert_eq!(
+            Fixed::parse("0.05", TENTH),
+            Err(ParseFixedError::NotRepresentable { scale: TENTH })
+        );
+        assert_eq!(
+            Fixed::parse("1.2.3", TENTH),
+            Err(ParseFixedError::Malformed)
+        );
+        assert_eq!(Fixed::parse("", TENTH), Err(ParseFixedError::Malformed));
+        assert_eq!(Fixed::parse("-", TENTH), Err(ParseFixedError::Malformed));
+        assert_eq!(
+            Fixed::parse("99999999999999999999", TENTH),
+            Err(ParseFixedError::OutOfRange)
+        );
+        assert_eq!(
+            Fixed::parse("1", Scale::Decimal { exponent: 120 }),
+            Err(ParseFixedError::OutOfRange)
+        );
+    }
+
+    #[test]
+    fn converts_to_float() {
+        assert_eq!(Fixed::new(3_584_190, MICRO).to_f64(), 3.58419);
+        assert_eq!(Fixed::new(-260, TENTH).to_f64(), -26.0);
+    }
+
+    #[test]
+    fn words_and_bytes() {
+        assert_eq!(join_i32([0x0036, 0xB0BE], WordOrder::HighFirst), 3_584_190);
+        assert_eq!(join_u32([0xB0BE, 0x0036], WordOrder::LowFirst), 0x0036_B0BE);
+        assert_eq!(split_i32(-1, WordOrder::HighFirst), [0xFFFF, 0xFFFF]);
+        assert_eq!(BytePair::from_word(0x0103), BytePair { high: 1, low: 3 });
+        assert_eq!(word_to_i16(0xFEFC), -260);
+    }
+
+    #[test]
+    fn bit_fields() {
+        let parity = BitField {
+            shift: 24,
+            width: 8,
+        };
+        let baud = BitField {
+            shift: 0,
+            width: 24,
+        };
+        let word = 0x0100_E100;
+        assert_eq!((parity.get(word), baud.get(word)), (1, 57_600));
+        assert_eq!(baud.set(word, 115_200), Some(0x0101_C200));
+        assert_eq!(parity.set(0, 256), None);
+    }
+
+    #[test]
+    fn sentinels() {
+        assert_eq!(Sentinel(0x7FFF_FFFF).check(0x7FFF_FFFF), None);
+        assert_eq!(Sentinel(0x8000_0000).check(5), Some(5));
+    }
+}
