@@ -84,31 +84,33 @@ pub fn update(mut crc: u16, data: &[u8]) -> u16 {
     let t = &TABLES;
     let (blocks, rest) = data.as_chunks::<SLICES>();
     for block in blocks {
-        let head = crc ^ u16::from_le_bytes([block[0], block[1]]);
-        crc = t[15][usize::from(head as u8)]
-            ^ t[14][usize::from(head >> 8)]
-            ^ t[13][usize::from(block[2])]
-            ^ t[12][usize::from(block[3])]
-            ^ t[11][usize::from(block[4])]
-            ^ t[10][usize::from(block[5])]
-            ^ t[9][usize::from(block[6])]
-            ^ t[8][usize::from(block[7])]
-            ^ t[7][usize::from(block[8])]
-            ^ t[6][usize::from(block[9])]
-            ^ t[5][usize::from(block[10])]
-            ^ t[4][usize::from(block[11])]
-            ^ t[3][usize::from(block[12])]
-            ^ t[2][usize::from(block[13])]
+        // The bytes that do not depend on the running CRC go first, so their lookups overlap
+        // with the previous step's; the two that do depend on it come last.
+        let [low, high] = (crc ^ u16::from_le_bytes([block[0], block[1]])).to_le_bytes();
+        crc = t[0][usize::from(block[15])]
             ^ t[1][usize::from(block[14])]
-            ^ t[0][usize::from(block[15])];
+            ^ t[2][usize::from(block[13])]
+            ^ t[3][usize::from(block[12])]
+            ^ t[4][usize::from(block[11])]
+            ^ t[5][usize::from(block[10])]
+            ^ t[6][usize::from(block[9])]
+            ^ t[7][usize::from(block[8])]
+            ^ t[8][usize::from(block[7])]
+            ^ t[9][usize::from(block[6])]
+            ^ t[10][usize::from(block[5])]
+            ^ t[11][usize::from(block[4])]
+            ^ t[12][usize::from(block[3])]
+            ^ t[13][usize::from(block[2])]
+            ^ t[14][usize::from(high)]
+            ^ t[15][usize::from(low)];
     }
     let (quads, tail) = rest.as_chunks::<4>();
     for quad in quads {
-        let head = crc ^ u16::from_le_bytes([quad[0], quad[1]]);
-        crc = t[3][usize::from(head as u8)]
-            ^ t[2][usize::from(head >> 8)]
+        let [low, high] = (crc ^ u16::from_le_bytes([quad[0], quad[1]])).to_le_bytes();
+        crc = t[0][usize::from(quad[3])]
             ^ t[1][usize::from(quad[2])]
-            ^ t[0][usize::from(quad[3])];
+            ^ t[2][usize::from(high)]
+            ^ t[3][usize::from(low)];
     }
     for &byte in tail {
         crc = (crc >> 8) ^ t[0][usize::from((crc as u8) ^ byte)];

@@ -210,7 +210,7 @@ impl<'a> Words<'a> {
 
     /// Wraps data bytes; `None` when their number is odd.
     pub const fn from_bytes(bytes: &'a [u8]) -> Option<Self> {
-        if bytes.len() % 2 == 0 {
+        if bytes.len().is_multiple_of(2) {
             Some(Self { bytes })
         } else {
             None
@@ -259,7 +259,7 @@ impl<'a> Words<'a> {
 impl fmt::Debug for Words<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_list()
-            .entries(self.iter().map(|word| Hex(word)))
+            .entries(self.iter().map(Hex))
             .finish()
     }
 }

@@ -240,6 +240,22 @@ impl fmt::Display for Scale {
     }
 }
 
+/// Divides `a` and `b` by their greatest common divisor.
+fn cancel(a: &mut i128, b: &mut i128) {
+    let g = gcd(*a, *b);
+    if g > 1 {
+        *a /= g;
+        *b /= g;
+    }
+}
+
+fn gcd(mut a: i128, mut b: i128) -> i128 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a.abs()
+}
+
 fn pow10(exponent: u8) -> Option<i128> {
     10i128.checked_pow(u32::from(exponent))
 }
@@ -391,17 +407,25 @@ impl Fixed {
     pub fn parse(text: &str, scale: Scale) -> Result<Self, ParseFixedError> {
         let text = parse_decimal(text)?;
         let (step_num, step_den) = scale.as_fraction().ok_or(ParseFixedError::OutOfRange)?;
-        // value = magnitude / 10^decimals; raw = value / (step_num / step_den).
-        let numerator = text
-            .magnitude
-            .checked_mul(step_den)
-            .ok_or(ParseFixedError::OutOfRange)?;
-        let denominator = pow10(text.decimals)
-            .and_then(|p| p.checked_mul(step_num))
-            .ok_or(ParseFixedError::OutOfRange)?;
-        if denominator == 0 {
+        // value = magnitude / 10^decimals and raw = value * step_den / step_num. Cancel common
+        // factors first, so that long exact inputs do not overflow on the way.
+        let (mut value_num, mut value_den) = (
+            text.magnitude,
+            pow10(text.decimals).ok_or(ParseFixedError::TooManyDigits)?,
+        );
+        let (mut step_num, mut step_den) = (step_num, step_den);
+        if step_num == 0 {
             return Err(ParseFixedError::NotRepresentable { scale });
         }
+        cancel(&mut value_num, &mut value_den);
+        cancel(&mut value_num, &mut step_num);
+        cancel(&mut step_den, &mut value_den);
+        let numerator = value_num
+            .checked_mul(step_den)
+            .ok_or(ParseFixedError::OutOfRange)?;
+        let denominator = value_den
+            .checked_mul(step_num)
+            .ok_or(ParseFixedError::OutOfRange)?;
         if numerator % denominator != 0 {
             return Err(ParseFixedError::NotRepresentable { scale });
         }
