@@ -258,9 +258,7 @@ impl<'a> Words<'a> {
 
 impl fmt::Debug for Words<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_list()
-            .entries(self.iter().map(Hex))
-            .finish()
+        f.debug_list().entries(self.iter().map(Hex)).finish()
     }
 }
 
