@@ -1,0 +1,167 @@
+//! Diagnostics that point into a spec, rendered in the style of rustc.
+
+use std::fmt::Write as _;
+
+use crate::source::{Path, SourceFile, Span};
+
+/// Where a label points.
+#[derive(Clone, Debug)]
+pub enum Location {
+    /// The value at a YAML path.
+    Value(Path),
+    /// The key naming the value at a YAML path.
+    Key(Path),
+    /// A position reported by the YAML parser.
+    Position {
+        /// Line, from 1.
+        line: usize,
+        /// Column, from 1.
+        column: usize,
+    },
+}
+
+/// A message attached to a location.
+#[derive(Clone, Debug)]
+pub struct Label {
+    /// Where.
+    pub location: Location,
+    /// What to say there (may be empty).
+    pub text: String,
+}
+
+/// One problem in a spec.
+#[derive(Clone, Debug)]
+pub struct Diagnostic {
+    /// The rule that found it (`duplicate-name`, `yaml`, …).
+    pub rule: &'static str,
+    /// One line saying what is wrong.
+    pub message: String,
+    /// The offending text.
+    pub primary: Label,
+    /// Related places ("first defined here").
+    pub secondary: Vec<Label>,
+    /// How to fix it.
+    pub help: Option<String>,
+}
+
+impl Diagnostic {
+    /// A diagnostic at the value of `path`.
+    pub fn at(rule: &'static str, path: &Path, message: impl Into<String>) -> Self {
+        Self {
+            rule,
+            message: message.into(),
+            primary: Label {
+                location: Location::Value(path.clone()),
+                text: String::new(),
+            },
+            secondary: Vec::new(),
+            help: None,
+        }
+    }
+
+    /// Sets the primary label's text.
+    pub fn label(mut self, text: impl Into<String>) -> Self {
+        self.primary.text = text.into();
+        self
+    }
+
+    /// Adds a secondary label at the value of `path`.
+    pub fn also(mut self, path: &Path, text: impl Into<String>) -> Self {
+        self.secondary.push(Label {
+            location: Location::Value(path.clone()),
+            text: text.into(),
+        });
+        self
+    }
+
+    /// Adds a help line.
+    pub fn help(mut self, text: impl Into<String>) -> Self {
+        self.help = Some(text.into());
+        self
+    }
+
+    /// Renders the diagnostic against its source, like rustc.
+    pub fn render(&self, source: &SourceFile) -> String {
+        let mut out = String::new();
+        let _ = writeln!(out, "error[{}]: {}", self.rule, self.message);
+        let primary = resolve(source, &self.primary.location);
+        let secondary: Vec<(Option<Span>, &str)> = self
+            .secondary
+            .iter()
+            .map(|label| (resolve(source, &label.location), label.text.as_str()))
+            .collect();
+        let gutter = std::iter::once(primary)
+            .chain(secondary.iter().map(|(span, _)| *span))
+            .flatten()
+            .map(|span| span.line.to_string().len())
+            .max()
+            .unwrap_or(1);
+        let pad = " ".repeat(gutter);
+        match primary {
+            Some(span) => {
+                let _ = writeln!(out, "{pad}--> {}:{}:{}", source.name, span.line, span.column);
+                snippet(&mut out, source, span, '^', &self.primary.text, gutter);
+            }
+            None => {
+                let _ = writeln!(out, "{pad}--> {}", source.name);
+            }
+        }
+        for (span, text) in secondary {
+            if let Some(span) = span {
+                let _ = writeln!(out, "{pad}::: {}:{}:{}", source.name, span.line, span.column);
+                snippet(&mut out, source, span, '-', text, gutter);
+            }
+        }
+        if let Some(help) = &self.help {
+            let _ = writeln!(out, "{pad} = help: {help}");
+        }
+        out
+    }
+}
+
+fn resolve(source: &SourceFile, location: &Location) -> Option<Span> {
+    match location {
+        Location::Value(path) => source.span(path),
+        Location::Key(path) => source.key_span(path).or_else(|| source.span(path)),
+        Location::Position { line, column } => Some(Span {
+            line: *line,
+            column: *column,
+            width: 1,
+        }),
+    }
+}
+
+fn snippet(out: &mut String, source: &SourceFile, span: Span, mark: char, text: &str, gutter: usize) {
+    let pad = " ".repeat(gutter);
+    let line = source.line(span.line).unwrap_or("");
+    let line_len = line.chars().count();
+    let start = span.column.saturating_sub(1).min(line_len);
+    let width = span.width.min(line_len.saturating_sub(start)).max(1);
+    let _ = writeln!(out, "{pad} |");
+    let _ = writeln!(out, "{:>gutter$} | {line}", span.line);
+    let prefix: String = line
+        .chars()
+        .take(start)
+        .map(|c| if c == '\t' { '\t' } else { ' ' })
+        .collect();
+    let marks: String = std::iter::repeat_n(mark, width).collect();
+    let text = if text.is_empty() { String::new() } else { format!(" {text}") };
+    let _ = writeln!(out, "{pad} | {prefix}{marks}{text}");
+}
+
+/// Renders every diagnostic, followed by a count.
+pub fn render_all(diagnostics: &[Diagnostic], source: &SourceFile) -> String {
+    let mut out = String::new();
+    for diagnostic in diagnostics {
+        out.push_str(&diagnostic.render(source));
+        out.push('\n');
+    }
+    let count = diagnostics.len();
+    let _ = writeln!(
+        out,
+        "error: {} has {count} error{}",
+        source.name,
+        if count == 1 { "" } else { "s" }
+    );
+    out
+}

@@ -1,0 +1,106 @@
+//! `dump --json`: the checked model with repeats expanded, in a stable shape other tools read.
+//!
+//! Field names are part of the interface: `family`, `device`, `registers[]` with `name`,
+//! `table`, `address`, `words`, `access`, `type`, `scale`, `unit`, `enum`, `range`,
+//! `sentinel`, `section`, then `commands` and `groups`.
+
+use serde_json::{json, Map, Value};
+
+use crate::model::{Addressing, Apply, ExceptionStyle, Kind, LongWrites, Model, Parity, Register};
+
+fn wire_type(model: &Model, register: &Register) -> String {
+    match &register.kind {
+        Kind::Ipv4 | Kind::Version(_) | Kind::Record(_) => register.kind.name().to_owned(),
+        _ => register
+            .scalar()
+            .map(|s| s.as_str().to_owned())
+            .unwrap_or_else(|| register.kind.name().to_owned()),
+    }
+    .to_string()
+        + if model.protocol.addressing == Addressing::Field { "" } else { "" }
+}
+
+fn codes(model: &Model, register: &Register) -> Value {
+    let Kind::Enum(reference) = &register.kind else {
+        return Value::Null;
+    };
+    let Some(def) = model.enum_def(reference) else {
+        return Value::Null;
+    };
+    let map: Map<String, Value> = def
+        .codes
+        .iter()
+        .map(|c| (c.code.to_string(), Value::String(c.name.clone())))
+        .collect();
+    Value::Object(map)
+}
+
+fn register_json(model: &Model, register: &Register) -> Value {
+    json!({
+        "name": register.name,
+        "table": register.table.as_str(),
+        "address": register.address.0,
+        "words": register.words.0,
+        "access": register.access.as_str(),
+        "type": wire_type(model, register),
+        "kind": register.kind.name(),
+        "scale": register.scale.as_ref().map(|s| s.text.clone()),
+        "unit": register.unit,
+        "enum": codes(model, register),
+        "range": register.range.map(|(min, max)| vec![min, max]),
+        "sentinel": register.sentinel,
+        "section": register.section,
+        "doc": register.doc,
+        "zh": register.zh,
+    })
+}
+
+/// The checked model as JSON.
+pub fn dump(model: &Model) -> Value {
+    let device = &model.device;
+    let parity = |p: Parity| match p {
+        Parity::None => "none",
+        Parity::Odd => "odd",
+        Parity::Even => "even",
+    };
+    json!({
+        "family": model.family,
+        "title": model.title,
+        "manual": {"file": model.manual.file, "version": model.manual.version},
+        "device": {
+            "rtu": device.rtu.as_ref().map(|rtu| json!({
+                "default_baud": rtu.default_baud,
+                "bauds": rtu.bauds,
+                "parity": parity(rtu.parity),
+                "data_bits": rtu.data_bits,
+                "stop_bits": rtu.stop_bits,
+            })),
+            "tcp": device.tcp.as_ref().map(|tcp| json!({
+                "port": tcp.port,
+                "default_ip": tcp.default_ip.map(|ip| ip.to_string()),
+            })),
+            "slave": {"default": device.default_slave, "min": device.min_slave, "max": device.max_slave},
+            "functions": device.functions,
+            "max_read_words": device.max_read_words,
+            "power_up_ms": device.power_up_ms,
+            "tables": {"holding": device.holding_size, "input": device.input_size},
+            "addressing": match model.protocol.addressing { Addressing::Word => "word", Addressing::Field => "field" },
+            "long_writes": match model.protocol.long_writes { LongWrites::Split => "split", LongWrites::Wide => "wide" },
+            "exception": match model.protocol.exception { ExceptionStyle::Standard => "standard", ExceptionStyle::CountedWord => "counted_word" },
+            "apply": match model.protocol.apply { Apply::Immediately => "immediately", Apply::AfterSaveAndPowerCycle => "after_save_and_power_cycle" },
+        },
+        "registers": model.registers.iter().map(|r| register_json(model, r)).collect::<Vec<_>>(),
+        "commands": model.commands.iter().map(|c| json!({
+            "name": c.name,
+            "register": c.register,
+            "value": c.value,
+            "busy_ms": c.busy_ms,
+            "doc": c.doc,
+        })).collect::<Vec<_>>(),
+        "groups": model.groups.iter().map(|g| json!({
+            "name": g.name,
+            "registers": g.registers.iter().map(|(name, _)| name.clone()).collect::<Vec<_>>(),
+            "doc": g.doc,
+        })).collect::<Vec<_>>(),
+    })
+}

@@ -1,0 +1,436 @@
+//! From the spec as written to the model: hoist inline enums, resolve enum references, read
+//! scales from their exact source text, and expand repeat blocks.
+
+use optobus_codec::value::{WordOrder, WriteOrder};
+
+use crate::diagnostic::Diagnostic;
+use crate::model::{
+    Access, Address, Code, Command, Device, EnumDef, EnumRef, Field, Group, Kind, Manual, Model,
+    Protocol, Register, Repeat, RepeatCopy, Reserved, Rtu, Scalar, ScaleSpec, Table, Tcp,
+    WordCount,
+};
+use crate::rules::scale::parse_scale;
+use crate::source::{Path, SourceFile};
+use crate::syntax::{
+    AccessName, CodeDecl, EffectName, FieldDecl, OrderName, RegisterDecl, SpecFile, TableName,
+    TypeName,
+};
+
+/// Lowers `spec`; problems that stop lowering an item are reported, the rest is left to rules.
+pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnostic>) {
+    let mut lowering = Lowering {
+        source,
+        enums: Vec::new(),
+        diagnostics: Vec::new(),
+    };
+    let root = Path::root();
+
+    for (name, decl) in &spec.enums {
+        let path = root.key("enums").key(name);
+        let codes = lowering.codes(&decl.codes, &path.key("codes"));
+        lowering.enums.push(EnumDef {
+            name: name.clone(),
+            doc: decl.doc.clone(),
+            codes,
+            shared: true,
+            section: decl.section.clone(),
+            path,
+        });
+    }
+
+    let mut registers = Vec::new();
+    for (i, decl) in spec.registers.iter().enumerate() {
+        let path = root.key("registers").index(i);
+        registers.push(lowering.register(decl, &decl.name, &path));
+    }
+
+    let mut repeats = Vec::new();
+    for (r, block) in spec.repeats.iter().enumerate() {
+        let block_path = root.key("repeats").index(r);
+        for (i, decl) in block.registers.iter().enumerate() {
+            let path = block_path.key("registers").index(i);
+            let stride = decl.stride.or(match decl.table {
+                TableName::Holding => block.stride.holding,
+                TableName::Input => block.stride.input,
+            });
+            if stride.is_none() {
+                lowering.diagnostics.push(
+                    Diagnostic::at(
+                        "repeat-stride",
+                        &path.key("table"),
+                        format!(
+                            "repeat `{}` has no stride for {} registers",
+                            block.name,
+                            table(decl.table).as_str()
+                        ),
+                    )
+                    .label("no stride for this table")
+                    .help("add it to the block's `stride:` or give this register a `stride:`"),
+                );
+            }
+            // One enum for all copies of an inline-coded register.
+            let template = lowering.register(decl, &decl.name, &path);
+            for number in 1..=block.count {
+                let mut copy = template.clone();
+                copy.name = format!("{}_{}_{}", block.name, number, decl.name);
+                let offset = stride.unwrap_or(0).saturating_mul(number - 1);
+                copy.address = Address(decl.address.saturating_add(offset));
+                copy.repeat = Some(RepeatCopy {
+                    repeat: r,
+                    number,
+                    base: decl.name.clone(),
+                    stride,
+                });
+                registers.push(copy);
+            }
+        }
+        repeats.push(Repeat {
+            name: block.name.clone(),
+            count: block.count,
+            holding_stride: block.stride.holding,
+            input_stride: block.stride.input,
+            doc: block.doc.clone(),
+            members: block.registers.iter().map(|d| d.name.clone()).collect(),
+            path: block_path,
+        });
+    }
+
+    let reserved = spec
+        .reserved
+        .iter()
+        .enumerate()
+        .map(|(i, decl)| Reserved {
+            table: table(decl.table),
+            from: decl.from,
+            to: decl.to,
+            path: root.key("reserved").index(i),
+        })
+        .collect();
+
+    let commands = spec
+        .commands
+        .iter()
+        .enumerate()
+        .map(|(i, decl)| Command {
+            name: decl.name.clone(),
+            register: decl.register.clone(),
+            value: decl.value,
+            busy_ms: decl.busy_ms,
+            effect: decl.effect.unwrap_or(EffectName::None),
+            targets: decl.targets.clone(),
+            doc: decl.doc.clone(),
+            section: decl.section.clone(),
+            path: root.key("commands").index(i),
+        })
+        .collect();
+
+    let groups = spec
+        .groups
+        .iter()
+        .enumerate()
+        .map(|(i, decl)| {
+            let path = root.key("groups").index(i);
+            Group {
+                name: decl.name.clone(),
+                registers: decl
+                    .registers
+                    .iter()
+                    .enumerate()
+                    .map(|(j, name)| (name.clone(), path.key("registers").index(j)))
+                    .collect(),
+                doc: decl.doc.clone(),
+                path,
+            }
+        })
+        .collect();
+
+    let device = lowering.device(&spec);
+    let protocol = Protocol {
+        addressing: spec.protocol.addressing,
+        long_writes: spec.protocol.long_writes,
+        exception: spec.protocol.exception,
+        apply: spec.protocol.apply,
+        continuous_send: spec.protocol.continuous_send.as_ref().map(|c| {
+            (
+                c.register.clone(),
+                c.code,
+                root.key("protocol").key("continuous_send").key("register"),
+            )
+        }),
+    };
+
+    let model = Model {
+        family: spec.family,
+        title: spec.title,
+        manual: Manual {
+            file: spec.manual.file,
+            version: spec.manual.version,
+            date: spec.manual.date,
+        },
+        device,
+        protocol,
+        enums: lowering.enums,
+        registers,
+        reserved,
+        commands,
+        groups,
+        repeats,
+    };
+    (model, lowering.diagnostics)
+}
+
+struct Lowering<'a> {
+    source: &'a SourceFile,
+    enums: Vec<EnumDef>,
+    diagnostics: Vec<Diagnostic>,
+}
+
+fn table(name: TableName) -> Table {
+    match name {
+        TableName::Holding => Table::Holding,
+        TableName::Input => Table::Input,
+    }
+}
+
+fn scalar_of(kind: TypeName) -> Option<Scalar> {
+    match kind {
+        TypeName::U16 => Some(Scalar::U16),
+        TypeName::I16 => Some(Scalar::I16),
+        TypeName::U32 => Some(Scalar::U32),
+        TypeName::I32 => Some(Scalar::I32),
+        _ => None,
+    }
+}
+
+impl Lowering<'_> {
+    fn codes(&self, decls: &[CodeDecl], path: &Path) -> Vec<Code> {
+        decls
+            .iter()
+            .enumerate()
+            .map(|(i, decl)| Code {
+                code: decl.code,
+                name: decl.name.clone(),
+                meaning: decl.meaning.clone(),
+                doc: decl.doc.clone(),
+                path: path.index(i),
+            })
+            .collect()
+    }
+
+    /// Resolves `enum: name` or hoists `codes:` into an enum called `inline_name`.
+    fn enum_ref(
+        &mut self,
+        enum_name: Option<&String>,
+        codes: Option<&Vec<CodeDecl>>,
+        inline_name: &str,
+        doc: Option<&String>,
+        path: &Path,
+    ) -> Option<EnumRef> {
+        if let Some(codes) = codes {
+            let codes = self.codes(codes, &path.key("codes"));
+            let index = match self.enums.iter().position(|e| !e.shared && e.name == inline_name) {
+                Some(existing) => existing,
+                None => {
+                    self.enums.push(EnumDef {
+                        name: inline_name.to_owned(),
+                        doc: doc.cloned(),
+                        codes,
+                        shared: false,
+                        section: None,
+                        path: path.key("codes"),
+                    });
+                    self.enums.len() - 1
+                }
+            };
+            return Some(EnumRef {
+                name: inline_name.to_owned(),
+                index: Some(index),
+                path: path.key("codes"),
+            });
+        }
+        enum_name.map(|name| EnumRef {
+            name: name.clone(),
+            index: self.enums.iter().position(|e| e.shared && &e.name == name),
+            path: path.key("enum"),
+        })
+    }
+
+    fn scale(&self, value: Option<&serde_yaml::Value>, path: &Path) -> Option<ScaleSpec> {
+        let value = value?;
+        let path = path.key("scale");
+        let text = self
+            .source
+            .scalar(&path)
+            .map(str::to_owned)
+            .unwrap_or_else(|| match value {
+                serde_yaml::Value::String(s) => s.clone(),
+                other => serde_yaml::to_string(other).unwrap_or_default().trim().to_owned(),
+            });
+        Some(ScaleSpec {
+            value: parse_scale(&text),
+            text,
+            path,
+        })
+    }
+
+    fn field(&mut self, decl: &FieldDecl, owner: &str, path: &Path) -> Field {
+        let enum_ref = self.enum_ref(
+            decl.enum_name.as_ref(),
+            decl.codes.as_ref(),
+            &format!("{owner}_{}", decl.name),
+            decl.doc.as_ref(),
+            path,
+        );
+        Field {
+            name: decl.name.clone(),
+            lsb: decl.lsb,
+            width: decl.width,
+            scalar: decl.kind.and_then(scalar_of),
+            enum_ref,
+            range: decl.range,
+            scale: self.scale(decl.scale.as_ref(), path),
+            unit: decl.unit.clone(),
+            sentinel: decl.sentinel,
+            doc: decl.doc.clone(),
+            path: path.clone(),
+        }
+    }
+
+    fn fields(&mut self, decl: &RegisterDecl, path: &Path) -> Vec<Field> {
+        decl.fields
+            .iter()
+            .flatten()
+            .enumerate()
+            .map(|(i, field)| self.field(field, &decl.name, &path.key("fields").index(i)))
+            .collect()
+    }
+
+    fn register(
+        &mut self,
+        decl: &RegisterDecl,
+        name: &str,
+        path: &Path,
+    ) -> Register {
+        let kind = match decl.kind {
+            TypeName::Bool => Kind::Bool,
+            TypeName::U16 | TypeName::I16 | TypeName::U32 | TypeName::I32 => {
+                Kind::Scalar(scalar_of(decl.kind).unwrap_or(Scalar::U16))
+            }
+            TypeName::Enum => {
+                match self.enum_ref(
+                    decl.enum_name.as_ref(),
+                    decl.codes.as_ref(),
+                    name,
+                    decl.doc.as_ref(),
+                    path,
+                ) {
+                    Some(reference) => Kind::Enum(reference),
+                    None => {
+                        self.diagnostics.push(
+                            Diagnostic::at(
+                                "enum-reference",
+                                &path.key("type"),
+                                format!("enum register `{name}` names no codes"),
+                            )
+                            .label("declared `enum` here")
+                            .help("add `enum: <shared enum>` or inline `codes:`"),
+                        );
+                        Kind::Scalar(Scalar::U16)
+                    }
+                }
+            }
+            TypeName::Packed => Kind::Packed(self.fields(decl, path)),
+            TypeName::Record => Kind::Record(self.fields(decl, path)),
+            TypeName::Ipv4 => Kind::Ipv4,
+            TypeName::Version => Kind::Version(decl.parts.clone().unwrap_or_default()),
+        };
+        let default_words = match &kind {
+            Kind::Bool | Kind::Enum(_) | Kind::Packed(_) => 1,
+            Kind::Scalar(scalar) => scalar.words(),
+            Kind::Ipv4 => 4,
+            Kind::Version(_) => 2,
+            Kind::Record(fields) => fields
+                .iter()
+                .map(|f| f.scalar.map_or(1, Scalar::words))
+                .sum(),
+        };
+        Register {
+            name: name.to_owned(),
+            table: table(decl.table),
+            address: Address(decl.address),
+            access: match decl.access {
+                AccessName::Read => Access::Read,
+                AccessName::ReadWrite => Access::ReadWrite,
+                AccessName::Write => Access::Write,
+            },
+            words: WordCount(decl.words.unwrap_or(default_words)),
+            declared_words: decl.words,
+            kind,
+            doc: decl.doc.clone(),
+            zh: decl.zh.clone(),
+            section: decl.section.clone(),
+            note: decl.note.clone(),
+            scale: self.scale(decl.scale.as_ref(), path),
+            unit: decl.unit.clone(),
+            range: decl.range,
+            sentinel: decl.sentinel,
+            word_order: match decl.word_order {
+                Some(OrderName::LowFirst) => WordOrder::LowFirst,
+                _ => WordOrder::HighFirst,
+            },
+            write_order: decl.write_order.map(|order| match order {
+                OrderName::HighFirst => WriteOrder::HighWordFirst,
+                OrderName::LowFirst => WriteOrder::LowWordFirst,
+            }),
+            alias_of: decl.alias_of.clone(),
+            repeat: None,
+            path: path.clone(),
+        }
+    }
+
+    fn device(&mut self, spec: &SpecFile) -> Device {
+        let decl = &spec.device;
+        let tcp = decl.transports.tcp.as_ref().map(|tcp| {
+            let default_ip = tcp.default_ip.as_ref().and_then(|ip| match ip.parse() {
+                Ok(ip) => Some(ip),
+                Err(_) => {
+                    self.diagnostics.push(
+                        Diagnostic::at(
+                            "device",
+                            &Path::root()
+                                .key("device")
+                                .key("transports")
+                                .key("tcp")
+                                .key("default_ip"),
+                            format!("`{ip}` is not an IPv4 address"),
+                        )
+                        .label("expected four octets such as 192.168.0.10"),
+                    );
+                    None
+                }
+            });
+            Tcp {
+                port: tcp.port,
+                default_ip,
+            }
+        });
+        Device {
+            rtu: decl.transports.rtu.as_ref().map(|rtu| Rtu {
+                default_baud: rtu.default_baud,
+                bauds: rtu.bauds.clone(),
+                parity: rtu.parity,
+                data_bits: rtu.data_bits,
+                stop_bits: rtu.stop_bits,
+            }),
+            tcp,
+            default_slave: decl.slave.default,
+            min_slave: decl.slave.min,
+            max_slave: decl.slave.max,
+            functions: decl.functions.clone(),
+            max_read_words: decl.max_read_words,
+            power_up_ms: decl.power_up_ms,
+            holding_size: decl.tables.holding,
+            input_size: decl.tables.input,
+        }
+    }
+}

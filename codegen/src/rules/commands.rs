@@ -1,0 +1,93 @@
+//! `command`: a command writes an existing, writable register with a value it accepts, and its
+//! targets exist.
+
+use crate::diagnostic::Diagnostic;
+use crate::model::{Kind, Model, Register};
+
+/// Rule name.
+pub const RULE: &str = "command";
+
+/// The register a command or group member names: a register, or a repeat block's base name
+/// (standing for all its copies).
+pub fn resolve<'a>(model: &'a Model, name: &str) -> Option<&'a Register> {
+    model.register(name).or_else(|| {
+        model
+            .registers
+            .iter()
+            .find(|r| r.repeat.as_ref().is_some_and(|c| c.base == name))
+    })
+}
+
+/// True when `value` is a value `register` accepts (range, enum codes, type bounds).
+pub fn accepts(model: &Model, register: &Register, value: i64) -> bool {
+    if let Some((min, max)) = register.range {
+        if value < min || value > max {
+            return false;
+        }
+    }
+    match &register.kind {
+        Kind::Enum(reference) => model
+            .enum_def(reference)
+            .is_none_or(|def| def.codes.iter().any(|c| c.code == value)),
+        Kind::Bool => value == 0 || value == 1,
+        _ => register.scalar().is_none_or(|s| {
+            let (min, max) = s.bounds();
+            (min..=max).contains(&value)
+        }),
+    }
+}
+
+/// Checks commands.
+pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+    for command in &model.commands {
+        let register_path = command.path.key("register");
+        match resolve(model, &command.register) {
+            None => out.push(
+                Diagnostic::at(
+                    RULE,
+                    &register_path,
+                    format!("command `{}` writes unknown register `{}`", command.name, command.register),
+                )
+                .label("no such register"),
+            ),
+            Some(register) if !register.access.writable() => out.push(
+                Diagnostic::at(
+                    RULE,
+                    &register_path,
+                    format!(
+                        "command `{}` writes `{}`, which is read-only",
+                        command.name, command.register
+                    ),
+                )
+                .label("read-only register")
+                .also(&register.path.key("access"), "declared read-only here")
+                .help("a command acts through a writable register (access `w` or `rw`)"),
+            ),
+            Some(register) if !accepts(model, register, command.value) => out.push(
+                Diagnostic::at(
+                    RULE,
+                    &command.path.key("value"),
+                    format!(
+                        "command `{}` writes {} to `{}`, which refuses it",
+                        command.name, command.value, command.register
+                    ),
+                )
+                .label("outside the register's range or codes")
+                .also(&register.path.key("name"), "register defined here"),
+            ),
+            Some(_) => {}
+        }
+        for (i, target) in command.targets.iter().enumerate() {
+            if resolve(model, target).is_none() {
+                out.push(
+                    Diagnostic::at(
+                        RULE,
+                        &command.path.key("targets").index(i),
+                        format!("command `{}` targets unknown register `{target}`", command.name),
+                    )
+                    .label("no such register"),
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,75 @@
+//! `missing-doc`: everything a user sees in the driver's documentation has an English doc, and
+//! every register cites the manual (`zh`, `section`).
+
+use crate::diagnostic::Diagnostic;
+use crate::model::Model;
+use crate::source::Path;
+
+/// Rule name.
+pub const RULE: &str = "missing-doc";
+
+fn missing(text: Option<&String>) -> bool {
+    text.is_none_or(|t| t.trim().is_empty())
+}
+
+fn report(what: String, key: &str, path: Path, out: &mut Vec<Diagnostic>) {
+    out.push(
+        Diagnostic::at(RULE, &path, format!("{what} has no `{key}`"))
+            .label(format!("add `{key}:` here"))
+            .help(match key {
+                "doc" => "one English sentence; it becomes the item's documentation",
+                "zh" => "the manual's own name for the register",
+                _ => "the manual section the entry comes from",
+            }),
+    );
+}
+
+/// Checks docs.
+pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+    for register in super::declared(model) {
+        let name = register
+            .repeat
+            .as_ref()
+            .map_or(register.name.as_str(), |c| c.base.as_str());
+        let at = register.path.key("name");
+        if missing(register.doc.as_ref()) {
+            report(format!("register `{name}`"), "doc", at.clone(), out);
+        }
+        if missing(register.zh.as_ref()) {
+            report(format!("register `{name}`"), "zh", at.clone(), out);
+        }
+        if missing(register.section.as_ref()) {
+            report(format!("register `{name}`"), "section", at, out);
+        }
+    }
+    for def in &model.enums {
+        if def.shared && missing(def.doc.as_ref()) {
+            report(format!("enum `{}`", def.name), "doc", def.path.clone(), out);
+        }
+        for code in &def.codes {
+            if missing(code.doc.as_ref()) {
+                report(
+                    format!("code `{}` of `{}`", code.name, def.name),
+                    "doc",
+                    code.path.key("name"),
+                    out,
+                );
+            }
+        }
+    }
+    for command in &model.commands {
+        if missing(command.doc.as_ref()) {
+            report(format!("command `{}`", command.name), "doc", command.path.key("name"), out);
+        }
+    }
+    for group in &model.groups {
+        if missing(group.doc.as_ref()) {
+            report(format!("group `{}`", group.name), "doc", group.path.key("name"), out);
+        }
+    }
+    for repeat in &model.repeats {
+        if missing(repeat.doc.as_ref()) {
+            report(format!("repeat `{}`", repeat.name), "doc", repeat.path.key("name"), out);
+        }
+    }
+}

@@ -1,0 +1,84 @@
+//! `enum-codes`: an enum has codes, no duplicate codes or names, and codes that fit the value
+//! they are stored in.
+
+use std::collections::HashMap;
+
+use crate::diagnostic::Diagnostic;
+use crate::model::{Kind, Model};
+
+/// Rule name.
+pub const RULE: &str = "enum-codes";
+
+/// Checks enums.
+pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+    for def in &model.enums {
+        if def.codes.is_empty() {
+            out.push(
+                Diagnostic::at(RULE, &def.path, format!("enum `{}` has no codes", def.name))
+                    .label("empty"),
+            );
+        }
+        let mut codes = HashMap::new();
+        let mut names = HashMap::new();
+        for code in &def.codes {
+            if let Some(first) = codes.insert(code.code, code.path.clone()) {
+                out.push(
+                    Diagnostic::at(
+                        RULE,
+                        &code.path.key("code"),
+                        format!("enum `{}` has code {} twice", def.name, code.code),
+                    )
+                    .label("duplicate code")
+                    .also(&first.key("code"), "first used here"),
+                );
+            }
+            if let Some(first) = names.insert(code.name.as_str(), code.path.clone()) {
+                out.push(
+                    Diagnostic::at(
+                        RULE,
+                        &code.path.key("name"),
+                        format!("enum `{}` has two codes named `{}`", def.name, code.name),
+                    )
+                    .label("duplicate name")
+                    .also(&first.key("name"), "first used here"),
+                );
+            }
+        }
+    }
+    // Codes fit the storage of every user of the enum.
+    for register in super::declared(model) {
+        let mut users = Vec::new();
+        match &register.kind {
+            Kind::Enum(reference) => {
+                let bits = 16 * register.words.0.min(2);
+                users.push((reference, bits));
+            }
+            Kind::Packed(fields) => {
+                for field in fields {
+                    if let (Some(reference), Some(width)) = (&field.enum_ref, field.width) {
+                        users.push((reference, u32::from(width)));
+                    }
+                }
+            }
+            _ => {}
+        }
+        for (reference, bits) in users {
+            let Some(def) = model.enum_def(reference) else { continue };
+            let max = if bits >= 63 { i64::MAX } else { (1i64 << bits) - 1 };
+            for code in def.codes.iter().filter(|c| c.code < 0 || c.code > max) {
+                out.push(
+                    Diagnostic::at(
+                        RULE,
+                        &code.path.key("code"),
+                        format!(
+                            "code {} of `{}` does not fit the {bits} bits of `{}`",
+                            code.code, def.name, register.name
+                        ),
+                    )
+                    .label(format!("outside 0..={max}"))
+                    .also(&reference.path, "used here"),
+                );
+            }
+        }
+    }
+}

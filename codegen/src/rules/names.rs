@@ -1,0 +1,124 @@
+//! `duplicate-name`: names are unique per kind (registers, enums, commands, groups, repeats);
+//! `name-format`: names are snake_case.
+
+use std::collections::HashMap;
+
+use crate::diagnostic::Diagnostic;
+use crate::model::Model;
+use crate::source::Path;
+
+/// Rule name of the uniqueness check.
+pub const RULE: &str = "duplicate-name";
+/// Rule name of the format check.
+pub const FORMAT_RULE: &str = "name-format";
+
+fn unique<'a>(
+    kind: &str,
+    items: impl Iterator<Item = (&'a str, Path)>,
+    out: &mut Vec<Diagnostic>,
+) {
+    let mut seen: HashMap<&str, Path> = HashMap::new();
+    for (name, path) in items {
+        match seen.get(name) {
+            Some(first) => out.push(
+                Diagnostic::at(RULE, &path, format!("{kind} `{name}` is defined twice"))
+                    .label("defined again here")
+                    .also(first, "first defined here")
+                    .help(format!(
+                        "rename one of them{}",
+                        if kind == "register" {
+                            ", or declare the second with `alias_of:` if both views are meant"
+                        } else {
+                            ""
+                        }
+                    )),
+            ),
+            None => {
+                seen.insert(name, path);
+            }
+        }
+    }
+}
+
+/// Checks uniqueness.
+pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+    unique(
+        "register",
+        model
+            .registers
+            .iter()
+            .map(|r| (r.name.as_str(), r.path.key("name"))),
+        out,
+    );
+    unique(
+        "enum",
+        model
+            .enums
+            .iter()
+            .filter(|e| e.shared)
+            .map(|e| (e.name.as_str(), e.path.clone())),
+        out,
+    );
+    unique(
+        "command",
+        model
+            .commands
+            .iter()
+            .map(|c| (c.name.as_str(), c.path.key("name"))),
+        out,
+    );
+    unique(
+        "group",
+        model
+            .groups
+            .iter()
+            .map(|g| (g.name.as_str(), g.path.key("name"))),
+        out,
+    );
+    unique(
+        "repeat",
+        model
+            .repeats
+            .iter()
+            .map(|r| (r.name.as_str(), r.path.key("name"))),
+        out,
+    );
+}
+
+/// True for `snake_case` starting with a letter.
+pub fn is_snake_case(name: &str) -> bool {
+    name.starts_with(|c: char| c.is_ascii_lowercase())
+        && name
+            .chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
+        && !name.contains("__")
+        && !name.ends_with('_')
+}
+
+/// Checks that every name becomes a clean Rust identifier.
+pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
+    let mut names: Vec<(&str, Path)> = Vec::new();
+    names.push((&model.family, Path::root().key("family")));
+    names.extend(
+        super::declared(model)
+            .map(|r| (r.repeat.as_ref().map_or(r.name.as_str(), |c| c.base.as_str()), r.path.key("name"))),
+    );
+    for e in &model.enums {
+        if e.shared {
+            names.push((&e.name, e.path.clone()));
+        }
+        names.extend(e.codes.iter().map(|c| (c.name.as_str(), c.path.key("name"))));
+    }
+    names.extend(model.commands.iter().map(|c| (c.name.as_str(), c.path.key("name"))));
+    names.extend(model.groups.iter().map(|g| (g.name.as_str(), g.path.key("name"))));
+    names.extend(model.repeats.iter().map(|r| (r.name.as_str(), r.path.key("name"))));
+    for (name, path) in names {
+        if !is_snake_case(name) {
+            out.push(
+                Diagnostic::at(FORMAT_RULE, &path, format!("`{name}` is not snake_case"))
+                    .label("expected lowercase letters, digits and single underscores")
+                    .help("start with a letter, e.g. `us_100` rather than `100us`"),
+            );
+        }
+    }
+}
