@@ -99,7 +99,11 @@ impl Diagnostic {
         let pad = " ".repeat(gutter);
         match primary {
             Some(span) => {
-                let _ = writeln!(out, "{pad}--> {}:{}:{}", source.name, span.line, span.column);
+                let _ = writeln!(
+                    out,
+                    "{pad}--> {}:{}:{}",
+                    source.name, span.line, span.column
+                );
                 snippet(&mut out, source, span, '^', &self.primary.text, gutter);
             }
             None => {
@@ -108,7 +112,11 @@ impl Diagnostic {
         }
         for (span, text) in secondary {
             if let Some(span) = span {
-                let _ = writeln!(out, "{pad}::: {}:{}:{}", source.name, span.line, span.column);
+                let _ = writeln!(
+                    out,
+                    "{pad}::: {}:{}:{}",
+                    source.name, span.line, span.column
+                );
                 snippet(&mut out, source, span, '-', text, gutter);
             }
         }
@@ -123,15 +131,34 @@ fn resolve(source: &SourceFile, location: &Location) -> Option<Span> {
     match location {
         Location::Value(path) => source.span(path),
         Location::Key(path) => source.key_span(path).or_else(|| source.span(path)),
-        Location::Position { line, column } => Some(Span {
-            line: *line,
-            column: *column,
-            width: 1,
-        }),
+        Location::Position { line, column } => {
+            // Underline the token the parser stopped at.
+            let width = source
+                .line(*line)
+                .map(|text| {
+                    text.chars()
+                        .skip(column.saturating_sub(1))
+                        .take_while(|c| !c.is_whitespace() && !matches!(c, ':' | ',' | '}' | ']'))
+                        .count()
+                })
+                .unwrap_or(1);
+            Some(Span {
+                line: *line,
+                column: *column,
+                width: width.max(1),
+            })
+        }
     }
 }
 
-fn snippet(out: &mut String, source: &SourceFile, span: Span, mark: char, text: &str, gutter: usize) {
+fn snippet(
+    out: &mut String,
+    source: &SourceFile,
+    span: Span,
+    mark: char,
+    text: &str,
+    gutter: usize,
+) {
     let pad = " ".repeat(gutter);
     let line = source.line(span.line).unwrap_or("");
     let line_len = line.chars().count();
@@ -145,7 +172,11 @@ fn snippet(out: &mut String, source: &SourceFile, span: Span, mark: char, text: 
         .map(|c| if c == '\t' { '\t' } else { ' ' })
         .collect();
     let marks: String = std::iter::repeat_n(mark, width).collect();
-    let text = if text.is_empty() { String::new() } else { format!(" {text}") };
+    let text = if text.is_empty() {
+        String::new()
+    } else {
+        format!(" {text}")
+    };
     let _ = writeln!(out, "{pad} | {prefix}{marks}{text}");
 }
 

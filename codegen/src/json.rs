@@ -17,7 +17,11 @@ fn wire_type(model: &Model, register: &Register) -> String {
             .unwrap_or_else(|| register.kind.name().to_owned()),
     }
     .to_string()
-        + if model.protocol.addressing == Addressing::Field { "" } else { "" }
+        + if model.protocol.addressing == Addressing::Field {
+            ""
+        } else {
+            ""
+        }
 }
 
 fn codes(model: &Model, register: &Register) -> Value {

@@ -91,7 +91,11 @@ pub fn check_file(path: &std::path::Path) -> Result<Model, Box<Rejected>> {
         Ok(text) => check_source(&name, &text),
         Err(error) => Err(Box::new(Rejected {
             source: SourceFile::new(name.clone(), ""),
-            diagnostics: vec![Diagnostic::at("io", &source::Path::root(), format!("cannot read {name}: {error}"))],
+            diagnostics: vec![Diagnostic::at(
+                "io",
+                &source::Path::root(),
+                format!("cannot read {name}: {error}"),
+            )],
         })),
     }
 }

@@ -228,7 +228,11 @@ impl Lowering<'_> {
     ) -> Option<EnumRef> {
         if let Some(codes) = codes {
             let codes = self.codes(codes, &path.key("codes"));
-            let index = match self.enums.iter().position(|e| !e.shared && e.name == inline_name) {
+            let index = match self
+                .enums
+                .iter()
+                .position(|e| !e.shared && e.name == inline_name)
+            {
                 Some(existing) => existing,
                 None => {
                     self.enums.push(EnumDef {
@@ -264,7 +268,10 @@ impl Lowering<'_> {
             .map(str::to_owned)
             .unwrap_or_else(|| match value {
                 serde_yaml::Value::String(s) => s.clone(),
-                other => serde_yaml::to_string(other).unwrap_or_default().trim().to_owned(),
+                other => serde_yaml::to_string(other)
+                    .unwrap_or_default()
+                    .trim()
+                    .to_owned(),
             });
         Some(ScaleSpec {
             value: parse_scale(&text),
@@ -305,12 +312,7 @@ impl Lowering<'_> {
             .collect()
     }
 
-    fn register(
-        &mut self,
-        decl: &RegisterDecl,
-        name: &str,
-        path: &Path,
-    ) -> Register {
+    fn register(&mut self, decl: &RegisterDecl, name: &str, path: &Path) -> Register {
         let kind = match decl.kind {
             TypeName::Bool => Kind::Bool,
             TypeName::U16 | TypeName::I16 | TypeName::U32 | TypeName::I32 => {

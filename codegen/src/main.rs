@@ -24,7 +24,9 @@ fn main() -> ExitCode {
         },
         Some("generate") => match &args[1..] {
             [path] => generate(path, None),
-            [path, flag, out] if flag == "-o" || flag == "--out" => generate(path, Some(out.into())),
+            [path, flag, out] if flag == "-o" || flag == "--out" => {
+                generate(path, Some(out.into()))
+            }
             _ => usage(),
         },
         _ => usage(),

@@ -184,7 +184,10 @@ impl MarkedEventReceiver for Builder {
     fn on_event(&mut self, event: Event, mark: Marker) {
         match event {
             Event::Scalar(text, style, ..) => {
-                let quoted = matches!(style, TScalarStyle::SingleQuoted | TScalarStyle::DoubleQuoted);
+                let quoted = matches!(
+                    style,
+                    TScalarStyle::SingleQuoted | TScalarStyle::DoubleQuoted
+                );
                 let width = text.chars().count() + if quoted { 2 } else { 0 };
                 if self.expecting_key() {
                     if let Some(Frame::Mapping { pending_key, .. }) = self.stack.last_mut() {
@@ -212,14 +215,15 @@ impl MarkedEventReceiver for Builder {
                         text: None,
                     },
                 );
-                self.stack.push(if matches!(event, Event::MappingStart(..)) {
-                    Frame::Mapping {
-                        path,
-                        pending_key: None,
-                    }
-                } else {
-                    Frame::Sequence { path, next: 0 }
-                });
+                self.stack
+                    .push(if matches!(event, Event::MappingStart(..)) {
+                        Frame::Mapping {
+                            path,
+                            pending_key: None,
+                        }
+                    } else {
+                        Frame::Sequence { path, next: 0 }
+                    });
             }
             Event::MappingEnd | Event::SequenceEnd => {
                 self.stack.pop();
@@ -242,11 +246,18 @@ mod tests {
         let first = Path::root().key("registers").index(0);
         assert_eq!(
             source.span(&first.key("name")),
-            Some(Span { line: 3, column: 11, width: 1 })
+            Some(Span {
+                line: 3,
+                column: 11,
+                width: 1
+            })
         );
         assert_eq!(source.scalar(&first.key("scale")), Some("1e-6"));
         let second = Path::root().key("registers").index(1).key("address");
-        assert_eq!(source.span(&second).map(|s| (s.line, s.column)), Some((5, 26)));
+        assert_eq!(
+            source.span(&second).map(|s| (s.line, s.column)),
+            Some((5, 26))
+        );
         assert_eq!(source.key_span(&second).map(|s| s.column), Some(17));
         // Unknown paths fall back to the nearest ancestor.
         assert_eq!(source.span(&first.key("doc")).map(|s| s.line), Some(3));

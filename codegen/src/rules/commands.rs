@@ -46,7 +46,10 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 Diagnostic::at(
                     RULE,
                     &register_path,
-                    format!("command `{}` writes unknown register `{}`", command.name, command.register),
+                    format!(
+                        "command `{}` writes unknown register `{}`",
+                        command.name, command.register
+                    ),
                 )
                 .label("no such register"),
             ),
@@ -83,7 +86,10 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                     Diagnostic::at(
                         RULE,
                         &command.path.key("targets").index(i),
-                        format!("command `{}` targets unknown register `{target}`", command.name),
+                        format!(
+                            "command `{}` targets unknown register `{target}`",
+                            command.name
+                        ),
                     )
                     .label("no such register"),
                 );

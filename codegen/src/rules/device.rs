@@ -12,7 +12,9 @@ pub const RULE: &str = "device";
 pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     let device = &model.device;
     let path = Path::root().key("device");
-    if !(device.min_slave..=device.max_slave).contains(&device.default_slave) || device.max_slave > 247 {
+    if !(device.min_slave..=device.max_slave).contains(&device.default_slave)
+        || device.max_slave > 247
+    {
         out.push(
             Diagnostic::at(
                 RULE,
@@ -31,7 +33,10 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 Diagnostic::at(
                     RULE,
                     &path.key("transports").key("rtu").key("default_baud"),
-                    format!("default baud {} is not among the allowed bauds", rtu.default_baud),
+                    format!(
+                        "default baud {} is not among the allowed bauds",
+                        rtu.default_baud
+                    ),
                 )
                 .label("not in `bauds`"),
             );

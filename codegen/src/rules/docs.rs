@@ -59,17 +59,32 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     }
     for command in &model.commands {
         if missing(command.doc.as_ref()) {
-            report(format!("command `{}`", command.name), "doc", command.path.key("name"), out);
+            report(
+                format!("command `{}`", command.name),
+                "doc",
+                command.path.key("name"),
+                out,
+            );
         }
     }
     for group in &model.groups {
         if missing(group.doc.as_ref()) {
-            report(format!("group `{}`", group.name), "doc", group.path.key("name"), out);
+            report(
+                format!("group `{}`", group.name),
+                "doc",
+                group.path.key("name"),
+                out,
+            );
         }
     }
     for repeat in &model.repeats {
         if missing(repeat.doc.as_ref()) {
-            report(format!("repeat `{}`", repeat.name), "doc", repeat.path.key("name"), out);
+            report(
+                format!("repeat `{}`", repeat.name),
+                "doc",
+                repeat.path.key("name"),
+                out,
+            );
         }
     }
 }

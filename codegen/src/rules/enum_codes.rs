@@ -63,8 +63,14 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             _ => {}
         }
         for (reference, bits) in users {
-            let Some(def) = model.enum_def(reference) else { continue };
-            let max = if bits >= 63 { i64::MAX } else { (1i64 << bits) - 1 };
+            let Some(def) = model.enum_def(reference) else {
+                continue;
+            };
+            let max = if bits >= 63 {
+                i64::MAX
+            } else {
+                (1i64 << bits) - 1
+            };
             for code in def.codes.iter().filter(|c| c.code < 0 || c.code > max) {
                 out.push(
                     Diagnostic::at(

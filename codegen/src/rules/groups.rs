@@ -13,24 +13,38 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     for group in &model.groups {
         if group.registers.is_empty() {
             out.push(
-                Diagnostic::at(RULE, &group.path.key("registers"), format!("group `{}` is empty", group.name))
-                    .label("no registers"),
+                Diagnostic::at(
+                    RULE,
+                    &group.path.key("registers"),
+                    format!("group `{}` is empty", group.name),
+                )
+                .label("no registers"),
             );
         }
         let mut first: Option<(&str, crate::model::Table, &crate::source::Path)> = None;
         for (name, path) in &group.registers {
             let Some(register) = resolve(model, name) else {
                 out.push(
-                    Diagnostic::at(RULE, path, format!("group `{}` names unknown register `{name}`", group.name))
-                        .label("no such register")
-                        .help("use a register name, or a repeat block's register name for all its copies"),
+                    Diagnostic::at(
+                        RULE,
+                        path,
+                        format!("group `{}` names unknown register `{name}`", group.name),
+                    )
+                    .label("no such register")
+                    .help(
+                        "use a register name, or a repeat block's register name for all its copies",
+                    ),
                 );
                 continue;
             };
             if !register.access.readable() {
                 out.push(
-                    Diagnostic::at(RULE, path, format!("group `{}` names write-only `{name}`", group.name))
-                        .label("cannot be read"),
+                    Diagnostic::at(
+                        RULE,
+                        path,
+                        format!("group `{}` names write-only `{name}`", group.name),
+                    )
+                    .label("cannot be read"),
                 );
             }
             match first {

@@ -30,22 +30,70 @@ pub struct Rule {
 
 /// Every rule, in the order their diagnostics are reported.
 pub const RULES: &[Rule] = &[
-    Rule { name: names::RULE, check: names::check },
-    Rule { name: names::FORMAT_RULE, check: names::check_format },
-    Rule { name: references::RULE, check: references::check },
-    Rule { name: device::RULE, check: device::check },
-    Rule { name: type_width::RULE, check: type_width::check },
-    Rule { name: table_bounds::RULE, check: table_bounds::check },
-    Rule { name: overlap::RULE, check: overlap::check },
-    Rule { name: repeats::RULE, check: repeats::check },
-    Rule { name: enum_codes::RULE, check: enum_codes::check },
-    Rule { name: range::RULE, check: range::check },
-    Rule { name: sentinel::RULE, check: sentinel::check },
-    Rule { name: scale::RULE, check: scale::check },
-    Rule { name: write_order::RULE, check: write_order::check },
-    Rule { name: commands::RULE, check: commands::check },
-    Rule { name: groups::RULE, check: groups::check },
-    Rule { name: docs::RULE, check: docs::check },
+    Rule {
+        name: names::RULE,
+        check: names::check,
+    },
+    Rule {
+        name: names::FORMAT_RULE,
+        check: names::check_format,
+    },
+    Rule {
+        name: references::RULE,
+        check: references::check,
+    },
+    Rule {
+        name: device::RULE,
+        check: device::check,
+    },
+    Rule {
+        name: type_width::RULE,
+        check: type_width::check,
+    },
+    Rule {
+        name: table_bounds::RULE,
+        check: table_bounds::check,
+    },
+    Rule {
+        name: overlap::RULE,
+        check: overlap::check,
+    },
+    Rule {
+        name: repeats::RULE,
+        check: repeats::check,
+    },
+    Rule {
+        name: enum_codes::RULE,
+        check: enum_codes::check,
+    },
+    Rule {
+        name: range::RULE,
+        check: range::check,
+    },
+    Rule {
+        name: sentinel::RULE,
+        check: sentinel::check,
+    },
+    Rule {
+        name: scale::RULE,
+        check: scale::check,
+    },
+    Rule {
+        name: write_order::RULE,
+        check: write_order::check,
+    },
+    Rule {
+        name: commands::RULE,
+        check: commands::check,
+    },
+    Rule {
+        name: groups::RULE,
+        check: groups::check,
+    },
+    Rule {
+        name: docs::RULE,
+        check: docs::check,
+    },
 ];
 
 /// Runs every rule.

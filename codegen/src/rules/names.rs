@@ -12,11 +12,7 @@ pub const RULE: &str = "duplicate-name";
 /// Rule name of the format check.
 pub const FORMAT_RULE: &str = "name-format";
 
-fn unique<'a>(
-    kind: &str,
-    items: impl Iterator<Item = (&'a str, Path)>,
-    out: &mut Vec<Diagnostic>,
-) {
+fn unique<'a>(kind: &str, items: impl Iterator<Item = (&'a str, Path)>, out: &mut Vec<Diagnostic>) {
     let mut seen: HashMap<&str, Path> = HashMap::new();
     for (name, path) in items {
         match seen.get(name) {
@@ -99,19 +95,42 @@ pub fn is_snake_case(name: &str) -> bool {
 pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
     let mut names: Vec<(&str, Path)> = Vec::new();
     names.push((&model.family, Path::root().key("family")));
-    names.extend(
-        super::declared(model)
-            .map(|r| (r.repeat.as_ref().map_or(r.name.as_str(), |c| c.base.as_str()), r.path.key("name"))),
-    );
+    names.extend(super::declared(model).map(|r| {
+        (
+            r.repeat
+                .as_ref()
+                .map_or(r.name.as_str(), |c| c.base.as_str()),
+            r.path.key("name"),
+        )
+    }));
     for e in &model.enums {
         if e.shared {
             names.push((&e.name, e.path.clone()));
         }
-        names.extend(e.codes.iter().map(|c| (c.name.as_str(), c.path.key("name"))));
+        names.extend(
+            e.codes
+                .iter()
+                .map(|c| (c.name.as_str(), c.path.key("name"))),
+        );
     }
-    names.extend(model.commands.iter().map(|c| (c.name.as_str(), c.path.key("name"))));
-    names.extend(model.groups.iter().map(|g| (g.name.as_str(), g.path.key("name"))));
-    names.extend(model.repeats.iter().map(|r| (r.name.as_str(), r.path.key("name"))));
+    names.extend(
+        model
+            .commands
+            .iter()
+            .map(|c| (c.name.as_str(), c.path.key("name"))),
+    );
+    names.extend(
+        model
+            .groups
+            .iter()
+            .map(|g| (g.name.as_str(), g.path.key("name"))),
+    );
+    names.extend(
+        model
+            .repeats
+            .iter()
+            .map(|r| (r.name.as_str(), r.path.key("name"))),
+    );
     for (name, path) in names {
         if !is_snake_case(name) {
             out.push(

@@ -18,9 +18,13 @@ fn check_one(
     let (min, max) = range;
     if min > max {
         out.push(
-            Diagnostic::at(RULE, path, format!("range of `{owner}` has min {min} > max {max}"))
-                .label("empty range")
-                .help("write `[min, max]`"),
+            Diagnostic::at(
+                RULE,
+                path,
+                format!("range of `{owner}` has min {min} > max {max}"),
+            )
+            .label("empty range")
+            .help("write `[min, max]`"),
         );
     } else if min < bounds.0 || max > bounds.1 {
         out.push(

@@ -16,9 +16,13 @@ fn check_enum(model: &Model, reference: &EnumRef, out: &mut Vec<Diagnostic>) {
             .map(|e| e.name.as_str())
             .collect();
         out.push(
-            Diagnostic::at(RULE, &reference.path, format!("no enum named `{}`", reference.name))
-                .label("unknown enum")
-                .help(format!("declared enums: {}", known.join(", "))),
+            Diagnostic::at(
+                RULE,
+                &reference.path,
+                format!("no enum named `{}`", reference.name),
+            )
+            .label("unknown enum")
+            .help(format!("declared enums: {}", known.join(", "))),
         );
     }
 }
@@ -41,7 +45,10 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                     Diagnostic::at(
                         RULE,
                         &register.path.key("alias_of"),
-                        format!("`{}` is an alias of unknown register `{target}`", register.name),
+                        format!(
+                            "`{}` is an alias of unknown register `{target}`",
+                            register.name
+                        ),
                     )
                     .label("no such register"),
                 );
@@ -51,8 +58,12 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     if let Some((name, _, path)) = &model.protocol.continuous_send {
         if model.register(name).is_none() {
             out.push(
-                Diagnostic::at(RULE, path, format!("continuous send names unknown register `{name}`"))
-                    .label("no such register"),
+                Diagnostic::at(
+                    RULE,
+                    path,
+                    format!("continuous send names unknown register `{name}`"),
+                )
+                .label("no such register"),
             );
         }
     }

@@ -15,14 +15,23 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 Diagnostic::at(
                     RULE,
                     &repeat.path.key("count"),
-                    format!("repeat `{}` has {} copies; a block repeats at least twice", repeat.name, repeat.count),
+                    format!(
+                        "repeat `{}` has {} copies; a block repeats at least twice",
+                        repeat.name, repeat.count
+                    ),
                 )
                 .label("count too small"),
             );
         }
     }
-    for register in model.registers.iter().filter(|r| r.repeat.as_ref().is_some_and(|c| c.number == 1)) {
-        let Some(copy) = &register.repeat else { continue };
+    for register in model
+        .registers
+        .iter()
+        .filter(|r| r.repeat.as_ref().is_some_and(|c| c.number == 1))
+    {
+        let Some(copy) = &register.repeat else {
+            continue;
+        };
         let Some(stride) = copy.stride else { continue };
         let extent = model.extent(register);
         if stride < extent {

@@ -33,7 +33,9 @@ pub fn parse_scale(text: &str) -> Result<Scale, String> {
         return match mantissa {
             "1" | "1.0" => Ok(Scale::Decimal { exponent }),
             "0" | "0.0" => Err("a scale of zero would make every reading 0".into()),
-            _ => Err(format!("mantissa `{mantissa}` must be 1 (write other steps as a ratio)")),
+            _ => Err(format!(
+                "mantissa `{mantissa}` must be 1 (write other steps as a ratio)"
+            )),
         };
     }
     // A plain power of ten: 1, 10, 0.1, 0.001.
@@ -64,9 +66,13 @@ pub fn parse_scale(text: &str) -> Result<Scale, String> {
 fn report(owner: &str, scale: &ScaleSpec, out: &mut Vec<Diagnostic>) {
     if let Err(problem) = &scale.value {
         out.push(
-            Diagnostic::at(RULE, &scale.path, format!("bad scale for `{owner}`: {problem}"))
-                .label("malformed scale")
-                .help("write a power of ten (`1e-6`, `0.1`) or a ratio (`1/1048576`)"),
+            Diagnostic::at(
+                RULE,
+                &scale.path,
+                format!("bad scale for `{owner}`: {problem}"),
+            )
+            .label("malformed scale")
+            .help("write a power of ten (`1e-6`, `0.1`) or a ratio (`1/1048576`)"),
         );
     }
 }
@@ -97,7 +103,10 @@ mod tests {
         assert_eq!(parse_scale("0.1"), Ok(Scale::Decimal { exponent: -1 }));
         assert_eq!(parse_scale("0.001"), Ok(Scale::Decimal { exponent: -3 }));
         assert_eq!(parse_scale("100"), Ok(Scale::Decimal { exponent: 2 }));
-        assert_eq!(parse_scale("1/1048576"), Scale::ratio(1, 1 << 20).ok_or(String::new()));
+        assert_eq!(
+            parse_scale("1/1048576"),
+            Scale::ratio(1, 1 << 20).ok_or(String::new())
+        );
         assert!(parse_scale("0.5").is_err());
         assert!(parse_scale("0").is_err());
         assert!(parse_scale("1/0").is_err());

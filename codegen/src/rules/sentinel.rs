@@ -30,7 +30,9 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         }
         if let Kind::Record(fields) = &register.kind {
             for field in fields {
-                let (Some(sentinel), Some(scalar)) = (field.sentinel, field.scalar) else { continue };
+                let (Some(sentinel), Some(scalar)) = (field.sentinel, field.scalar) else {
+                    continue;
+                };
                 let max = (1u64 << (16 * scalar.words())) - 1;
                 if sentinel > max {
                     out.push(

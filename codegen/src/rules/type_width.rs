@@ -21,7 +21,10 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             Kind::Ipv4 => Some((4..=4, "four words, one octet each")),
             Kind::Version(_) => Some((2..=2, "two words (four bytes)")),
             Kind::Record(fields) => {
-                let sum: u32 = fields.iter().map(|f| f.scalar.map_or(1, Scalar::words)).sum();
+                let sum: u32 = fields
+                    .iter()
+                    .map(|f| f.scalar.map_or(1, Scalar::words))
+                    .sum();
                 if words != sum {
                     out.push(
                         Diagnostic::at(
@@ -102,7 +105,10 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                     Diagnostic::at(
                         RULE,
                         &field.path.key("name"),
-                        format!("record member `{}` needs `type: u16|i16|u32|i32`", field.name),
+                        format!(
+                            "record member `{}` needs `type: u16|i16|u32|i32`",
+                            field.name
+                        ),
                     )
                     .label("type missing"),
                 );
