@@ -8,20 +8,16 @@ use serde_json::{json, Map, Value};
 
 use crate::model::{Addressing, Apply, ExceptionStyle, Kind, LongWrites, Model, Parity, Register};
 
-fn wire_type(model: &Model, register: &Register) -> String {
+/// The wire type: `u16`, `i16`, `u32`, `i32`, or `ipv4` / `version` / `record` for values
+/// spread over several words.
+fn wire_type(register: &Register) -> String {
     match &register.kind {
         Kind::Ipv4 | Kind::Version(_) | Kind::Record(_) => register.kind.name().to_owned(),
-        _ => register
-            .scalar()
-            .map(|s| s.as_str().to_owned())
-            .unwrap_or_else(|| register.kind.name().to_owned()),
+        _ => register.scalar().map_or_else(
+            || register.kind.name().to_owned(),
+            |s| s.as_str().to_owned(),
+        ),
     }
-    .to_string()
-        + if model.protocol.addressing == Addressing::Field {
-            ""
-        } else {
-            ""
-        }
 }
 
 fn codes(model: &Model, register: &Register) -> Value {
@@ -46,7 +42,7 @@ fn register_json(model: &Model, register: &Register) -> Value {
         "address": register.address.0,
         "words": register.words.0,
         "access": register.access.as_str(),
-        "type": wire_type(model, register),
+        "type": wire_type(register),
         "kind": register.kind.name(),
         "scale": register.scale.as_ref().map(|s| s.text.clone()),
         "unit": register.unit,

@@ -256,9 +256,9 @@ mod tests {
         let second = Path::root().key("registers").index(1).key("address");
         assert_eq!(
             source.span(&second).map(|s| (s.line, s.column)),
-            Some((5, 26))
+            Some((5, 24))
         );
-        assert_eq!(source.key_span(&second).map(|s| s.column), Some(17));
+        assert_eq!(source.key_span(&second).map(|s| s.column), Some(15));
         // Unknown paths fall back to the nearest ancestor.
         assert_eq!(source.span(&first.key("doc")).map(|s| s.line), Some(3));
     }

@@ -1,0 +1,333 @@
+//! The runtime form of an optobus spec.
+//!
+//! `optobus-codegen` emits, for each family, one `static DEVICE: DeviceInfo` built from these
+//! types: every register with its table, address, width, access, value type, scale, unit,
+//! range or codes and sentinel; the commands, groups, reserved ranges and protocol quirks. The
+//! typed driver API is generated separately; this description is what generic tools (the
+//! simulator engine, the command-line tool) read. No I/O, no allocator.
+#![no_std]
+#![forbid(unsafe_code)]
+
+pub use optobus_codec::value::{Scale, WordOrder, WriteOrder};
+pub use optobus_codec::{ExceptionShape, FrameShape};
+
+/// A register table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Table {
+    /// Holding registers: read with FC03, written with FC06.
+    Holding,
+    /// Input registers: read with FC04.
+    Input,
+}
+
+/// Who may read and write a register.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Access {
+    /// Read only.
+    Read,
+    /// Read and write.
+    ReadWrite,
+    /// Write only.
+    Write,
+}
+
+impl Access {
+    /// True for read and read-write registers.
+    pub const fn readable(self) -> bool {
+        !matches!(self, Self::Write)
+    }
+
+    /// True for write and read-write registers.
+    pub const fn writable(self) -> bool {
+        !matches!(self, Self::Read)
+    }
+}
+
+/// An integer wire type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Scalar {
+    /// Unsigned, one word.
+    U16,
+    /// Signed, one word.
+    I16,
+    /// Unsigned, two words.
+    U32,
+    /// Signed, two words.
+    I32,
+}
+
+/// One code of an enumerated value.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CodeInfo {
+    /// The raw value.
+    pub code: u32,
+    /// snake_case English name.
+    pub name: &'static str,
+    /// The manual's own words for the code.
+    pub meaning: &'static str,
+    /// English description.
+    pub doc: &'static str,
+}
+
+/// A bit field of a packed register, or a member of a record.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FieldInfo {
+    /// snake_case name.
+    pub name: &'static str,
+    /// English description.
+    pub doc: &'static str,
+    /// Lowest bit (packed fields; 0 for record members).
+    pub lsb: u8,
+    /// Bits (packed fields; 16 or 32 for record members).
+    pub width: u8,
+    /// Wire type of a record member.
+    pub scalar: Scalar,
+    /// Codes, when the field is enumerated.
+    pub codes: &'static [CodeInfo],
+    /// Raw range.
+    pub range: Option<(i64, i64)>,
+    /// One raw step.
+    pub scale: Option<Scale>,
+    /// Unit.
+    pub unit: Option<&'static str>,
+    /// Raw value meaning "invalid".
+    pub sentinel: Option<u32>,
+}
+
+/// The value type of a register.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ValueKind {
+    /// 0 or 1.
+    Bool,
+    /// An integer, or fixed-point when the register has a scale.
+    Scalar(Scalar),
+    /// One of `RegisterInfo::codes`.
+    Enum,
+    /// Bit fields.
+    Packed(&'static [FieldInfo]),
+    /// Four words, one octet each.
+    Ipv4,
+    /// Four bytes naming version parts (`ignore` for padding).
+    Version(&'static [&'static str; 4]),
+    /// Consecutive members.
+    Record(&'static [FieldInfo]),
+}
+
+/// One register.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RegisterInfo {
+    /// snake_case name (`channel_2_exposure_time` for repeat copies).
+    pub name: &'static str,
+    /// English description.
+    pub doc: &'static str,
+    /// The manual's own name.
+    pub zh: &'static str,
+    /// Manual section.
+    pub section: &'static str,
+    /// Table.
+    pub table: Table,
+    /// First address.
+    pub address: u16,
+    /// Words a read transfers.
+    pub words: u16,
+    /// Who may read and write.
+    pub access: Access,
+    /// Value type.
+    pub kind: ValueKind,
+    /// Codes of an enum register.
+    pub codes: &'static [CodeInfo],
+    /// One raw step.
+    pub scale: Option<Scale>,
+    /// Unit.
+    pub unit: Option<&'static str>,
+    /// Raw range a write must respect.
+    pub range: Option<(i64, i64)>,
+    /// Raw bits meaning "invalid reading".
+    pub sentinel: Option<u32>,
+    /// Which word sits at the lower address.
+    pub word_order: WordOrder,
+    /// Which word of a split write goes first.
+    pub write_order: WriteOrder,
+    /// Repeat copy: (repeat index name, 1-based copy number).
+    pub copy: Option<(&'static str, u8)>,
+}
+
+/// An address range the device reserves (reads answer zeros).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReservedInfo {
+    /// Table.
+    pub table: Table,
+    /// First address.
+    pub from: u16,
+    /// Last address, inclusive.
+    pub to: u16,
+}
+
+/// What a command does (the simulator acts it out).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Effect {
+    /// Makes the current reading of the targets their zero.
+    Zero,
+    /// Removes the targets' zero offset.
+    ClearZero,
+    /// Resets the targets (statistics, counters).
+    Reset,
+    /// Stores the parameters in flash.
+    Save,
+    /// Restarts the device.
+    Reboot,
+    /// Restores factory settings.
+    FactoryReset,
+    /// Restores factory network settings.
+    NetworkReset,
+    /// Locks the data buffer for reading.
+    BufferLock,
+    /// Unlocks the data buffer.
+    BufferUnlock,
+    /// Nothing the simulator models.
+    None,
+}
+
+/// A write that acts rather than sets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CommandInfo {
+    /// snake_case name.
+    pub name: &'static str,
+    /// English description.
+    pub doc: &'static str,
+    /// The register written (a repeat block's base name for per-copy commands).
+    pub register: &'static str,
+    /// The value written.
+    pub value: u32,
+    /// Milliseconds the device is busy afterwards.
+    pub busy_ms: u32,
+    /// What the device does.
+    pub effect: Effect,
+    /// Registers the effect concerns.
+    pub targets: &'static [&'static str],
+}
+
+/// Registers read together.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GroupInfo {
+    /// snake_case name.
+    pub name: &'static str,
+    /// English description.
+    pub doc: &'static str,
+    /// Member registers (repeat base names stand for every copy).
+    pub registers: &'static [&'static str],
+}
+
+/// Serial line settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RtuInfo {
+    /// Factory baud rate.
+    pub default_baud: u32,
+    /// Supported baud rates.
+    pub bauds: &'static [u32],
+    /// Parity: `none`, `odd` or `even`.
+    pub parity: &'static str,
+    /// Data bits.
+    pub data_bits: u8,
+    /// Stop bits.
+    pub stop_bits: u8,
+}
+
+/// Modbus TCP settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TcpInfo {
+    /// Listening port.
+    pub port: u16,
+    /// Factory IP address, as octets.
+    pub default_ip: Option<[u8; 4]>,
+}
+
+/// One address per word, or per field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Addressing {
+    /// Standard: one address per 16-bit word.
+    Word,
+    /// One address per field, whatever its width (the rangefinder).
+    Field,
+}
+
+/// How 32-bit values are written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum LongWrites {
+    /// Two single-register writes.
+    Split,
+    /// One FC06 carrying four data bytes.
+    Wide,
+}
+
+/// Everything the spec says about a device.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DeviceInfo {
+    /// snake_case family id.
+    pub family: &'static str,
+    /// Title.
+    pub title: &'static str,
+    /// Source manual file.
+    pub manual: &'static str,
+    /// Serial settings, if the device speaks RTU.
+    pub rtu: Option<RtuInfo>,
+    /// TCP settings, if the device speaks Modbus TCP.
+    pub tcp: Option<TcpInfo>,
+    /// Factory slave address.
+    pub default_slave: u8,
+    /// Valid slave addresses.
+    pub slaves: (u8, u8),
+    /// Function codes the device answers.
+    pub functions: &'static [u8],
+    /// Most words one read may ask for.
+    pub max_read_words: u16,
+    /// Milliseconds from power-up until the device answers.
+    pub power_up_ms: u32,
+    /// Holding registers that exist.
+    pub holding_registers: u16,
+    /// Input registers that exist.
+    pub input_registers: u16,
+    /// What one address holds.
+    pub addressing: Addressing,
+    /// How 32-bit values are written.
+    pub long_writes: LongWrites,
+    /// Exception frames and 4-byte writes, as the codec needs them.
+    pub frame_shape: FrameShape<'static>,
+    /// Settings take effect only after the save command and a power cycle.
+    pub needs_save_and_power_cycle: bool,
+    /// Register and code that make the device stream readings unasked.
+    pub continuous_send: Option<(&'static str, u32)>,
+    /// Every register, repeats expanded.
+    pub registers: &'static [RegisterInfo],
+    /// Reserved ranges.
+    pub reserved: &'static [ReservedInfo],
+    /// Commands.
+    pub commands: &'static [CommandInfo],
+    /// Groups.
+    pub groups: &'static [GroupInfo],
+}
+
+impl DeviceInfo {
+    /// The register called `name`.
+    pub fn register(&self, name: &str) -> Option<&'static RegisterInfo> {
+        self.registers.iter().find(|r| r.name == name)
+    }
+
+    /// The command called `name`.
+    pub fn command(&self, name: &str) -> Option<&'static CommandInfo> {
+        self.commands.iter().find(|c| c.name == name)
+    }
+
+    /// The group called `name`.
+    pub fn group(&self, name: &str) -> Option<&'static GroupInfo> {
+        self.groups.iter().find(|g| g.name == name)
+    }
+
+    /// How many registers `table` has.
+    pub const fn table_size(&self, table: Table) -> u16 {
+        match table {
+            Table::Holding => self.holding_registers,
+            Table::Input => self.input_registers,
+        }
+    }
+}
