@@ -12,8 +12,8 @@ use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{format_ident, quote};
 
 use crate::model::{
-    Access, Addressing, Apply, Code, EffectName, EnumDef, ExceptionStyle, Field, Kind, LongWrites,
-    Model, Parity, Register, Scalar, Table,
+    Access, Addressing, Apply, Code, EnumDef, ExceptionStyle, Field, Kind, LongWrites, Model,
+    Parity, Register, Scalar, Table,
 };
 
 /// Generates the Rust source for `model`; `spec_name` is named in the header.
@@ -530,6 +530,13 @@ fn scale_tokens(scale: Option<&crate::model::ScaleSpec>) -> TokenStream {
     }
 }
 
+fn table_tokens(table: Table) -> TokenStream {
+    match table {
+        Table::Holding => quote!(::optobus_device::Table::Holding),
+        Table::Input => quote!(::optobus_device::Table::Input),
+    }
+}
+
 fn option_str(text: Option<&str>) -> TokenStream {
     match text {
         Some(text) => quote!(Some(#text)),
@@ -614,10 +621,7 @@ fn register_info(model: &Model, register: &Register, names: &TypeNames) -> Token
     let doc = doc_text(register.doc.as_deref());
     let zh = register.zh.as_deref().unwrap_or("");
     let section = register.section.as_deref().unwrap_or("");
-    let table = match register.table {
-        Table::Holding => quote!(::optobus_device::Table::Holding),
-        Table::Input => quote!(::optobus_device::Table::Input),
-    };
+    let table = table_tokens(register.table);
     let address = lit(u16::try_from(register.address.0).unwrap_or(u16::MAX));
     let words = lit(u16::try_from(register.words.0).unwrap_or(u16::MAX));
     let access = match register.access {
@@ -778,10 +782,7 @@ fn device_info(model: &Model, names: &TypeNames) -> TokenStream {
         .iter()
         .map(|r| register_info(model, r, names));
     let reserved = model.reserved.iter().map(|r| {
-        let table = match r.table {
-            Table::Holding => quote!(::optobus_device::Table::Holding),
-            Table::Input => quote!(::optobus_device::Table::Input),
-        };
+        let table = table_tokens(r.table);
         let from = lit(u16::try_from(r.from).unwrap_or(u16::MAX));
         let to = lit(u16::try_from(r.to).unwrap_or(u16::MAX));
         quote!(::optobus_device::ReservedInfo { table: #table, from: #from, to: #to })
@@ -792,21 +793,8 @@ fn device_info(model: &Model, names: &TypeNames) -> TokenStream {
         let register = &c.register;
         let value = lit(u32::try_from(c.value).unwrap_or(u32::MAX));
         let busy_ms = lit(c.busy_ms.unwrap_or(0));
-        let effect = format_ident!(
-            "{}",
-            match c.effect {
-                EffectName::Zero => "Zero",
-                EffectName::ClearZero => "ClearZero",
-                EffectName::Reset => "Reset",
-                EffectName::Save => "Save",
-                EffectName::Reboot => "Reboot",
-                EffectName::FactoryReset => "FactoryReset",
-                EffectName::NetworkReset => "NetworkReset",
-                EffectName::BufferLock => "BufferLock",
-                EffectName::BufferUnlock => "BufferUnlock",
-                EffectName::None => "None",
-            }
-        );
+        // The spec language and optobus-device name effects alike.
+        let effect = format_ident!("{:?}", c.effect);
         let targets = &c.targets;
         quote!(::optobus_device::CommandInfo {
             name: #name,
