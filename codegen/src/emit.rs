@@ -794,7 +794,7 @@ fn device_info(model: &Model, names: &TypeNames) -> TokenStream {
         let value = lit(u32::try_from(c.value).unwrap_or(u32::MAX));
         let busy_ms = lit(c.busy_ms.unwrap_or(0));
         // The spec language and optobus-device name effects alike.
-        let effect = format_ident!("{:?}", c.effect);
+        let effect = Ident::new(&format!("{:?}", c.effect), Span::call_site());
         let targets = &c.targets;
         quote!(::optobus_device::CommandInfo {
             name: #name,
