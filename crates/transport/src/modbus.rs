@@ -1,0 +1,132 @@
+//! tokio-modbus as a backend: Modbus TCP, and RTU for devices whose frames are standard.
+
+use std::time::Duration;
+
+use tokio::time::timeout;
+use tokio_modbus::client::{Client, Context};
+use tokio_modbus::slave::{Slave, SlaveContext};
+use tokio_modbus::{Request, Response};
+
+use crate::{Error, ExceptionCode, ReadFunction, Transport, WriteValue, DEFAULT_TIMEOUT};
+
+/// A tokio-modbus client context (TCP or RTU), possibly shared with other Modbus devices.
+///
+/// Requests go through `Client::call` and their replies are checked here, not through the
+/// `read_*_registers` helpers, which `debug_assert!` on the word count a device returns.
+pub struct ModbusContext {
+    context: Context,
+    timeout: Duration,
+}
+
+impl std::fmt::Debug for ModbusContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ModbusContext")
+            .field("timeout", &self.timeout)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ModbusContext {
+    /// Wraps a context with the default 1 s timeout.
+    pub fn new(context: Context) -> Self {
+        Self {
+            context,
+            timeout: DEFAULT_TIMEOUT,
+        }
+    }
+
+    /// Sets the reply timeout.
+    pub fn with_timeout(mut self, timeout: Duration) -> Self {
+        self.timeout = timeout;
+        self
+    }
+
+    /// Gives the context back.
+    pub fn into_inner(self) -> Context {
+        self.context
+    }
+
+    async fn call(&mut self, slave: u8, request: Request<'static>) -> Result<Response, Error> {
+        let function = request.function_code().value();
+        self.context.set_slave(Slave(slave));
+        match timeout(self.timeout, self.context.call(request)).await {
+            Err(_) => Err(Error::Timeout {
+                after: self.timeout,
+            }),
+            Ok(Err(tokio_modbus::Error::Transport(error))) => Err(Error::Io(error)),
+            Ok(Err(tokio_modbus::Error::Protocol(error))) => Err(Error::Io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                error.to_string(),
+            ))),
+            Ok(Ok(Err(code))) => Err(Error::Exception {
+                function,
+                code: ExceptionCode(u16::from(u8::from(code))),
+            }),
+            Ok(Ok(Ok(response))) => Ok(response),
+        }
+    }
+}
+
+impl Transport for ModbusContext {
+    async fn read(
+        &mut self,
+        slave: u8,
+        function: ReadFunction,
+        address: u16,
+        count: u16,
+    ) -> Result<Vec<u16>, Error> {
+        let request = match function {
+            ReadFunction::Holding => Request::ReadHoldingRegisters(address, count),
+            ReadFunction::Input => Request::ReadInputRegisters(address, count),
+        };
+        let words = match self.call(slave, request).await? {
+            Response::ReadHoldingRegisters(words) | Response::ReadInputRegisters(words) => words,
+            _ => {
+                return Err(Error::Unsupported(
+                    "tokio-modbus returned another response kind",
+                ))
+            }
+        };
+        if words.len() != usize::from(count) {
+            return Err(Error::WordCount {
+                expected: count,
+                received: words.len(),
+            });
+        }
+        Ok(words)
+    }
+
+    async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), Error> {
+        let WriteValue::Word(word) = value else {
+            return Err(Error::Unsupported(
+                "a 4-byte FC06 needs the optobus RTU client (tokio-modbus cannot frame it)",
+            ));
+        };
+        if slave == 0 {
+            return Err(Error::Unsupported(
+                "tokio-modbus waits for a reply to a broadcast; use the optobus RTU client",
+            ));
+        }
+        match self
+            .call(slave, Request::WriteSingleRegister(address, word))
+            .await?
+        {
+            Response::WriteSingleRegister(echo_address, echo)
+                if (echo_address, echo) == (address, word) =>
+            {
+                Ok(())
+            }
+            Response::WriteSingleRegister(echo_address, echo) => {
+                Err(Error::Frame(optobus_codec::DecodeError::EchoMismatch {
+                    address,
+                    value: u32::from(word),
+                    received_address: echo_address,
+                    received_value: u32::from(echo),
+                }))
+            }
+            _ => Err(Error::Unsupported(
+                "tokio-modbus returned another response kind",
+            )),
+        }
+    }
+}

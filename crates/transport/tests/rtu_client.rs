@@ -1,0 +1,409 @@
+//! The own RTU client against a scripted device on an in-memory duplex: real bytes both ways.
+
+use std::time::Duration;
+
+use optobus_codec::{
+    rtu, Decoded, ExceptionCode, ExceptionShape, FrameShape, Request, Response, Words,
+};
+use optobus_transport::{Error, ReadFunction, RtuClient, RtuConfig, Shared, Transport, WriteValue};
+use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream};
+use tokio::sync::mpsc;
+
+/// What the scripted device does with the next request.
+#[derive(Clone, Debug)]
+enum Act {
+    /// Answer properly: reads get words `address + i`, writes are echoed.
+    Answer,
+    /// Answer with an exception in the given shape.
+    Exception(ExceptionShape, u16),
+    /// Say nothing.
+    Silent,
+    /// Send these bytes instead of a reply.
+    Raw(Vec<u8>),
+}
+
+/// A device task: decodes requests with the codec, replies per script, and reports every
+/// request it saw (slave, request) on `seen`.
+fn device(
+    mut stream: DuplexStream,
+    script: Vec<Act>,
+    four_byte: Vec<u16>,
+) -> mpsc::UnboundedReceiver<(u8, Request)> {
+    let (seen_tx, seen_rx) = mpsc::unbounded_channel();
+    tokio::spawn(async move {
+        let shape = FrameShape {
+            exception: ExceptionShape::Standard,
+            four_byte_writes: &four_byte,
+        };
+        let mut script = script.into_iter();
+        let mut buf = Vec::new();
+        let mut chunk = [0u8; 256];
+        loop {
+            let n = match stream.read(&mut chunk).await {
+                Ok(0) | Err(_) => return,
+                Ok(n) => n,
+            };
+            buf.extend_from_slice(&chunk[..n]);
+            while let Ok(Decoded::Frame { frame, consumed }) = rtu::decode_request(&buf, &shape) {
+                buf.drain(..consumed);
+                let _ = seen_tx.send((frame.slave, frame.pdu));
+                if frame.slave == 0 {
+                    continue;
+                }
+                let mut out = [0u8; rtu::MAX_FRAME_LEN];
+                let reply = match script.next().unwrap_or(Act::Answer) {
+                    Act::Silent => continue,
+                    Act::Raw(bytes) => bytes,
+                    Act::Exception(shape, code) => {
+                        let len = rtu::encode_exception(
+                            &mut out,
+                            frame.slave,
+                            frame.pdu.function_code(),
+                            ExceptionCode(code),
+                            shape,
+                        )
+                        .unwrap();
+                        out[..len].to_vec()
+                    }
+                    Act::Answer => {
+                        let data: Vec<u8>;
+                        let response = match frame.pdu {
+                            Request::Read {
+                                function,
+                                address,
+                                count,
+                            } => {
+                                data = (0..count)
+                                    .flat_map(|i| address.wrapping_add(i).to_be_bytes())
+                                    .collect();
+                                Response::Read {
+                                    function,
+                                    words: Words::from_bytes(&data).unwrap(),
+                                }
+                            }
+                            Request::Write { address, value } => Response::Write { address, value },
+                        };
+                        let len = rtu::encode_response(&mut out, frame.slave, &response).unwrap();
+                        out[..len].to_vec()
+                    }
+                };
+                if stream.write_all(&reply).await.is_err() {
+                    return;
+                }
+            }
+        }
+    });
+    seen_rx
+}
+
+fn client(stream: DuplexStream, config: RtuConfig) -> RtuClient<DuplexStream> {
+    RtuClient::with_config(stream, config)
+}
+
+fn quick() -> RtuConfig {
+    RtuConfig {
+        timeout: Duration::from_millis(200),
+        ..RtuConfig::default()
+    }
+}
+
+#[tokio::test]
+async fn reads_words_and_writes_both_widths() {
+    let (a, b) = tokio::io::duplex(1024);
+    let mut seen = device(b, vec![], vec![0x0004]);
+    let mut client = client(a, quick());
+    let words = client
+        .read(0x19, ReadFunction::Holding, 0x10, 3)
+        .await
+        .unwrap();
+    assert_eq!(words, [0x10, 0x11, 0x12]);
+    client
+        .write(0x19, 0x0004, WriteValue::DoubleWord(0x0100_E100))
+        .await
+        .unwrap();
+    client
+        .write(0x19, 0x0001, WriteValue::Word(2))
+        .await
+        .unwrap();
+    assert_eq!(
+        seen.recv().await.unwrap().1,
+        Request::Read {
+            function: ReadFunction::Holding,
+            address: 0x10,
+            count: 3
+        }
+    );
+    assert_eq!(
+        seen.recv().await.unwrap().1,
+        Request::Write {
+            address: 4,
+            value: WriteValue::DoubleWord(0x0100_E100)
+        }
+    );
+    assert_eq!(
+        seen.recv().await.unwrap().1,
+        Request::Write {
+            address: 1,
+            value: WriteValue::Word(2)
+        }
+    );
+}
+
+#[tokio::test]
+async fn exceptions_in_both_shapes_are_typed() {
+    let (a, b) = tokio::io::duplex(1024);
+    let _seen = device(
+        b,
+        vec![Act::Exception(ExceptionShape::CountedWord, 0x0001)],
+        vec![],
+    );
+    let mut lc_rs = client(
+        a,
+        RtuConfig {
+            exception: ExceptionShape::CountedWord,
+            ..quick()
+        },
+    );
+    match lc_rs.read(1, ReadFunction::Holding, 1, 1).await {
+        Err(Error::Exception {
+            function: 3,
+            code: ExceptionCode(1),
+        }) => {}
+        other => panic!("{other:?}"),
+    }
+    let (a, b) = tokio::io::duplex(1024);
+    let _seen = device(b, vec![Act::Exception(ExceptionShape::Standard, 2)], vec![]);
+    let mut standard = client(a, quick());
+    match standard.write(1, 100, WriteValue::Word(1)).await {
+        Err(Error::Exception {
+            function: 6,
+            code: ExceptionCode::ILLEGAL_DATA_ADDRESS,
+        }) => {}
+        other => panic!("{other:?}"),
+    }
+}
+
+#[tokio::test]
+async fn a_silent_device_times_out_and_the_next_request_works() {
+    let (a, b) = tokio::io::duplex(1024);
+    let _seen = device(b, vec![Act::Silent], vec![]);
+    let mut client = client(
+        a,
+        RtuConfig {
+            timeout: Duration::from_millis(50),
+            ..RtuConfig::default()
+        },
+    );
+    match client.read(1, ReadFunction::Input, 0, 2).await {
+        Err(Error::Timeout { after }) => assert_eq!(after, Duration::from_millis(50)),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(
+        client.read(1, ReadFunction::Input, 0, 2).await.unwrap(),
+        [0, 1]
+    );
+}
+
+#[tokio::test]
+async fn a_garbled_reply_resynchronises_without_losing_the_next_transaction() {
+    let (a, b) = tokio::io::duplex(1024);
+    // A valid reply with one corrupted data byte, then normal service.
+    let mut garbled = {
+        let mut out = [0u8; 16];
+        let data = [0x00, 0x07];
+        let len = rtu::encode_response(
+            &mut out,
+            1,
+            &Response::Read {
+                function: ReadFunction::Holding,
+                words: Words::from_bytes(&data).unwrap(),
+            },
+        )
+        .unwrap();
+        out[..len].to_vec()
+    };
+    garbled[4] ^= 0x40;
+    let _seen = device(b, vec![Act::Raw(garbled)], vec![]);
+    let mut client = client(a, quick());
+    match client.read(1, ReadFunction::Holding, 7, 1).await {
+        Err(Error::Frame(optobus_codec::DecodeError::BadCrc { .. })) => {}
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(
+        client.read(1, ReadFunction::Holding, 7, 1).await.unwrap(),
+        [7]
+    );
+}
+
+#[tokio::test]
+async fn reads_retry_when_configured_but_writes_never_do() {
+    let (a, b) = tokio::io::duplex(1024);
+    let mut seen = device(b, vec![Act::Silent, Act::Silent], vec![]);
+    let mut client = client(
+        a,
+        RtuConfig {
+            timeout: Duration::from_millis(40),
+            read_retries: 1,
+            ..RtuConfig::default()
+        },
+    );
+    // First attempt silent, retry silent too: fails after two requests.
+    assert!(matches!(
+        client.read(1, ReadFunction::Holding, 0, 1).await,
+        Err(Error::Timeout { .. })
+    ));
+    assert!(seen.recv().await.is_some() && seen.recv().await.is_some());
+    // A write is sent once even though the device would answer a second attempt.
+    let (a, b) = tokio::io::duplex(1024);
+    let mut seen = device(b, vec![Act::Silent], vec![]);
+    let mut client = RtuClient::with_config(
+        a,
+        RtuConfig {
+            timeout: Duration::from_millis(40),
+            read_retries: 3,
+            ..RtuConfig::default()
+        },
+    );
+    assert!(matches!(
+        client.write(1, 2, WriteValue::Word(5)).await,
+        Err(Error::Timeout { .. })
+    ));
+    assert!(seen.recv().await.is_some());
+    assert!(
+        tokio::time::timeout(Duration::from_millis(100), seen.recv())
+            .await
+            .is_err(),
+        "write was retried"
+    );
+}
+
+#[tokio::test]
+async fn broadcasts_do_not_wait_for_a_reply() {
+    let (a, b) = tokio::io::duplex(1024);
+    let mut seen = device(b, vec![], vec![]);
+    let mut client = client(
+        a,
+        RtuConfig {
+            timeout: Duration::from_secs(30),
+            ..RtuConfig::default()
+        },
+    );
+    let started = std::time::Instant::now();
+    client.write(0, 0x18, WriteValue::Word(1)).await.unwrap();
+    assert!(started.elapsed() < Duration::from_secs(5));
+    assert_eq!(
+        seen.recv().await.unwrap(),
+        (
+            0,
+            Request::Write {
+                address: 0x18,
+                value: WriteValue::Word(1)
+            }
+        )
+    );
+    assert!(matches!(
+        client.read(0, ReadFunction::Holding, 0, 1).await,
+        Err(Error::Unsupported(_))
+    ));
+}
+
+#[tokio::test]
+async fn stale_bytes_are_drained_before_a_request() {
+    let (a, mut b) = tokio::io::duplex(1024);
+    // A late reply from an earlier exchange sits in the buffer before we ask.
+    b.write_all(&[0x01, 0x03, 0x02, 0xDE, 0xAD, 0x00, 0x00])
+        .await
+        .unwrap();
+    let _seen = device(b, vec![], vec![]);
+    let mut client = client(a, quick());
+    tokio::time::sleep(Duration::from_millis(10)).await;
+    assert_eq!(
+        client.read(1, ReadFunction::Holding, 40, 1).await.unwrap(),
+        [40]
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_slaves_on_one_port_from_two_tasks() {
+    let (a, b) = tokio::io::duplex(1024);
+    let mut seen = device(b, vec![], vec![]);
+    let bus = Shared::new(client(a, quick()));
+    let tasks: Vec<_> = [1u8, 2u8]
+        .into_iter()
+        .map(|slave| {
+            let mut bus = bus.clone();
+            tokio::spawn(async move {
+                for i in 0..25u16 {
+                    let words = bus
+                        .read(slave, ReadFunction::Input, u16::from(slave) * 100 + i, 2)
+                        .await
+                        .unwrap();
+                    assert_eq!(
+                        words,
+                        [u16::from(slave) * 100 + i, u16::from(slave) * 100 + i + 1]
+                    );
+                }
+            })
+        })
+        .collect();
+    for task in tasks {
+        task.await.unwrap();
+    }
+    let mut per_slave = [0; 3];
+    while let Ok((slave, _)) = seen.try_recv() {
+        per_slave[usize::from(slave)] += 1;
+    }
+    assert_eq!(per_slave, [0, 25, 25]);
+}
+
+#[test]
+fn frame_gap_follows_the_baud_rate() {
+    let at = |baud| {
+        RtuConfig {
+            baud,
+            ..RtuConfig::default()
+        }
+        .frame_gap()
+    };
+    assert_eq!(at(115_200), Duration::from_micros(1_750));
+    assert_eq!(at(9_600), Duration::from_micros(4_010));
+    assert_eq!(at(19_200), Duration::from_micros(2_005));
+}
+
+#[tokio::test]
+async fn tokio_modbus_backend_reads_writes_and_maps_exceptions() {
+    use optobus_transport::ModbusContext;
+    let (a, b) = tokio::io::duplex(1024);
+    let _seen = device(
+        b,
+        vec![
+            Act::Answer,
+            Act::Answer,
+            Act::Exception(ExceptionShape::Standard, 2),
+        ],
+        vec![],
+    );
+    let context = tokio_modbus::client::rtu::attach(a);
+    let mut modbus = ModbusContext::new(context).with_timeout(Duration::from_millis(200));
+    assert_eq!(
+        modbus.read(3, ReadFunction::Input, 20, 4).await.unwrap(),
+        [20, 21, 22, 23]
+    );
+    modbus.write(3, 6, WriteValue::Word(0x14)).await.unwrap();
+    match modbus.read(3, ReadFunction::Holding, 999, 1).await {
+        Err(Error::Exception {
+            function: 3,
+            code: ExceptionCode::ILLEGAL_DATA_ADDRESS,
+        }) => {}
+        other => panic!("{other:?}"),
+    }
+    // Frames tokio-modbus cannot carry are refused before anything is sent.
+    assert!(matches!(
+        modbus.write(3, 4, WriteValue::DoubleWord(1)).await,
+        Err(Error::Unsupported(_))
+    ));
+    assert!(matches!(
+        modbus.write(0, 4, WriteValue::Word(1)).await,
+        Err(Error::Unsupported(_))
+    ));
+}
