@@ -12,8 +12,8 @@ use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{format_ident, quote};
 
 use crate::model::{
-    Access, Addressing, Apply, Code, EnumDef, ExceptionStyle, Field, Kind, LongWrites, Model,
-    Parity, Register, Scalar, Table,
+    Apply, Code, EnumDef, ExceptionStyle, Field, Kind, LongWrites, Model, Parity, Register, Scalar,
+    Table,
 };
 
 /// Generates the Rust source for `model`; `spec_name` is named in the header.
@@ -147,7 +147,6 @@ struct TypeNames {
 impl TypeNames {
     fn new(model: &Model) -> Self {
         let mut taken: HashSet<String> = model.repeats.iter().map(|r| camel(&r.name)).collect();
-        taken.insert("DEVICE".into());
         // Shared enums first: they keep their plain names.
         let mut order: Vec<usize> = (0..model.enums.len()).collect();
         order.sort_by_key(|&i| !model.enums[i].shared);
@@ -530,11 +529,15 @@ fn scale_tokens(scale: Option<&crate::model::ScaleSpec>) -> TokenStream {
     }
 }
 
+/// `::optobus_device::<ty>::<variant>` for a value of an `optobus_device` enum the model uses.
+fn device_variant(ty: &str, variant: impl std::fmt::Debug) -> TokenStream {
+    let ty = Ident::new(ty, Span::call_site());
+    let variant = Ident::new(&format!("{variant:?}"), Span::call_site());
+    quote!(::optobus_device::#ty::#variant)
+}
+
 fn table_tokens(table: Table) -> TokenStream {
-    match table {
-        Table::Holding => quote!(::optobus_device::Table::Holding),
-        Table::Input => quote!(::optobus_device::Table::Input),
-    }
+    device_variant("Table", table)
 }
 
 fn option_str(text: Option<&str>) -> TokenStream {
@@ -624,11 +627,7 @@ fn register_info(model: &Model, register: &Register, names: &TypeNames) -> Token
     let table = table_tokens(register.table);
     let address = lit(u16::try_from(register.address.0).unwrap_or(u16::MAX));
     let words = lit(u16::try_from(register.words.0).unwrap_or(u16::MAX));
-    let access = match register.access {
-        Access::Read => quote!(::optobus_device::Access::Read),
-        Access::ReadWrite => quote!(::optobus_device::Access::ReadWrite),
-        Access::Write => quote!(::optobus_device::Access::Write),
-    };
+    let access = device_variant("Access", register.access);
     let mut codes = quote!(&[]);
     let kind = match &register.kind {
         Kind::Bool => quote!(::optobus_device::ValueKind::Bool),
@@ -746,14 +745,8 @@ fn device_info(model: &Model, names: &TypeNames) -> TokenStream {
     let power_up_ms = lit(device.power_up_ms.unwrap_or(0));
     let holding = lit(u16::try_from(device.holding_size).unwrap_or(u16::MAX));
     let input = lit(u16::try_from(device.input_size).unwrap_or(u16::MAX));
-    let addressing = match model.protocol.addressing {
-        Addressing::Word => quote!(::optobus_device::Addressing::Word),
-        Addressing::Field => quote!(::optobus_device::Addressing::Field),
-    };
-    let long_writes = match model.protocol.long_writes {
-        LongWrites::Split => quote!(::optobus_device::LongWrites::Split),
-        LongWrites::Wide => quote!(::optobus_device::LongWrites::Wide),
-    };
+    let addressing = device_variant("Addressing", model.protocol.addressing);
+    let long_writes = device_variant("LongWrites", model.protocol.long_writes);
     let exception = match model.protocol.exception {
         ExceptionStyle::Standard => quote!(::optobus_device::ExceptionShape::Standard),
         ExceptionStyle::CountedWord => quote!(::optobus_device::ExceptionShape::CountedWord),
@@ -793,8 +786,7 @@ fn device_info(model: &Model, names: &TypeNames) -> TokenStream {
         let register = &c.register;
         let value = lit(u32::try_from(c.value).unwrap_or(u32::MAX));
         let busy_ms = lit(c.busy_ms.unwrap_or(0));
-        // The spec language and optobus-device name effects alike.
-        let effect = Ident::new(&format!("{:?}", c.effect), Span::call_site());
+        let effect = device_variant("Effect", c.effect);
         let targets = &c.targets;
         quote!(::optobus_device::CommandInfo {
             name: #name,
@@ -802,7 +794,7 @@ fn device_info(model: &Model, names: &TypeNames) -> TokenStream {
             register: #register,
             value: #value,
             busy_ms: #busy_ms,
-            effect: ::optobus_device::Effect::#effect,
+            effect: #effect,
             targets: &[#(#targets),*],
         })
     });

@@ -5,16 +5,13 @@ use optobus_codec::value::{WordOrder, WriteOrder};
 
 use crate::diagnostic::Diagnostic;
 use crate::model::{
-    Access, Address, Code, Command, Device, EnumDef, EnumRef, Field, Group, Kind, Manual, Model,
+    Address, Code, Command, Device, Effect, EnumDef, EnumRef, Field, Group, Kind, Manual, Model,
     Protocol, Register, Repeat, RepeatCopy, Reserved, Rtu, Scalar, ScaleSpec, Table, Tcp,
     WordCount,
 };
 use crate::rules::scale::parse_scale;
 use crate::source::{Path, SourceFile};
-use crate::syntax::{
-    AccessName, CodeDecl, EffectName, FieldDecl, OrderName, RegisterDecl, SpecFile, TableName,
-    TypeName,
-};
+use crate::syntax::{CodeDecl, FieldDecl, OrderName, RegisterDecl, SpecFile, TypeName};
 
 /// Lowers `spec`; problems that stop lowering an item are reported, the rest is left to rules.
 pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnostic>) {
@@ -50,8 +47,8 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
         for (i, decl) in block.registers.iter().enumerate() {
             let path = block_path.key("registers").index(i);
             let stride = decl.stride.or(match decl.table {
-                TableName::Holding => block.stride.holding,
-                TableName::Input => block.stride.input,
+                Table::Holding => block.stride.holding,
+                Table::Input => block.stride.input,
             });
             if stride.is_none() {
                 lowering.diagnostics.push(
@@ -61,7 +58,7 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
                         format!(
                             "repeat `{}` has no stride for {} registers",
                             block.name,
-                            table(decl.table).as_str()
+                            decl.table.as_str()
                         ),
                     )
                     .label("no stride for this table")
@@ -100,7 +97,7 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
         .iter()
         .enumerate()
         .map(|(i, decl)| Reserved {
-            table: table(decl.table),
+            table: decl.table,
             from: decl.from,
             to: decl.to,
             path: root.key("reserved").index(i),
@@ -116,7 +113,7 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
             register: decl.register.clone(),
             value: decl.value,
             busy_ms: decl.busy_ms,
-            effect: decl.effect.unwrap_or(EffectName::None),
+            effect: decl.effect.unwrap_or(Effect::None),
             targets: decl.targets.clone(),
             doc: decl.doc.clone(),
             section: decl.section.clone(),
@@ -183,13 +180,6 @@ struct Lowering<'a> {
     source: &'a SourceFile,
     enums: Vec<EnumDef>,
     diagnostics: Vec<Diagnostic>,
-}
-
-fn table(name: TableName) -> Table {
-    match name {
-        TableName::Holding => Table::Holding,
-        TableName::Input => Table::Input,
-    }
 }
 
 fn scalar_of(kind: TypeName) -> Option<Scalar> {
@@ -358,13 +348,9 @@ impl Lowering<'_> {
         };
         Register {
             name: name.to_owned(),
-            table: table(decl.table),
+            table: decl.table,
             address: Address(decl.address),
-            access: match decl.access {
-                AccessName::Read => Access::Read,
-                AccessName::ReadWrite => Access::ReadWrite,
-                AccessName::Write => Access::Write,
-            },
+            access: decl.access,
             words: WordCount(decl.words.unwrap_or(default_words)),
             declared_words: decl.words,
             kind,

@@ -8,6 +8,7 @@ use std::net::Ipv4Addr;
 use optobus_codec::value::{Scale, WordOrder, WriteOrder};
 
 use crate::source::Path;
+pub use optobus_device::{Access, Addressing, Effect, LongWrites, Table};
 use serde::Deserialize;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
@@ -20,26 +21,6 @@ pub enum Parity {
     Odd,
     /// Even parity.
     Even,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-/// What one register address holds.
-pub enum Addressing {
-    /// One address per 16-bit word (standard Modbus).
-    Word,
-    /// One address per field, whatever its width (the rangefinder).
-    Field,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-/// How a 32-bit value is written.
-pub enum LongWrites {
-    /// As two single-register writes (FC06 twice).
-    Split,
-    /// As one FC06 carrying four data bytes.
-    Wide,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
@@ -60,83 +41,6 @@ pub enum Apply {
     Immediately,
     /// After the save command and a power cycle (LC-RS).
     AfterSaveAndPowerCycle,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-/// What a command does to the device (the simulator acts it out).
-pub enum EffectName {
-    /// Makes the current reading of its targets the zero point.
-    Zero,
-    /// Removes the zero offset of its targets.
-    ClearZero,
-    /// Resets its targets (statistics, counters).
-    Reset,
-    /// Stores the parameters in flash.
-    Save,
-    /// Restarts the device.
-    Reboot,
-    /// Restores factory settings.
-    FactoryReset,
-    /// Restores factory network settings.
-    NetworkReset,
-    /// Locks the data buffer for reading.
-    BufferLock,
-    /// Unlocks the data buffer.
-    BufferUnlock,
-    /// Nothing the simulator models.
-    None,
-}
-
-/// A register table.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Table {
-    /// Holding registers: FC03 reads, FC06 writes.
-    Holding,
-    /// Input registers: FC04 reads.
-    Input,
-}
-
-impl Table {
-    /// `holding` or `input`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Holding => "holding",
-            Self::Input => "input",
-        }
-    }
-}
-
-/// Who may read and write a register.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Access {
-    /// Read only.
-    Read,
-    /// Read and write.
-    ReadWrite,
-    /// Write only.
-    Write,
-}
-
-impl Access {
-    /// `r`, `rw` or `w`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Read => "r",
-            Self::ReadWrite => "rw",
-            Self::Write => "w",
-        }
-    }
-
-    /// True for `r` and `rw`.
-    pub fn readable(self) -> bool {
-        self != Self::Write
-    }
-
-    /// True for `w` and `rw`.
-    pub fn writable(self) -> bool {
-        self != Self::Read
-    }
 }
 
 /// A register address as declared (checked against 16 bits by a rule).
@@ -409,7 +313,7 @@ pub struct Command {
     /// How long the device is busy afterwards.
     pub busy_ms: Option<u32>,
     /// What the device does.
-    pub effect: EffectName,
+    pub effect: Effect,
     /// Registers the effect concerns.
     pub targets: Vec<String>,
     /// English doc.
@@ -570,11 +474,14 @@ impl Model {
         self.registers.iter().find(|r| r.name == name)
     }
 
-    /// The copies of repeat member `base`, in copy order.
-    pub fn copies<'a>(&'a self, base: &'a str) -> impl Iterator<Item = &'a Register> + 'a {
-        self.registers
-            .iter()
-            .filter(move |r| r.repeat.as_ref().is_some_and(|c| c.base == base))
+    /// The register called `name`, or for a repeat block's member name its first copy
+    /// (commands and groups may name a member for all its copies).
+    pub fn resolve(&self, name: &str) -> Option<&Register> {
+        self.register(name).or_else(|| {
+            self.registers
+                .iter()
+                .find(|r| r.repeat.as_ref().is_some_and(|c| c.base == name))
+        })
     }
 
     /// Number of addresses a register occupies.

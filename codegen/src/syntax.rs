@@ -9,7 +9,9 @@ use std::collections::BTreeMap;
 
 use serde::Deserialize;
 
-pub(crate) use crate::model::{Addressing, Apply, EffectName, ExceptionStyle, LongWrites, Parity};
+pub(crate) use crate::model::{
+    Access, Addressing, Apply, Effect, ExceptionStyle, LongWrites, Parity, Table,
+};
 
 /// A whole spec file.
 #[derive(Debug, Deserialize)]
@@ -133,23 +135,6 @@ pub(crate) struct CodeDecl {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
-pub(crate) enum TableName {
-    Holding,
-    Input,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-pub(crate) enum AccessName {
-    #[serde(rename = "r")]
-    Read,
-    #[serde(rename = "rw")]
-    ReadWrite,
-    #[serde(rename = "w")]
-    Write,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
 pub(crate) enum TypeName {
     Bool,
     U16,
@@ -175,9 +160,9 @@ pub(crate) enum OrderName {
 #[serde(deny_unknown_fields)]
 pub(crate) struct RegisterDecl {
     pub(crate) name: String,
-    pub(crate) table: TableName,
+    pub(crate) table: Table,
     pub(crate) address: u32,
-    pub(crate) access: AccessName,
+    pub(crate) access: Access,
     #[serde(rename = "type")]
     pub(crate) kind: TypeName,
     pub(crate) words: Option<u32>,
@@ -225,7 +210,7 @@ pub(crate) struct FieldDecl {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct ReservedDecl {
-    pub(crate) table: TableName,
+    pub(crate) table: Table,
     pub(crate) from: u32,
     pub(crate) to: u32,
     pub(crate) section: Option<String>,
@@ -239,7 +224,7 @@ pub(crate) struct CommandDecl {
     pub(crate) register: String,
     pub(crate) value: i64,
     pub(crate) busy_ms: Option<u32>,
-    pub(crate) effect: Option<EffectName>,
+    pub(crate) effect: Option<Effect>,
     #[serde(default)]
     pub(crate) targets: Vec<String>,
     pub(crate) doc: Option<String>,

@@ -7,17 +7,6 @@ use crate::model::{Kind, Model, Register};
 /// Rule name.
 pub const RULE: &str = "command";
 
-/// The register a command or group member names: a register, or a repeat block's base name
-/// (standing for all its copies).
-pub fn resolve<'a>(model: &'a Model, name: &str) -> Option<&'a Register> {
-    model.register(name).or_else(|| {
-        model
-            .registers
-            .iter()
-            .find(|r| r.repeat.as_ref().is_some_and(|c| c.base == name))
-    })
-}
-
 /// True when `value` is a value `register` accepts (range, enum codes, type bounds).
 pub fn accepts(model: &Model, register: &Register, value: i64) -> bool {
     if let Some((min, max)) = register.range {
@@ -41,7 +30,7 @@ pub fn accepts(model: &Model, register: &Register, value: i64) -> bool {
 pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     for command in &model.commands {
         let register_path = command.path.key("register");
-        match resolve(model, &command.register) {
+        match model.resolve(&command.register) {
             None => out.push(
                 Diagnostic::at(
                     RULE,
@@ -81,7 +70,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             Some(_) => {}
         }
         for (i, target) in command.targets.iter().enumerate() {
-            if resolve(model, target).is_none() {
+            if model.resolve(target).is_none() {
                 out.push(
                     Diagnostic::at(
                         RULE,

@@ -3,8 +3,6 @@
 use crate::diagnostic::Diagnostic;
 use crate::model::Model;
 
-use super::commands::resolve;
-
 /// Rule name.
 pub const RULE: &str = "group";
 
@@ -23,7 +21,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         }
         let mut first: Option<(&str, crate::model::Table, &crate::source::Path)> = None;
         for (name, path) in &group.registers {
-            let Some(register) = resolve(model, name) else {
+            let Some(register) = model.resolve(name) else {
                 out.push(
                     Diagnostic::at(
                         RULE,

@@ -159,20 +159,27 @@ pub(crate) enum ReplyKind {
     Exception,
 }
 
-/// Classifies a reply PDU from its first bytes (`pdu` holds at least the function code), or
-/// says how many more bytes of PDU are needed to tell its length.
+/// What the first bytes of a reply PDU tell about its length.
+pub(crate) enum ReplyLength {
+    /// The kind of reply and its PDU length.
+    Known(ReplyKind, usize),
+    /// This many more PDU bytes are needed to tell.
+    NeedMore(usize),
+}
+
+/// Classifies a reply PDU from its first bytes (`pdu` holds at least the function code).
 pub(crate) fn reply_pdu_len(
     pdu: &[u8],
     request: &Request,
     exception: ExceptionShape,
-) -> Result<Result<(ReplyKind, usize), usize>, DecodeError> {
+) -> Result<ReplyLength, DecodeError> {
     let expected = request.function_code();
     let received = pdu[0];
     if received == expected {
         match *request {
             Request::Read { count, .. } => {
                 let Some(&byte_count) = pdu.get(1) else {
-                    return Ok(Err(1));
+                    return Ok(ReplyLength::NeedMore(1));
                 };
                 let expected_count = 2 * usize::from(count);
                 if usize::from(byte_count) != expected_count {
@@ -182,17 +189,17 @@ pub(crate) fn reply_pdu_len(
                     });
                 }
                 let pdu_len = 2 + expected_count;
-                Ok(Ok((ReplyKind::Normal, pdu_len)))
+                Ok(ReplyLength::Known(ReplyKind::Normal, pdu_len))
             }
             Request::Write { .. } => {
                 let pdu_len = request.pdu_len();
-                Ok(Ok((ReplyKind::Normal, pdu_len)))
+                Ok(ReplyLength::Known(ReplyKind::Normal, pdu_len))
             }
         }
     } else if received == expected | EXCEPTION_BIT {
         if exception == ExceptionShape::CountedWord {
             match pdu.get(1) {
-                None => return Ok(Err(1)),
+                None => return Ok(ReplyLength::NeedMore(1)),
                 Some(&2) => {}
                 Some(&other) => {
                     return Err(DecodeError::BadByteCount {
@@ -202,7 +209,10 @@ pub(crate) fn reply_pdu_len(
                 }
             }
         }
-        Ok(Ok((ReplyKind::Exception, exception.pdu_len())))
+        Ok(ReplyLength::Known(
+            ReplyKind::Exception,
+            exception.pdu_len(),
+        ))
     } else {
         Err(DecodeError::UnexpectedFunction { expected, received })
     }
@@ -259,8 +269,8 @@ pub fn decode_response<'b>(
 ) -> Result<Decoded<Response<'b>>, DecodeError> {
     need!(buf, 2);
     let (kind, pdu_len) = match reply_pdu_len(&buf[1..], request, exception)? {
-        Ok(known) => known,
-        Err(more) => return Ok(Decoded::NeedMore { at_least: more }),
+        ReplyLength::Known(kind, pdu_len) => (kind, pdu_len),
+        ReplyLength::NeedMore(more) => return Ok(Decoded::NeedMore { at_least: more }),
     };
     let len = pdu_len + 3;
     need!(buf, len);

@@ -8,7 +8,7 @@ use crate::pdu::{
     DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, Request,
     Response, WRITE_SINGLE,
 };
-use crate::rtu::{need, parse_reply, reply_pdu_len};
+use crate::rtu::{need, parse_reply, reply_pdu_len, ReplyLength};
 
 /// Bytes of the MBAP header, unit id included.
 pub const HEADER_LEN: usize = 7;
@@ -207,8 +207,8 @@ pub fn decode_response<'b>(
         });
     }
     let (kind, pdu_len) = match reply_pdu_len(&buf[HEADER_LEN..], request, exception)? {
-        Ok(known) => known,
-        Err(more) => return Ok(Decoded::NeedMore { at_least: more }),
+        ReplyLength::Known(kind, pdu_len) => (kind, pdu_len),
+        ReplyLength::NeedMore(more) => return Ok(Decoded::NeedMore { at_least: more }),
     };
     check_length(pdu_len, &mbap)?;
     let len = HEADER_LEN + pdu_len;

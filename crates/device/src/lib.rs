@@ -13,6 +13,11 @@ pub use optobus_codec::{ExceptionShape, FrameShape};
 
 /// A register table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Deserialize),
+    serde(rename_all = "snake_case")
+)]
 pub enum Table {
     /// Holding registers: read with FC03, written with FC06.
     Holding,
@@ -20,18 +25,41 @@ pub enum Table {
     Input,
 }
 
+impl Table {
+    /// `holding` or `input`, as in the specs.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Self::Holding => "holding",
+            Self::Input => "input",
+        }
+    }
+}
+
 /// Who may read and write a register.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Deserialize))]
 pub enum Access {
     /// Read only.
+    #[cfg_attr(feature = "serde", serde(rename = "r"))]
     Read,
     /// Read and write.
+    #[cfg_attr(feature = "serde", serde(rename = "rw"))]
     ReadWrite,
     /// Write only.
+    #[cfg_attr(feature = "serde", serde(rename = "w"))]
     Write,
 }
 
 impl Access {
+    /// `r`, `rw` or `w`, as in the specs.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Self::Read => "r",
+            Self::ReadWrite => "rw",
+            Self::Write => "w",
+        }
+    }
+
     /// True for read and read-write registers.
     pub const fn readable(self) -> bool {
         !matches!(self, Self::Write)
@@ -165,6 +193,11 @@ pub struct ReservedInfo {
 
 /// What a command does (the simulator acts it out).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Deserialize),
+    serde(rename_all = "snake_case")
+)]
 pub enum Effect {
     /// Makes the current reading of the targets their zero.
     Zero,
@@ -244,6 +277,11 @@ pub struct TcpInfo {
 
 /// One address per word, or per field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Deserialize),
+    serde(rename_all = "snake_case")
+)]
 pub enum Addressing {
     /// Standard: one address per 16-bit word.
     Word,
@@ -253,6 +291,11 @@ pub enum Addressing {
 
 /// How 32-bit values are written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Deserialize),
+    serde(rename_all = "snake_case")
+)]
 pub enum LongWrites {
     /// Two single-register writes.
     Split,
