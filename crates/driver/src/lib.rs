@@ -1,0 +1,2 @@
+//! Runtime of the generated optobus drivers.
+#![forbid(unsafe_code)]
