@@ -436,6 +436,82 @@ impl Fixed {
     }
 }
 
+impl Fixed {
+    /// The same value in steps of `scale`; fails rather than round, or when the count of
+    /// steps does not fit 64 bits.
+    ///
+    /// ```
+    /// use optobus_codec::value::{Fixed, Scale};
+    /// let mm: Fixed = "1.25".parse().unwrap();
+    /// let micro = Scale::Decimal { exponent: -6 };
+    /// assert_eq!(mm.to_scale(micro).unwrap().raw(), 1_250_000);
+    /// assert!(mm.to_scale(Scale::Decimal { exponent: -1 }).is_err());
+    /// ```
+    pub fn to_scale(self, scale: Scale) -> Result<Self, ParseFixedError> {
+        if self.scale == scale {
+            return Ok(self);
+        }
+        let (from_num, from_den) = self
+            .scale
+            .as_fraction()
+            .ok_or(ParseFixedError::OutOfRange)?;
+        let (to_num, to_den) = scale.as_fraction().ok_or(ParseFixedError::OutOfRange)?;
+        if to_num == 0 {
+            return Err(ParseFixedError::NotRepresentable { scale });
+        }
+        // raw' = raw * from_num * to_den / (from_den * to_num), cancelled step by step.
+        let (mut value_num, mut value_den) = (i128::from(self.raw), 1i128);
+        let (mut from_num, mut from_den, mut to_num, mut to_den) =
+            (from_num, from_den, to_num, to_den);
+        cancel(&mut from_num, &mut from_den);
+        cancel(&mut to_num, &mut to_den);
+        cancel(&mut from_num, &mut to_num);
+        cancel(&mut to_den, &mut from_den);
+        cancel(&mut value_num, &mut from_den);
+        cancel(&mut value_num, &mut to_num);
+        let numerator = value_num
+            .checked_mul(from_num)
+            .and_then(|n| n.checked_mul(to_den))
+            .ok_or(ParseFixedError::OutOfRange)?;
+        value_den = value_den
+            .checked_mul(from_den)
+            .and_then(|d| d.checked_mul(to_num))
+            .ok_or(ParseFixedError::OutOfRange)?;
+        if numerator % value_den != 0 {
+            return Err(ParseFixedError::NotRepresentable { scale });
+        }
+        let raw = i64::try_from(numerator / value_den).map_err(|_| ParseFixedError::OutOfRange)?;
+        Ok(Self { raw, scale })
+    }
+}
+
+/// Reads decimal text exactly, in steps of its last digit (`"1.250"` is 1250 × 1e-3).
+impl core::str::FromStr for Fixed {
+    type Err = ParseFixedError;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let parsed = parse_decimal(text)?;
+        let magnitude = i64::try_from(parsed.magnitude).map_err(|_| ParseFixedError::OutOfRange)?;
+        let exponent =
+            -i8::try_from(parsed.decimals).map_err(|_| ParseFixedError::TooManyDigits)?;
+        Ok(Self {
+            raw: if parsed.negative {
+                -magnitude
+            } else {
+                magnitude
+            },
+            scale: Scale::Decimal { exponent },
+        })
+    }
+}
+
+/// A whole number of units.
+impl From<i32> for Fixed {
+    fn from(value: i32) -> Self {
+        Self::new(i64::from(value), Scale::ONE)
+    }
+}
+
 /// Prints the exact value: a decimal scale with exactly its number of decimals
 /// (`3.584190`), a ratio scale with the shortest exact decimal (`0.00000095367431640625`).
 impl fmt::Display for Fixed {
@@ -526,6 +602,23 @@ mod tests {
             Fixed::parse("1", Scale::Decimal { exponent: 120 }),
             Err(ParseFixedError::OutOfRange)
         );
+    }
+
+    #[test]
+    fn rescales_exactly() {
+        let text: Fixed = "-3.5".parse().unwrap();
+        assert_eq!(text.to_scale(MICRO).unwrap().raw(), -3_500_000);
+        assert_eq!(text.to_scale(TENTH).unwrap().raw(), -35);
+        assert!(text.to_scale(Scale::ONE).is_err());
+        let slope = Scale::ratio(1, 1 << 20).unwrap();
+        assert_eq!(Fixed::from(2).to_scale(slope).unwrap().raw(), 2 << 20);
+        assert_eq!(Fixed::new(1 << 19, slope).to_scale(TENTH).unwrap().raw(), 5);
+        assert_eq!(
+            Fixed::new(i64::MAX, Scale::ONE).to_scale(MICRO),
+            Err(ParseFixedError::OutOfRange)
+        );
+        assert_eq!("12".parse::<Fixed>().unwrap(), Fixed::new(12, Scale::ONE));
+        assert!("1e3".parse::<Fixed>().is_err());
     }
 
     #[test]

@@ -1,2 +1,30 @@
-//! Runtime of the generated optobus drivers.
+//! The runtime under every generated optobus driver.
+//!
+//! `optobus-codegen` turns a spec into a typed driver (`PSeries<T>`, `Ccf<T>`, …) whose methods
+//! are thin: each names its register's [`RegisterInfo`] in the generated `DEVICE` table and
+//! the Rust type of its value. Everything else happens here, once for all families:
+//!
+//! - [`Core`] reads a register or a group (merging adjacent registers into the fewest reads,
+//!   split at the device's maximum), writes one register (two words in the spec's write
+//!   order, or the rangefinder's 4-byte FC06), runs commands and waits out their busy time.
+//! - [`Decode`] and [`Encode`] turn words into typed values and back; every write is
+//!   validated (range, defined codes, fits its bits, exactly representable) before a byte is
+//!   sent.
+//! - [`units`] holds the exact fixed-point quantities readings come in (`Millimetres`, …).
+//!
+//! Nothing here knows about sockets: the bytes go through an [`optobus_transport::Transport`].
 #![forbid(unsafe_code)]
+
+mod core;
+mod error;
+mod plan;
+pub mod units;
+mod value;
+
+pub use crate::core::{Core, Readings};
+pub use error::Error;
+pub use optobus_codec::value::{Fixed, ParseFixedError, Scale};
+pub use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
+pub use optobus_transport::{self as transport, Transport};
+pub use plan::{plan_reads, ReadSpan};
+pub use value::{encode_code, encode_integer, encode_packed, raw_bits, Decode, Encode};

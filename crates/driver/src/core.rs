@@ -1,0 +1,238 @@
+//! The engine of every generated driver: reads, validated writes, groups, commands.
+
+use std::time::Duration;
+
+use optobus_codec::value::{join_u32, u32_writes};
+use optobus_codec::{ReadFunction, WriteValue};
+use optobus_device::{Addressing, CommandInfo, DeviceInfo, LongWrites, RegisterInfo, Table};
+use optobus_transport::Transport;
+
+use crate::plan::{plan_reads, ReadSpan};
+use crate::{Decode, Encode, Error};
+
+/// A transport, a slave address and the device description: what a generated driver wraps.
+#[derive(Debug)]
+pub struct Core<T> {
+    transport: T,
+    slave: u8,
+    device: &'static DeviceInfo,
+}
+
+/// The words a group read fetched, by request.
+#[derive(Clone, Debug)]
+pub struct Readings {
+    spans: Vec<(ReadSpan, Vec<u16>)>,
+    addressing: Addressing,
+}
+
+impl Readings {
+    /// The words of `register` (empty if the plan did not read it).
+    pub fn words(&self, register: &RegisterInfo) -> &[u16] {
+        self.spans
+            .iter()
+            .find_map(|(span, words)| {
+                let offset = span.offset_of(register, self.addressing)?;
+                words.get(offset..offset + usize::from(register.words))
+            })
+            .unwrap_or(&[])
+    }
+
+    /// The value of `register`.
+    pub fn get<V: Decode>(&self, register: &RegisterInfo) -> V {
+        V::decode(register, self.words(register))
+    }
+
+    /// The requests that were made.
+    pub fn requests(&self) -> impl Iterator<Item = &ReadSpan> {
+        self.spans.iter().map(|(span, _)| span)
+    }
+}
+
+fn function(table: Table) -> ReadFunction {
+    match table {
+        Table::Holding => ReadFunction::Holding,
+        Table::Input => ReadFunction::Input,
+    }
+}
+
+impl<T: Transport> Core<T> {
+    /// A driver core talking to slave `slave` of `device` through `transport`.
+    pub fn new(transport: T, slave: u8, device: &'static DeviceInfo) -> Self {
+        Self {
+            transport,
+            slave,
+            device,
+        }
+    }
+
+    /// The slave address requests go to.
+    pub fn slave(&self) -> u8 {
+        self.slave
+    }
+
+    /// Sends later requests to another slave address.
+    pub fn set_slave(&mut self, slave: u8) {
+        self.slave = slave;
+    }
+
+    /// The device description.
+    pub fn device(&self) -> &'static DeviceInfo {
+        self.device
+    }
+
+    /// The transport.
+    pub fn transport_mut(&mut self) -> &mut T {
+        &mut self.transport
+    }
+
+    /// Gives the transport back.
+    pub fn into_transport(self) -> T {
+        self.transport
+    }
+
+    /// Reads the words of one register.
+    pub async fn read_words(&mut self, register: &'static RegisterInfo) -> Result<Vec<u16>, Error> {
+        if !register.access.readable() {
+            return Err(Error::NotAllowed {
+                register: register.name,
+                what: "read (it is write-only)",
+            });
+        }
+        let words = self
+            .transport
+            .read(
+                self.slave,
+                function(register.table),
+                register.address,
+                register.words,
+            )
+            .await?;
+        Ok(words)
+    }
+
+    /// Reads one register as `V`.
+    pub async fn read<V: Decode>(&mut self, register: &'static RegisterInfo) -> Result<V, Error> {
+        let words = self.read_words(register).await?;
+        Ok(V::decode(register, &words))
+    }
+
+    /// Reads several registers in the fewest requests (see [`plan_reads`]).
+    pub async fn read_group(
+        &mut self,
+        registers: &[&'static RegisterInfo],
+    ) -> Result<Readings, Error> {
+        let plan = plan_reads(self.device, registers);
+        let mut spans = Vec::with_capacity(plan.len());
+        for span in plan {
+            let words = self
+                .transport
+                .read(self.slave, function(span.table), span.address, span.count)
+                .await?;
+            spans.push((span, words));
+        }
+        Ok(Readings {
+            spans,
+            addressing: self.device.addressing,
+        })
+    }
+
+    /// Validates `value` and writes it: nothing is sent if it is invalid.
+    pub async fn write<V: Encode + ?Sized>(
+        &mut self,
+        register: &'static RegisterInfo,
+        value: &V,
+    ) -> Result<(), Error> {
+        if !register.access.writable() {
+            return Err(Error::NotAllowed {
+                register: register.name,
+                what: "written (it is read-only)",
+            });
+        }
+        let words = value.encode(register)?;
+        self.write_words(register, &words).await
+    }
+
+    /// Writes already validated words: one FC06 per word, a two-word value in the spec's
+    /// write order, or one 4-byte FC06 on devices that take it.
+    async fn write_words(
+        &mut self,
+        register: &'static RegisterInfo,
+        words: &[u16],
+    ) -> Result<(), Error> {
+        match *words {
+            [word] => {
+                self.transport
+                    .write(self.slave, register.address, WriteValue::Word(word))
+                    .await?
+            }
+            [first, second] => {
+                let value = join_u32([first, second], register.word_order);
+                if self.device.long_writes == LongWrites::Wide {
+                    let wire =
+                        join_u32([first, second], optobus_codec::value::WordOrder::HighFirst);
+                    self.transport
+                        .write(self.slave, register.address, WriteValue::DoubleWord(wire))
+                        .await?;
+                } else {
+                    for write in u32_writes(value, register.word_order, register.write_order) {
+                        let address = register.address.wrapping_add(write.offset);
+                        self.transport
+                            .write(self.slave, address, WriteValue::Word(write.value))
+                            .await?;
+                    }
+                }
+            }
+            _ => {
+                for (address, word) in (register.address..).zip(words) {
+                    self.transport
+                        .write(self.slave, address, WriteValue::Word(*word))
+                        .await?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Runs `command` (writes its value to `register`, the command's register or the chosen
+    /// copy of it) and waits out the time the device is busy afterwards.
+    pub async fn run(
+        &mut self,
+        command: &'static CommandInfo,
+        register: &'static RegisterInfo,
+    ) -> Result<(), Error> {
+        let words = crate::value::encode_integer(register, i64::from(command.value))?;
+        self.write_words(register, &words).await?;
+        if command.busy_ms > 0 {
+            tokio::time::sleep(Duration::from_millis(u64::from(command.busy_ms))).await;
+        }
+        Ok(())
+    }
+
+    /// Polls until the device answers, for at most `limit`; gives the time it took.
+    pub async fn wait_ready(&mut self, limit: Duration) -> Result<Duration, Error> {
+        const POLL_INTERVAL: Duration = Duration::from_millis(100);
+        let started = tokio::time::Instant::now();
+        let probe = self
+            .device
+            .registers
+            .iter()
+            .find(|r| r.access.readable())
+            .ok_or(Error::NotAllowed {
+                register: "",
+                what: "polled (the device has no readable register)",
+            })?;
+        loop {
+            match self.read_words(probe).await {
+                Ok(_) => return Ok(started.elapsed()),
+                Err(Error::Transport(error)) if started.elapsed() + POLL_INTERVAL >= limit => {
+                    return Err(Error::NotReady {
+                        waited: started.elapsed(),
+                        last: Box::new(error),
+                    })
+                }
+                Err(Error::Transport(_)) => tokio::time::sleep(POLL_INTERVAL).await,
+                Err(other) => return Err(other),
+            }
+        }
+    }
+}

@@ -1,0 +1,144 @@
+//! What a driver call can fail with.
+
+use std::fmt;
+use std::time::Duration;
+
+use optobus_codec::value::{Fixed, Scale};
+
+/// Why a driver call failed. Validation errors are raised before anything is sent.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum Error {
+    /// The transaction failed on the wire (timeout, exception, malformed reply, I/O).
+    Transport(optobus_transport::Error),
+    /// The value lies outside the register's range.
+    OutOfRange {
+        /// Register name.
+        register: &'static str,
+        /// The value, in raw steps.
+        raw: i64,
+        /// Smallest allowed raw value.
+        min: i64,
+        /// Largest allowed raw value.
+        max: i64,
+        /// One raw step, for showing the values in units.
+        scale: Option<Scale>,
+    },
+    /// The value is not a whole number of the register's steps, or has too many of them.
+    NotRepresentable {
+        /// Register name.
+        register: &'static str,
+        /// The value given.
+        value: Fixed,
+        /// The register's step.
+        scale: Scale,
+    },
+    /// The code is not one the manual defines for the register or field.
+    UndefinedCode {
+        /// Register name (`register.field` for a packed field).
+        register: &'static str,
+        /// Field name, for packed registers.
+        field: Option<&'static str>,
+        /// The code.
+        code: u32,
+    },
+    /// A packed field's value does not fit its bits.
+    FieldTooWide {
+        /// Register name.
+        register: &'static str,
+    },
+    /// The register cannot be read or written this way (for example reading a write-only
+    /// register through a generic tool).
+    NotAllowed {
+        /// Register name.
+        register: &'static str,
+        /// What was refused.
+        what: &'static str,
+    },
+    /// The device did not answer within the time the manual gives for starting up.
+    NotReady {
+        /// How long we polled.
+        waited: Duration,
+        /// The last failure.
+        last: Box<optobus_transport::Error>,
+    },
+}
+
+fn show(raw: i64, scale: Option<Scale>) -> String {
+    match scale {
+        Some(scale) => Fixed::new(raw, scale).to_string(),
+        None => raw.to_string(),
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Transport(error) => error.fmt(f),
+            Self::OutOfRange {
+                register,
+                raw,
+                min,
+                max,
+                scale,
+            } => write!(
+                f,
+                "{} is out of range for `{register}` ({} ..= {})",
+                show(*raw, *scale),
+                show(*min, *scale),
+                show(*max, *scale)
+            ),
+            Self::NotRepresentable {
+                register,
+                value,
+                scale,
+            } => write!(
+                f,
+                "{value} cannot be written to `{register}` exactly: it holds whole steps of {scale} within its width"
+            ),
+            Self::UndefinedCode {
+                register,
+                field: Some(field),
+                code,
+            } => write!(f, "code {code} is not defined for `{register}.{field}`"),
+            Self::UndefinedCode {
+                register, code, ..
+            } => write!(f, "code {code} is not defined for `{register}`"),
+            Self::FieldTooWide { register } => {
+                write!(f, "a field of `{register}` does not fit its bits")
+            }
+            Self::NotAllowed { register, what } => write!(f, "`{register}` cannot be {what}"),
+            Self::NotReady { waited, last } => write!(
+                f,
+                "the device did not answer within {} ms (last error: {last})",
+                waited.as_millis()
+            ),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::Transport(error) => Some(error),
+            Self::NotReady { last, .. } => Some(last.as_ref()),
+            _ => None,
+        }
+    }
+}
+
+impl From<optobus_transport::Error> for Error {
+    fn from(error: optobus_transport::Error) -> Self {
+        Self::Transport(error)
+    }
+}
+
+impl Error {
+    /// The device's exception code, when it answered with one.
+    pub fn exception(&self) -> Option<optobus_transport::ExceptionCode> {
+        match self {
+            Self::Transport(optobus_transport::Error::Exception { code, .. }) => Some(*code),
+            _ => None,
+        }
+    }
+}

@@ -1,0 +1,91 @@
+//! Read plans: which requests fetch a set of registers in the fewest transactions.
+
+use optobus_device::{Addressing, DeviceInfo, RegisterInfo, Table};
+
+/// One read request of a plan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReadSpan {
+    /// Table read.
+    pub table: Table,
+    /// First address.
+    pub address: u16,
+    /// Words asked for.
+    pub count: u16,
+}
+
+impl ReadSpan {
+    /// Where `register`'s words start in this span's reply, if it lies inside.
+    pub fn offset_of(&self, register: &RegisterInfo, addressing: Addressing) -> Option<usize> {
+        if register.table != self.table {
+            return None;
+        }
+        match addressing {
+            Addressing::Field => (register.address == self.address).then_some(0),
+            Addressing::Word => {
+                let offset = register.address.checked_sub(self.address)?;
+                (offset + register.words <= self.count).then_some(usize::from(offset))
+            }
+        }
+    }
+}
+
+/// The requests that read `registers`: adjacent registers of one table merged, split at the
+/// device's `max_read_words`. A gap between two registers is bridged only when defined,
+/// readable registers cover it, so a plan never asks for an address the device may reject.
+/// With one address per field (the rangefinder) every register is its own request.
+pub fn plan_reads(device: &DeviceInfo, registers: &[&RegisterInfo]) -> Vec<ReadSpan> {
+    let mut sorted: Vec<&RegisterInfo> = registers.to_vec();
+    sorted.sort_by_key(|r| (r.table, r.address));
+    sorted.dedup_by_key(|r| (r.table, r.address));
+    if device.addressing == Addressing::Field {
+        return sorted
+            .iter()
+            .map(|r| ReadSpan {
+                table: r.table,
+                address: r.address,
+                count: r.words,
+            })
+            .collect();
+    }
+    let limit = u32::from(device.max_read_words.max(1));
+    let mut spans: Vec<ReadSpan> = Vec::new();
+    for register in sorted {
+        let start = u32::from(register.address);
+        let end = start + u32::from(register.words);
+        if let Some(last) = spans.last_mut() {
+            let last_start = u32::from(last.address);
+            let last_end = last_start + u32::from(last.count);
+            let joinable = last.table == register.table
+                && (start <= last_end || covered(device, register.table, last_end, start))
+                && end.max(last_end) - last_start <= limit;
+            if joinable {
+                last.count = u16::try_from(end.max(last_end) - last_start).unwrap_or(u16::MAX);
+                continue;
+            }
+        }
+        spans.push(ReadSpan {
+            table: register.table,
+            address: register.address,
+            count: register.words,
+        });
+    }
+    spans
+}
+
+/// True when readable registers of `table` cover every address in `from..to`.
+fn covered(device: &DeviceInfo, table: Table, from: u32, to: u32) -> bool {
+    let mut at = from;
+    while at < to {
+        let next = device.registers.iter().find(|r| {
+            r.table == table
+                && r.access.readable()
+                && u32::from(r.address) <= at
+                && at < u32::from(r.address) + u32::from(r.words)
+        });
+        match next {
+            Some(r) => at = u32::from(r.address) + u32::from(r.words),
+            None => return false,
+        }
+    }
+    true
+}

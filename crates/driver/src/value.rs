@@ -1,0 +1,211 @@
+//! Typed values to and from register words.
+
+use std::net::Ipv4Addr;
+
+use optobus_codec::value::{join_u32, split_u32, Fixed, Scale};
+use optobus_device::{RegisterInfo, Scalar, ValueKind};
+
+use crate::Error;
+
+/// A value read from a register's words.
+///
+/// Decoding never fails: undefined enum codes become `Unknown(raw)`, and a register with a
+/// sentinel is read as `Option<_>` (`None` for "invalid").
+pub trait Decode: Sized {
+    /// The value `register` holds in `words` (its words in address order).
+    fn decode(register: &RegisterInfo, words: &[u16]) -> Self;
+}
+
+/// A value that can be written to a register, validated first.
+pub trait Encode {
+    /// The register's words in address order, or why the value cannot be written.
+    fn encode(&self, register: &'static RegisterInfo) -> Result<Vec<u16>, Error>;
+}
+
+/// The register's bits: one word, or two joined in the register's word order.
+pub fn raw_bits(register: &RegisterInfo, words: &[u16]) -> u32 {
+    let word = |i: usize| words.get(i).copied().unwrap_or(0);
+    if register.words >= 2 {
+        join_u32([word(0), word(1)], register.word_order)
+    } else {
+        u32::from(word(0))
+    }
+}
+
+fn scalar(register: &RegisterInfo) -> Scalar {
+    match register.kind {
+        ValueKind::Scalar(scalar) => scalar,
+        _ if register.words >= 2 => Scalar::U32,
+        _ => Scalar::U16,
+    }
+}
+
+/// The register's integer value, sign-extended by its wire type.
+fn integer(register: &RegisterInfo, words: &[u16]) -> i64 {
+    let bits = raw_bits(register, words);
+    match scalar(register) {
+        Scalar::U16 => i64::from(bits as u16),
+        Scalar::I16 => i64::from(bits as u16 as i16),
+        Scalar::U32 => i64::from(bits),
+        Scalar::I32 => i64::from(bits as i32),
+    }
+}
+
+/// The words of `bits` for `register`.
+pub(crate) fn bits_to_words(register: &RegisterInfo, bits: u32) -> Vec<u16> {
+    if register.words >= 2 {
+        split_u32(bits, register.word_order).to_vec()
+    } else {
+        vec![bits as u16]
+    }
+}
+
+/// Checks `value` against the register's range and wire type, and gives its words.
+pub fn encode_integer(register: &'static RegisterInfo, value: i64) -> Result<Vec<u16>, Error> {
+    let (type_min, type_max) = match scalar(register) {
+        Scalar::U16 => (0, i64::from(u16::MAX)),
+        Scalar::I16 => (i64::from(i16::MIN), i64::from(i16::MAX)),
+        Scalar::U32 => (0, i64::from(u32::MAX)),
+        Scalar::I32 => (i64::from(i32::MIN), i64::from(i32::MAX)),
+    };
+    let (min, max) = register.range.unwrap_or((type_min, type_max));
+    let (min, max) = (min.max(type_min), max.min(type_max));
+    if value < min || value > max {
+        return Err(Error::OutOfRange {
+            register: register.name,
+            raw: value,
+            min,
+            max,
+            scale: register.scale,
+        });
+    }
+    Ok(bits_to_words(register, value as u32))
+}
+
+/// Checks that `code` is one the register defines, and gives its words.
+pub fn encode_code(register: &'static RegisterInfo, code: u32) -> Result<Vec<u16>, Error> {
+    if !register.codes.is_empty() && !register.codes.iter().any(|c| c.code == code) {
+        return Err(Error::UndefinedCode {
+            register: register.name,
+            field: None,
+            code,
+        });
+    }
+    encode_integer(register, i64::from(code))
+}
+
+/// Checks each packed field of `bits` against its codes and range, and gives the words.
+pub fn encode_packed(
+    register: &'static RegisterInfo,
+    bits: Option<u32>,
+) -> Result<Vec<u16>, Error> {
+    let bits = bits.ok_or(Error::FieldTooWide {
+        register: register.name,
+    })?;
+    if let ValueKind::Packed(fields) = register.kind {
+        for field in fields {
+            let mask = if field.width >= 32 {
+                u32::MAX
+            } else {
+                (1u32 << field.width) - 1
+            };
+            let value = (bits >> field.lsb) & mask;
+            if !field.codes.is_empty() && !field.codes.iter().any(|c| c.code == value) {
+                return Err(Error::UndefinedCode {
+                    register: register.name,
+                    field: Some(field.name),
+                    code: value,
+                });
+            }
+            if let Some((min, max)) = field.range {
+                let value = i64::from(value);
+                if value < min || value > max {
+                    return Err(Error::OutOfRange {
+                        register: field.name,
+                        raw: value,
+                        min,
+                        max,
+                        scale: field.scale,
+                    });
+                }
+            }
+        }
+    }
+    Ok(bits_to_words(register, bits))
+}
+
+impl<V: Decode> Decode for Option<V> {
+    /// `None` when the register holds its "invalid" sentinel.
+    fn decode(register: &RegisterInfo, words: &[u16]) -> Self {
+        match register.sentinel {
+            Some(sentinel) if raw_bits(register, words) == sentinel => None,
+            _ => Some(V::decode(register, words)),
+        }
+    }
+}
+
+impl Decode for bool {
+    fn decode(register: &RegisterInfo, words: &[u16]) -> Self {
+        raw_bits(register, words) != 0
+    }
+}
+
+impl Encode for bool {
+    fn encode(&self, register: &'static RegisterInfo) -> Result<Vec<u16>, Error> {
+        Ok(bits_to_words(register, u32::from(*self)))
+    }
+}
+
+macro_rules! integers {
+    ($($ty:ty),*) => {$(
+        impl Decode for $ty {
+            fn decode(register: &RegisterInfo, words: &[u16]) -> Self {
+                // The generator picks the type from the register's wire type, so this fits.
+                integer(register, words) as $ty
+            }
+        }
+
+        impl Encode for $ty {
+            fn encode(&self, register: &'static RegisterInfo) -> Result<Vec<u16>, Error> {
+                encode_integer(register, i64::from(*self))
+            }
+        }
+    )*};
+}
+
+integers!(u16, i16, u32, i32);
+
+impl Decode for Fixed {
+    fn decode(register: &RegisterInfo, words: &[u16]) -> Self {
+        Fixed::new(
+            integer(register, words),
+            register.scale.unwrap_or(Scale::ONE),
+        )
+    }
+}
+
+impl Encode for Fixed {
+    fn encode(&self, register: &'static RegisterInfo) -> Result<Vec<u16>, Error> {
+        let scale = register.scale.unwrap_or(Scale::ONE);
+        let steps = self.to_scale(scale).map_err(|_| Error::NotRepresentable {
+            register: register.name,
+            value: *self,
+            scale,
+        })?;
+        encode_integer(register, steps.raw())
+    }
+}
+
+impl Decode for Ipv4Addr {
+    /// Four words, one octet each.
+    fn decode(_register: &RegisterInfo, words: &[u16]) -> Self {
+        let octet = |i: usize| words.get(i).map_or(0, |w| *w as u8);
+        Ipv4Addr::new(octet(0), octet(1), octet(2), octet(3))
+    }
+}
+
+impl Encode for Ipv4Addr {
+    fn encode(&self, _register: &'static RegisterInfo) -> Result<Vec<u16>, Error> {
+        Ok(self.octets().iter().map(|&o| u16::from(o)).collect())
+    }
+}
