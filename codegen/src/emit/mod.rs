@@ -1,11 +1,14 @@
 //! Rust emission: the typed values of a spec (enums, packed, version and record structs,
-//! repeat index types) and its static [`optobus_device::DeviceInfo`] description.
+//! repeat index types), the typed driver ([`driver`]) and the static
+//! [`optobus_device::DeviceInfo`] description both are built on.
 //!
 //! Output is built with `quote`, parsed with `syn` and formatted with `prettyplease`, so it
 //! is deterministic and reads like hand-written code. It starts with an `@generated` header
 //! naming the spec and compiles under `#![deny(missing_docs, warnings)]`.
 
 use std::collections::HashSet;
+
+mod driver;
 
 use optobus_codec::value::{Scale, WordOrder, WriteOrder};
 use proc_macro2::{Ident, Literal, Span, TokenStream};
@@ -68,10 +71,14 @@ pub fn generate(model: &Model, spec_name: &str) -> String {
         }
     });
     let device = device_info(model, &names);
+    let value_impls = driver::value_impls(model, &names);
+    let driver = driver::driver(model, &names);
     let file = quote! {
         #(#enums)*
         #(#structs)*
         #(#repeats)*
+        #value_impls
+        #driver
         #device
     };
     let formatted = match syn::parse2::<syn::File>(file.clone()) {

@@ -1,0 +1,12 @@
+//! Typed async driver for the Industrial laser rangefinder (Modbus RTU, DAC / switch / CAN outputs).
+//!
+//! Everything in this crate except the re-exports is generated at build time from
+//! `specs/rangefinder.yaml`, the transcription of the vendor manual: [`Rangefinder`] has one async
+//! method per readable register, one `set_…` per writable one, one per command and one
+//! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+include!(concat!(env!("OUT_DIR"), "/rangefinder.rs"));
+
+pub use optobus_driver::{units, Error, Fixed, Transport};
