@@ -15,12 +15,14 @@
 //! Nothing here knows about sockets: the bytes go through an [`optobus_transport::Transport`].
 #![forbid(unsafe_code)]
 
+mod connect;
 mod core;
 mod error;
 mod plan;
 pub mod units;
 mod value;
 
+pub use crate::connect::{rtu_config, serial_settings};
 pub use crate::core::{Core, Readings};
 pub use error::Error;
 pub use optobus_codec::value::{Fixed, ParseFixedError, Scale};

@@ -137,20 +137,6 @@ unit!(
     Hertz, "Hz", hertz
 );
 
-/// The type name a spec unit maps to, for the code generator; `None` for units without one
-/// (their registers read as plain [`Fixed`]).
-pub fn type_for_unit(unit: &str) -> Option<&'static str> {
-    Some(match unit {
-        "mm" => "Millimetres",
-        "us" => "Microseconds",
-        "%" => "Percent",
-        "degC" => "DegreesCelsius",
-        "uV" => "Microvolts",
-        "Hz" => "Hertz",
-        _ => return None,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

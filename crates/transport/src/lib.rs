@@ -24,10 +24,12 @@ pub use optobus_codec::{
 
 mod modbus;
 mod rtu;
+mod serial;
 mod shared;
 
 pub use modbus::ModbusContext;
 pub use rtu::{RtuClient, RtuConfig};
+pub use serial::{Parity, SerialSettings, SerialStream};
 pub use shared::Shared;
 
 /// The default time to wait for a reply.

@@ -35,6 +35,20 @@ impl ModbusContext {
         }
     }
 
+    /// Connects to a Modbus TCP server (tokio-modbus's client), with the default timeout.
+    pub async fn connect_tcp(address: std::net::SocketAddr) -> Result<Self, Error> {
+        let context =
+            match timeout(DEFAULT_TIMEOUT, tokio_modbus::client::tcp::connect(address)).await {
+                Err(_) => {
+                    return Err(Error::Timeout {
+                        after: DEFAULT_TIMEOUT,
+                    })
+                }
+                Ok(context) => context?,
+            };
+        Ok(Self::new(context))
+    }
+
     /// Sets the reply timeout.
     pub fn with_timeout(mut self, timeout: Duration) -> Self {
         self.timeout = timeout;
