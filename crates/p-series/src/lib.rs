@@ -9,4 +9,6 @@
 
 include!(concat!(env!("OUT_DIR"), "/p_series.rs"));
 
+pub mod download;
+
 pub use optobus_driver::{units, Error, Fixed, Transport};
