@@ -1,0 +1,136 @@
+//! Group read plans against the real device descriptions: the fewest requests, split at each
+//! device's read limit, never across addresses a device may reject.
+
+use optobus_device::{DeviceInfo, RegisterInfo, Table};
+use optobus_driver::{plan_reads, ReadSpan};
+use optobus_tests::generated::{ccf, lc_rs, p_series, rangefinder};
+
+fn registers(device: &'static DeviceInfo, names: &[&str]) -> Vec<&'static RegisterInfo> {
+    names
+        .iter()
+        .map(|n| {
+            device
+                .register(n)
+                .unwrap_or_else(|| panic!("no register {n}"))
+        })
+        .collect()
+}
+
+fn span(table: Table, address: u16, count: u16) -> ReadSpan {
+    ReadSpan {
+        table,
+        address,
+        count,
+    }
+}
+
+#[test]
+fn p_series_measurements_are_one_read_of_ten_words() {
+    let group = p_series::DEVICE.group("measurements").unwrap();
+    let plan = plan_reads(
+        &p_series::DEVICE,
+        &registers(&p_series::DEVICE, group.registers),
+    );
+    assert_eq!(plan, [span(Table::Input, 0, 10)]);
+}
+
+#[test]
+fn p_series_buffer_page_is_the_manuals_122_register_read() {
+    let mut names = vec![
+        "buffer_read_count".to_owned(),
+        "buffer_valid_count".to_owned(),
+    ];
+    names.extend((1..=60).map(|n| format!("buffer_sample_{n}_buffered_value")));
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    let plan = plan_reads(&p_series::DEVICE, &registers(&p_series::DEVICE, &names));
+    // 5.4: "01 04 00 10 00 7A".
+    assert_eq!(plan, [span(Table::Input, 0x10, 0x7A)]);
+}
+
+#[test]
+fn order_and_duplicates_do_not_matter() {
+    let plan = plan_reads(
+        &p_series::DEVICE,
+        &registers(
+            &p_series::DEVICE,
+            &["thickness", "distance_1", "distance_1"],
+        ),
+    );
+    assert_eq!(plan, [span(Table::Input, 0, 6)]);
+}
+
+#[test]
+fn gaps_are_bridged_only_over_readable_registers() {
+    // distance_1 (0-1) and statistic_2 (8-9): 2-7 are readable registers, one read.
+    let plan = plan_reads(
+        &p_series::DEVICE,
+        &registers(&p_series::DEVICE, &["distance_1", "statistic_2"]),
+    );
+    assert_eq!(plan, [span(Table::Input, 0, 10)]);
+    // temperature (140) and ip_address (150-153): 141-149 are reserved, two reads.
+    let plan = plan_reads(
+        &p_series::DEVICE,
+        &registers(&p_series::DEVICE, &["temperature", "ip_address"]),
+    );
+    assert_eq!(
+        plan,
+        [span(Table::Input, 140, 1), span(Table::Input, 150, 4)]
+    );
+}
+
+#[test]
+fn tables_are_read_separately() {
+    let plan = plan_reads(
+        &p_series::DEVICE,
+        &registers(&p_series::DEVICE, &["laser_enabled", "distance_1"]),
+    );
+    assert_eq!(plan, [span(Table::Holding, 0, 1), span(Table::Input, 0, 2)]);
+}
+
+#[test]
+fn lc_rs_reads_split_at_its_limit_of_eight_words() {
+    assert_eq!(lc_rs::DEVICE.max_read_words, 8);
+    let group = lc_rs::DEVICE.group("serial_settings").unwrap();
+    let plan = plan_reads(&lc_rs::DEVICE, &registers(&lc_rs::DEVICE, group.registers));
+    // 0083H-0087H: five words in one read, as the spec's group says.
+    assert_eq!(plan, [span(Table::Holding, 0x83, 5)]);
+    let plan = plan_reads(
+        &lc_rs::DEVICE,
+        &registers(&lc_rs::DEVICE, &["baud_rate", "work_mode", "factory_reset"]),
+    );
+    // 0083H-0089H would be 7 words but 0088H is undefined: two reads.
+    assert_eq!(
+        plan,
+        [span(Table::Holding, 0x83, 5), span(Table::Holding, 0x89, 1)]
+    );
+    for request in &plan {
+        assert!(request.count <= 8);
+    }
+}
+
+#[test]
+fn rangefinder_reads_one_field_per_request() {
+    let group = rangefinder::DEVICE.group("status").unwrap();
+    let mut members = registers(&rangefinder::DEVICE, group.registers);
+    members.sort_by_key(|r| r.address);
+    let plan = plan_reads(&rangefinder::DEVICE, &members);
+    let expected: Vec<ReadSpan> = members
+        .iter()
+        .map(|r| span(r.table, r.address, r.words))
+        .collect();
+    assert_eq!(plan, expected);
+}
+
+#[test]
+fn ccf_channel_groups_are_read_per_channel() {
+    let names: Vec<String> = ["distance_1", "distance_2", "thickness"]
+        .iter()
+        .map(|n| format!("channel_3_{n}"))
+        .collect();
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    let members = registers(&ccf::DEVICE, &names);
+    let plan = plan_reads(&ccf::DEVICE, &members);
+    assert_eq!(plan.len(), 1);
+    assert_eq!(plan[0].address, members[0].address);
+    assert_eq!(plan[0].count, 6);
+}
