@@ -1,2 +1,86 @@
 //! Virtual optobus devices, driven by a family's generated `DEVICE` description.
+//!
+//! One engine serves every family: the register model is the family's
+//! `&'static DeviceInfo`, and device quirks come from its data (frame shape, addressing,
+//! long writes, commands and their effects, reserved ranges, sentinels). Nothing here is
+//! written per family.
+//!
+//! ```no_run
+//! # async fn demo(device: &'static optobus_device::DeviceInfo) -> std::io::Result<()> {
+//! use optobus_simulator::{Bus, Simulator};
+//! let sim = Simulator::new(device).slave(5);
+//! let (stream, _server) = sim.duplex(); // an RTU line in memory
+//! let server = sim.serve_tcp("127.0.0.1:0").await?; // Modbus TCP
+//! let pty = sim.serve_pty()?; // a terminal mbpoll can open: pty.path()
+//! let bus = Bus::new([sim.clone(), Simulator::new(device).slave(6)]); // two slaves, one line
+//! sim.set_silent(true); // stops answering
+//! # Ok(()) }
+//! ```
+//!
+//! # Behaviour on the wire
+//!
+//! - **Framing**: RTU with CRC (requests split across reads, back-to-back frames, garbage
+//!   skipped, bad CRCs ignored; see [`Bus`]), Modbus TCP with MBAP (transaction and unit id
+//!   echoed), both through `optobus-codec` with the device's `FrameShape` (LC-RS's 7-byte
+//!   counted-word exceptions, the rangefinder's 10-byte FC06 echo).
+//! - **Addresses**: frames for other slaves are ignored; broadcast (slave 0) writes are
+//!   carried out and never answered, broadcast reads are not answered unless
+//!   [`Quirks::answer_broadcast_reads`] (the rangefinder's 3.5 shows an answer).
+//! - **Exceptions** ([`Quirks`]): illegal function for function codes not in
+//!   `DeviceInfo::functions`; illegal address for undefined addresses, reads past the table,
+//!   reads of 0 or more than `max_read_words` words (LC-RS 2.2 4): 1 to 8), and writes to
+//!   read-only registers (the manuals' 02 "address outside the device's range" is the nearest
+//!   code: the address holds nothing writable); illegal value for out-of-range values,
+//!   undefined enum codes and packed fields with undefined codes or stray bits, and the
+//!   register keeps its value (P series/CCS/CCF 4.1.1 note 2).
+//! - **Reserved and write-only addresses** read as zeros (spec README), except on LC-RS, whose
+//!   table 2 code 0x0001 "register address error" refuses them (the golden frame lc-2.1.3).
+//! - **Field addressing** (rangefinder): one address per field; a read names one field and
+//!   asks for exactly its width (a 32-bit field: 2 words, high word first; the 0019H record:
+//!   6 words). Every read in the manual does so (1.2, 3.1-3.38; 3.6's printed count 1 is an
+//!   erratum), so reads spanning several fields, or with another count, are refused (02).
+//!   A reserved field reads as one zero word.
+//! - **32-bit writes**: split writes (two FC06, in the register's `write_order`) are held
+//!   until the second half arrives, then validated whole; see `split_write` in the device
+//!   model. Wide writes carry the value in one 4-byte FC06.
+//! - **Slave address changes** apply to the next request on devices that apply settings
+//!   immediately (the reply to the write itself comes from the old address). With
+//!   `needs_save_and_power_cycle` (LC-RS 2.2 3): "所有寄存器修改后必须发送保存配置指令且重新上电
+//!   设备才生效") a write is acknowledged and reads return the new value at once (the manual
+//!   says nothing about read-back, and the device keeps the value to save it), but it takes
+//!   effect, e.g. the address the device answers to, only after save and
+//!   [`Simulator::power_cycle`]; unsaved changes are lost by the power cycle.
+//! - **Commands and effects**: see [`effects`](crate::effects) and [`buffer`].
+//! - **Measurements**: see [`signal`]; tokio's clock drives them, so paused test time works.
+//! - **Defaults**: see [`defaults`].
+//!
+//! Not modelled: LC-RS continuous-send mode (its stream format is not described), baud rate
+//! and parity changes (a stream has no line speed), enable flags of statistics and encoder
+//! counters (they always run), the time code and sample number the P series attaches to its
+//! measurements (no register shows them), and power-up silence at creation (only after
+//! [`Simulator::power_cycle`]).
 #![forbid(unsafe_code)]
+
+pub mod buffer;
+pub mod defaults;
+mod device;
+pub mod effects;
+mod layout;
+mod names;
+mod quirks;
+mod rtu;
+pub mod signal;
+mod sim;
+mod tcp;
+mod value;
+
+#[cfg(unix)]
+mod pty;
+
+pub use device::Reply;
+#[cfg(unix)]
+pub use pty::Pty;
+pub use quirks::{Quirks, UnreadableReads};
+pub use rtu::Bus;
+pub use sim::{PokeError, RegisterState, Simulator};
+pub use tcp::TcpServer;

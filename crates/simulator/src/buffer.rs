@@ -1,0 +1,261 @@
+//! The P series' data buffer (manual 4.1.2 registers 0022-0024, 4.2.2 notes 3-5, 5.4 and
+//! appendix 3), found from the device description rather than by family:
+//!
+//! - the lock register is the one the `buffer_lock` command writes;
+//! - the group that holds the lock register also holds the report count (its unsigned
+//!   integer member) and the data type (its enum member whose code names are registers);
+//! - the page is the group of input registers made of two plain registers (read count, valid
+//!   count) followed by repeat copies (the buffered values, in order);
+//! - the sampling interval is the enum register whose code meanings are durations (`100us`).
+//!
+//! Behaviour: while unlocked and the report count N is non-zero, one value of the data type's
+//! register is buffered per sampling interval, up to N (appendix 3 (1), (5)). Locking freezes
+//! what is buffered (appendix 3 (2)) and restarts the read-out. Every read that covers a
+//! buffered-value register returns the next page: up to 60 values, the valid count of this
+//! page and the total read so far, including this page (appendix 3 (3)-(4), 5.4 (5): 1000
+//! values take 17 reads, the 17th with 40 valid); values past the valid count read as the
+//! value register's sentinel. A read of the two counts alone does not turn the page. Unlocking
+//! clears the buffer and starts buffering anew; changing the report count, the data type or
+//! the sampling interval resets the buffer and the lock flag (4.2.2 note 5). Unlocked, the
+//! counts read 0 and every value is invalid.
+
+use optobus_device::{Access, DeviceInfo, Effect, GroupInfo, Scalar, Table, ValueKind};
+
+/// What a register of the page is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Role {
+    /// Total values read since the lock.
+    ReadCount,
+    /// Valid values of the current page.
+    ValidCount,
+    /// The `n`th value of the page (0-based).
+    Value(usize),
+}
+
+/// Where the buffer's registers are.
+#[derive(Clone, Debug)]
+pub(crate) struct BufferLayout {
+    /// The lock flag register.
+    pub(crate) lock: usize,
+    /// The report count register.
+    pub(crate) report_count: usize,
+    /// The data type register, if any (else the first code's register is buffered).
+    pub(crate) data_type: Option<usize>,
+    /// The sampling interval register, if any (else 1 ms).
+    pub(crate) interval: Option<usize>,
+    read_count: usize,
+    valid_count: usize,
+    values: Vec<usize>,
+}
+
+/// Seconds in a duration written as `6.25us`, `1ms` or `2s`.
+pub(crate) fn parse_duration(text: &str) -> Option<f64> {
+    let text = text.trim();
+    let (number, per_second) = if let Some(n) = text.strip_suffix("us") {
+        (n, 1e6)
+    } else if let Some(n) = text.strip_suffix("µs") {
+        (n, 1e6)
+    } else if let Some(n) = text.strip_suffix("ms") {
+        (n, 1e3)
+    } else if let Some(n) = text.strip_suffix('s') {
+        (n, 1.0)
+    } else {
+        return None;
+    };
+    let value: f64 = number.trim().parse().ok()?;
+    (value > 0.0).then_some(value / per_second)
+}
+
+fn page_group(device: &DeviceInfo) -> Option<&'static GroupInfo> {
+    device.groups.iter().find(|group| {
+        let members: Vec<_> = group
+            .registers
+            .iter()
+            .filter_map(|name| device.register(name))
+            .collect();
+        let copies = members.iter().filter(|r| r.copy.is_some()).count();
+        members.len() == group.registers.len()
+            && members.iter().all(|r| r.table == Table::Input)
+            && copies > 0
+            && members.len() - copies == 2
+            && members.iter().take(2).all(|r| r.copy.is_none())
+    })
+}
+
+impl BufferLayout {
+    /// The buffer of `device`, if it has one.
+    pub(crate) fn find(device: &'static DeviceInfo) -> Option<Self> {
+        let index = |name: &str| device.registers.iter().position(|r| r.name == name);
+        let lock_command = device
+            .commands
+            .iter()
+            .find(|c| c.effect == Effect::BufferLock)?;
+        let lock = index(lock_command.register)?;
+        let settings = device
+            .groups
+            .iter()
+            .find(|g| g.registers.contains(&lock_command.register))?;
+        let members: Vec<usize> = settings.registers.iter().filter_map(|n| index(n)).collect();
+        let report_count = members.iter().copied().find(|&i| {
+            i != lock
+                && matches!(
+                    device.registers[i].kind,
+                    ValueKind::Scalar(Scalar::U16 | Scalar::U32)
+                )
+        })?;
+        let data_type = members.iter().copied().find(|&i| {
+            let register = &device.registers[i];
+            register.kind == ValueKind::Enum
+                && register
+                    .codes
+                    .iter()
+                    .all(|code| device.register(code.name).is_some())
+        });
+        let interval = device.registers.iter().position(|r| {
+            r.kind == ValueKind::Enum
+                && r.access == Access::ReadWrite
+                && !r.codes.is_empty()
+                && r.codes.iter().all(|c| parse_duration(c.meaning).is_some())
+        });
+        let page = page_group(device)?;
+        let mut plain = page.registers.iter().filter_map(|n| index(n));
+        let read_count = plain.next()?;
+        let valid_count = plain.next()?;
+        let values = page
+            .registers
+            .iter()
+            .skip(2)
+            .filter_map(|n| index(n))
+            .collect();
+        Some(Self {
+            lock,
+            report_count,
+            data_type,
+            interval,
+            read_count,
+            valid_count,
+            values,
+        })
+    }
+
+    /// What register `index` is in the page.
+    pub(crate) fn role(&self, index: usize) -> Option<Role> {
+        if index == self.read_count {
+            Some(Role::ReadCount)
+        } else if index == self.valid_count {
+            Some(Role::ValidCount)
+        } else {
+            self.values
+                .iter()
+                .position(|&v| v == index)
+                .map(Role::Value)
+        }
+    }
+
+    /// Whether a write to `index` resets the buffer (4.2.2 note 5).
+    pub(crate) fn resets_on(&self, index: usize) -> bool {
+        index == self.report_count || Some(index) == self.data_type || Some(index) == self.interval
+    }
+
+    fn page_size(&self) -> u32 {
+        u32::try_from(self.values.len()).unwrap_or(u32::MAX)
+    }
+}
+
+/// A locked buffer being read out.
+#[derive(Clone, Copy, Debug)]
+struct Locked {
+    /// Values buffered when it was locked.
+    filled: u32,
+    /// Values read out so far.
+    read: u32,
+    /// First value and valid count of the current page.
+    page_start: u32,
+    valid: u32,
+    /// Time of the first value, and seconds between values.
+    first: f64,
+    period: f64,
+    /// The register whose values were buffered.
+    source: Option<usize>,
+}
+
+/// The buffer's state.
+#[derive(Clone, Debug)]
+pub(crate) struct Buffer {
+    pub(crate) layout: BufferLayout,
+    /// When buffering (re)started.
+    started: f64,
+    locked: Option<Locked>,
+}
+
+impl Buffer {
+    pub(crate) fn new(layout: BufferLayout, t: f64) -> Self {
+        Self {
+            layout,
+            started: t,
+            locked: None,
+        }
+    }
+
+    /// Locks the buffer at `t`: `capacity` values requested, one per `period` seconds of
+    /// `source`'s reading.
+    pub(crate) fn lock(&mut self, t: f64, capacity: u32, period: f64, source: Option<usize>) {
+        let period = if period > 0.0 { period } else { 1e-3 };
+        let elapsed = ((t - self.started) / period).floor().max(0.0);
+        let filled = (elapsed.min(f64::from(u32::MAX)) as u32).min(capacity);
+        self.locked = Some(Locked {
+            filled,
+            read: 0,
+            page_start: 0,
+            valid: 0,
+            first: self.started + period,
+            period,
+            source,
+        });
+    }
+
+    /// Clears the buffer and starts buffering anew.
+    pub(crate) fn reset(&mut self, t: f64) {
+        self.started = t;
+        self.locked = None;
+    }
+
+    /// Turns the page: the next read-out of up to a page of values.
+    pub(crate) fn turn_page(&mut self) {
+        let size = self.layout.page_size();
+        if let Some(locked) = &mut self.locked {
+            locked.page_start = locked.read;
+            locked.valid = locked.filled.saturating_sub(locked.read).min(size);
+            locked.read += locked.valid;
+        }
+    }
+
+    /// The read and valid counts as the registers show them.
+    pub(crate) fn counts(&self) -> (u32, u32) {
+        self.locked.map_or((0, 0), |l| (l.read, l.valid))
+    }
+
+    /// The register buffered and the time of the `slot`th value of the current page, if it
+    /// is valid.
+    pub(crate) fn sample(&self, slot: usize) -> Option<(Option<usize>, f64)> {
+        let locked = self.locked?;
+        let slot = u32::try_from(slot).ok()?;
+        (slot < locked.valid).then(|| {
+            let n = locked.page_start + slot;
+            (locked.source, locked.first + f64::from(n) * locked.period)
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn durations() {
+        assert_eq!(parse_duration("6.25us"), Some(6.25e-6));
+        assert_eq!(parse_duration("1ms"), Some(1e-3));
+        assert_eq!(parse_duration("=1 5Hz"), None);
+        assert_eq!(parse_duration("us"), None);
+    }
+}

@@ -1,0 +1,215 @@
+//! What a write sets off: commands and their effects, saving, restarting.
+//!
+//! A command fires when its register is written with its value (for repeat blocks, the copy
+//! written names the copy whose targets it acts on: CCF channel 2's `position_zero` zeroes
+//! channel 2's `distance_1`). After a command its register returns to an "idle" code if it has
+//! one that no command uses (P series 0020 and CCS/CCF save and trigger-count reset "clear
+//! their flag": they read 0 again); other command registers keep the value written (a run
+//! state, a lock flag, a zero switch). A command with `busy_ms` is answered, then the device
+//! ignores every request for that long (CCS/CCF 4.1.2: about 400 ms of flash writing during
+//! which requests time out; P series soft reboot).
+//!
+//! Effects:
+//! - `zero`: each target's current reading becomes its zero (reads about 0 right after);
+//!   `clear_zero` removes the offset. Zero offsets are not saved (CCS 4.1.2 note).
+//! - `reset`: targets restart: a statistic's window, a counter, a sampled value (0 until the
+//!   next sample).
+//! - `save`: the current settings are stored; a reboot or power cycle restores them.
+//! - `reboot`: the saved settings come back, offsets and the buffer are cleared.
+//! - `factory_reset`: factory values at once; on devices whose settings apply only after save
+//!   and power cycle (LC-RS) they are stored too, so the next restart uses them with or
+//!   without a save (table 1 "重启有效", 2.3 "保存后重启生效": both hold).
+//! - `network_reset`: targets get their factory values (P series 4.1.2 note 2: IP
+//!   192.168.0.10), not saved.
+//! - `buffer_lock` / `buffer_unlock`: see [`crate::buffer`].
+
+use std::time::Duration;
+
+use optobus_device::{CommandInfo, Effect};
+use tokio::time::Instant;
+
+use crate::buffer::parse_duration;
+use crate::device::Device;
+use crate::layout::command_copy;
+use crate::names;
+use crate::value::{join, split};
+
+impl Device {
+    /// Acts on a valid write of `raw` to register `index`, already stored.
+    pub(crate) fn after_write(&mut self, index: usize, raw: u32, now: Instant) {
+        let t = self.seconds(now);
+        let Some(register) = self.register(index) else {
+            return;
+        };
+        if let Some(buffer) = &mut self.buffer {
+            if buffer.layout.resets_on(index) {
+                buffer.reset(t);
+                let lock = buffer.layout.lock;
+                if let Some(lock_register) = self.info.registers.get(lock) {
+                    self.words[lock] = split(lock_register, 0);
+                }
+            }
+        }
+        if register.name == names::SLAVE_ADDRESS && !self.info.needs_save_and_power_cycle {
+            // Settings apply at once: the next request must use the new address (the reply
+            // to this one still comes from the old).
+            if let Some(address) = u8::try_from(raw).ok().filter(|a| (1..=247).contains(a)) {
+                self.address = address;
+            }
+        }
+        let fired: Vec<(&'static CommandInfo, Option<String>)> = self
+            .info
+            .commands
+            .iter()
+            .filter(|command| command.value == raw)
+            .filter_map(|command| Some((command, command_copy(command, register)?)))
+            .collect();
+        if fired.is_empty() {
+            return;
+        }
+        let used: Vec<u32> = self
+            .info
+            .commands
+            .iter()
+            .filter(|command| command_copy(command, register).is_some())
+            .map(|command| command.value)
+            .collect();
+        if let Some(idle) = register
+            .codes
+            .iter()
+            .map(|code| code.code)
+            .filter(|code| !used.contains(code))
+            .min()
+        {
+            self.words[index] = split(register, idle);
+        }
+        let mut busy = 0;
+        for (command, prefix) in fired {
+            self.run(command, prefix.as_deref(), t);
+            busy = busy.max(command.busy_ms);
+        }
+        if busy > 0 {
+            self.busy_until = Some(now + Duration::from_millis(u64::from(busy)));
+        }
+    }
+
+    /// The registers `command` acts on, in the copy `prefix` names if it has them.
+    fn targets(&self, command: &CommandInfo, prefix: Option<&str>) -> Vec<usize> {
+        command
+            .targets
+            .iter()
+            .filter_map(|name| {
+                prefix
+                    .and_then(|prefix| self.layout.find(&format!("{prefix}{name}")))
+                    .or_else(|| self.layout.find(name))
+            })
+            .collect()
+    }
+
+    fn run(&mut self, command: &CommandInfo, prefix: Option<&str>, t: f64) {
+        let targets = self.targets(command, prefix);
+        let signals = |device: &Device, index: usize| -> Vec<usize> {
+            device
+                .signals
+                .of_register(index)
+                .map(<[usize]>::to_vec)
+                .unwrap_or_default()
+        };
+        match command.effect {
+            Effect::Zero => {
+                for index in targets {
+                    self.pinned[index] = false;
+                    for id in signals(self, index) {
+                        self.signals.zero(id, t);
+                    }
+                }
+            }
+            Effect::ClearZero => {
+                for index in targets {
+                    for id in signals(self, index) {
+                        self.signals.clear_zero(id);
+                    }
+                }
+            }
+            Effect::Reset => {
+                for index in targets {
+                    for id in signals(self, index) {
+                        self.signals.reset(id, t);
+                    }
+                }
+            }
+            Effect::Save => self.flash = self.words.clone(),
+            Effect::Reboot => self.restart(t),
+            Effect::FactoryReset => {
+                for index in 0..self.words.len() {
+                    if !self.pinned[index] {
+                        self.words[index] = self.factory[index].clone();
+                    }
+                }
+                if self.info.needs_save_and_power_cycle {
+                    self.flash = self.factory.clone();
+                } else if let Some(address) = self.configured_slave(&self.words) {
+                    self.address = address;
+                }
+            }
+            Effect::NetworkReset => {
+                for index in targets {
+                    self.words[index] = self.factory[index].clone();
+                }
+            }
+            Effect::BufferLock => self.lock_buffer(t),
+            Effect::BufferUnlock => {
+                if let Some(buffer) = &mut self.buffer {
+                    buffer.reset(t);
+                }
+            }
+            Effect::None => {}
+        }
+    }
+
+    /// Locks the buffer with the current report count, sampling interval and data type.
+    fn lock_buffer(&mut self, t: f64) {
+        let Some(buffer) = &self.buffer else {
+            return;
+        };
+        let layout = buffer.layout.clone();
+        let value = |index: usize| -> Option<u32> {
+            Some(join(self.register(index)?, self.words.get(index)?))
+        };
+        let code = |index: usize| {
+            let raw = value(index)?;
+            self.register(index)?.codes.iter().find(|c| c.code == raw)
+        };
+        let capacity = value(layout.report_count).unwrap_or(0);
+        let period = layout
+            .interval
+            .and_then(code)
+            .and_then(|c| parse_duration(c.meaning))
+            .unwrap_or(1e-3);
+        let source = layout
+            .data_type
+            .and_then(|index| code(index).or_else(|| self.register(index)?.codes.first()))
+            .and_then(|c| self.layout.find(c.name));
+        if let Some(buffer) = &mut self.buffer {
+            buffer.lock(t, capacity, period, source);
+        }
+    }
+
+    /// Restarts from the saved settings (reboot, power cycle): unsaved changes, zero offsets,
+    /// resets, half-written values and the buffer are gone; the saved slave address applies.
+    pub(crate) fn restart(&mut self, t: f64) {
+        for index in 0..self.words.len() {
+            if !self.pinned[index] {
+                self.words[index] = self.flash[index].clone();
+            }
+        }
+        self.pending.iter_mut().for_each(|p| *p = None);
+        self.signals.clear_all();
+        if let Some(buffer) = &mut self.buffer {
+            buffer.reset(t);
+        }
+        if let Some(address) = self.configured_slave(&self.flash) {
+            self.address = address;
+        }
+    }
+}

@@ -1,0 +1,174 @@
+//! Modbus TCP serving: every connection gets the same device.
+//!
+//! The device is addressed by its IP, so it answers every unit id and echoes it with the
+//! transaction id (P series 5.1.2 .. 5.3.2). A frame with a protocol id other than 0 or an
+//! impossible length is skipped by its MBAP length; a connection that cannot be framed any
+//! more is closed. Devices without a `tcp` transport can be served too, like an RTU-to-TCP
+//! gateway would.
+
+use std::io;
+use std::net::SocketAddr;
+
+use optobus_codec::{tcp, DecodeError, Decoded, Response, Words};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream, ToSocketAddrs};
+use tokio::task::{JoinHandle, JoinSet};
+
+use crate::device::{Pdu, Reply};
+use crate::names;
+use crate::sim::Simulator;
+
+/// A running Modbus TCP server; dropping it stops the server and closes its connections.
+#[derive(Debug)]
+pub struct TcpServer {
+    local_addr: SocketAddr,
+    task: JoinHandle<()>,
+}
+
+impl TcpServer {
+    /// The address the server listens on (with the port the system chose for port 0).
+    pub fn local_addr(&self) -> SocketAddr {
+        self.local_addr
+    }
+
+    /// Stops accepting and closes every connection.
+    pub fn shutdown(&self) {
+        self.task.abort();
+    }
+}
+
+impl Drop for TcpServer {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
+
+impl Simulator {
+    /// Listens on `addr` (e.g. `"127.0.0.1:0"`) and serves Modbus TCP to any number of
+    /// connections on a spawned task.
+    pub async fn serve_tcp(&self, addr: impl ToSocketAddrs) -> io::Result<TcpServer> {
+        let listener = TcpListener::bind(addr).await?;
+        let local_addr = listener.local_addr()?;
+        let sim = self.clone();
+        let task = tokio::spawn(async move {
+            let mut connections = JoinSet::new();
+            loop {
+                tokio::select! {
+                    accepted = listener.accept() => {
+                        let Ok((stream, peer)) = accepted else { continue };
+                        sim.note_host_port(peer.port());
+                        let sim = sim.clone();
+                        connections.spawn(async move {
+                            // A broken connection ends only itself.
+                            let _ = sim.serve_tcp_stream(stream).await;
+                        });
+                    }
+                    Some(_) = connections.join_next(), if !connections.is_empty() => {}
+                }
+            }
+        });
+        Ok(TcpServer { local_addr, task })
+    }
+
+    /// The P series shows the bound host's port (input 0154).
+    fn note_host_port(&self, port: u16) {
+        let mut device = self.lock();
+        if let Some(index) = device.layout.find(names::HOST_PORT) {
+            if let Some(words) = device.words.get_mut(index) {
+                if let Some(word) = words.first_mut() {
+                    *word = port;
+                }
+            }
+        }
+    }
+
+    /// Serves Modbus TCP on one connection until the peer closes it.
+    pub async fn serve_tcp_stream(&self, mut stream: TcpStream) -> io::Result<()> {
+        let shape = self.device().frame_shape;
+        let mut pending: Vec<u8> = Vec::with_capacity(tcp::MAX_FRAME_LEN);
+        let mut chunk = [0u8; tcp::MAX_FRAME_LEN];
+        loop {
+            loop {
+                match tcp::decode_request(&pending, &shape) {
+                    Ok(Decoded::NeedMore { .. }) => break,
+                    Ok(Decoded::Frame { frame, consumed }) => {
+                        pending.drain(..consumed.min(pending.len()));
+                        let reply = self.respond(None, Pdu::Request(&frame.pdu));
+                        if let Some(bytes) = encode(self, frame.header, &reply) {
+                            stream.write_all(&bytes).await?;
+                        }
+                    }
+                    Err(DecodeError::UnsupportedFunction { function }) => {
+                        let Some(len) = tcp::frame_len(&pending) else {
+                            break;
+                        };
+                        if pending.len() < len {
+                            break;
+                        }
+                        let header = header_of(&pending);
+                        pending.drain(..len);
+                        let reply = self.respond(None, Pdu::Unsupported(function));
+                        if let Some(bytes) = encode(self, header, &reply) {
+                            stream.write_all(&bytes).await?;
+                        }
+                    }
+                    Err(DecodeError::BadProtocolId { .. }) => {
+                        match tcp::frame_len(&pending).filter(|&len| len <= tcp::MAX_FRAME_LEN) {
+                            Some(len) if pending.len() >= len => {
+                                pending.drain(..len);
+                            }
+                            Some(_) => break,
+                            None => return Ok(()),
+                        }
+                    }
+                    // The stream cannot be framed any more.
+                    Err(_) => return Ok(()),
+                }
+            }
+            let read = stream.read(&mut chunk).await?;
+            if read == 0 {
+                return Ok(());
+            }
+            pending.extend_from_slice(chunk.get(..read).unwrap_or_default());
+        }
+    }
+}
+
+fn header_of(frame: &[u8]) -> tcp::Header {
+    match frame {
+        [t0, t1, _, _, _, _, unit, ..] => tcp::Header {
+            transaction: u16::from_be_bytes([*t0, *t1]),
+            unit: *unit,
+        },
+        _ => tcp::Header::default(),
+    }
+}
+
+/// The TCP bytes of `reply` under `header`.
+fn encode(sim: &Simulator, header: tcp::Header, reply: &Reply) -> Option<Vec<u8>> {
+    let shape = sim.device().frame_shape.exception;
+    let mut out = [0u8; tcp::MAX_FRAME_LEN];
+    let bytes: Vec<u8>;
+    let len = match reply {
+        Reply::Read { function, words } => {
+            bytes = words.iter().flat_map(|w| w.to_be_bytes()).collect();
+            let response = Response::Read {
+                function: *function,
+                words: Words::from_bytes(&bytes)?,
+            };
+            tcp::encode_response(&mut out, header, &response).ok()?
+        }
+        Reply::Write { address, value } => {
+            let response = Response::Write {
+                address: *address,
+                value: *value,
+            };
+            tcp::encode_response(&mut out, header, &response).ok()?
+        }
+        Reply::Exception { function, code } => {
+            tcp::encode_exception(&mut out, header, *function, *code, shape).ok()?
+        }
+        Reply::Silent => return None,
+    };
+    out.get(..len).map(<[u8]>::to_vec)
+}
