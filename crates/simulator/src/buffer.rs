@@ -19,7 +19,9 @@
 //! the sampling interval resets the buffer and the lock flag (4.2.2 note 5). Unlocked, the
 //! counts read 0 and every value is invalid.
 
-use optobus_device::{Access, DeviceInfo, Effect, GroupInfo, Scalar, Table, ValueKind};
+use optobus_device::{Access, DeviceInfo, Effect, Scalar, Table, ValueKind};
+
+use crate::layout::group_members;
 
 /// What a register of the page is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,19 +68,17 @@ pub(crate) fn parse_duration(text: &str) -> Option<f64> {
     (value > 0.0).then_some(value / per_second)
 }
 
-fn page_group(device: &DeviceInfo) -> Option<&'static GroupInfo> {
-    device.groups.iter().find(|group| {
-        let members: Vec<_> = group
-            .registers
-            .iter()
-            .filter_map(|name| device.register(name))
-            .collect();
-        let copies = members.iter().filter(|r| r.copy.is_some()).count();
-        members.len() == group.registers.len()
-            && members.iter().all(|r| r.table == Table::Input)
-            && copies > 0
-            && members.len() - copies == 2
-            && members.iter().take(2).all(|r| r.copy.is_none())
+/// The page: a group of input registers, two plain ones followed by repeat copies.
+fn page(device: &DeviceInfo) -> Option<Vec<usize>> {
+    device.groups.iter().find_map(|group| {
+        let members = group_members(device, group);
+        let registers: Vec<_> = members.iter().map(|&i| &device.registers[i]).collect();
+        let plain = registers.iter().take_while(|r| r.copy.is_none()).count();
+        let ok = plain == 2
+            && registers.len() > 2
+            && registers.iter().all(|r| r.table == Table::Input)
+            && registers.iter().skip(2).all(|r| r.copy.is_some());
+        ok.then_some(members)
     })
 }
 
@@ -95,7 +95,7 @@ impl BufferLayout {
             .groups
             .iter()
             .find(|g| g.registers.contains(&lock_command.register))?;
-        let members: Vec<usize> = settings.registers.iter().filter_map(|n| index(n)).collect();
+        let members = group_members(device, settings);
         let report_count = members.iter().copied().find(|&i| {
             i != lock
                 && matches!(
@@ -117,16 +117,9 @@ impl BufferLayout {
                 && !r.codes.is_empty()
                 && r.codes.iter().all(|c| parse_duration(c.meaning).is_some())
         });
-        let page = page_group(device)?;
-        let mut plain = page.registers.iter().filter_map(|n| index(n));
-        let read_count = plain.next()?;
-        let valid_count = plain.next()?;
-        let values = page
-            .registers
-            .iter()
-            .skip(2)
-            .filter_map(|n| index(n))
-            .collect();
+        let page = page(device)?;
+        let (read_count, valid_count) = (*page.first()?, *page.get(1)?);
+        let values = page.get(2..)?.to_vec();
         Some(Self {
             lock,
             report_count,

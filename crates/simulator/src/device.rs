@@ -66,8 +66,6 @@ pub(crate) struct Device {
     pub(crate) layout: Layout,
     pub(crate) quirks: Quirks,
     epoch: Instant,
-    pub(crate) seed: u64,
-    pub(crate) sentinel_every: u32,
     /// Stored words of every register (settings; pinned measurements).
     pub(crate) words: Vec<Vec<u16>>,
     /// What `save` stored; a reboot or power cycle restores it.
@@ -114,8 +112,6 @@ impl Device {
             layout,
             quirks: Quirks::of(info),
             epoch: Instant::now(),
-            seed: 0,
-            sentinel_every: 50,
             words: factory.clone(),
             flash: factory.clone(),
             factory,
@@ -379,24 +375,23 @@ impl Device {
 
     /// The reading of signal `id` at `t` (`None`: a sentinel sample).
     pub(crate) fn signal_value(&self, id: usize, t: f64) -> Option<i64> {
-        self.signals
-            .reading(id, t, self.seed, self.sentinel_every, |statistic| {
-                let config = self.register(statistic.config)?;
-                let raw = join(config, self.words.get(statistic.config)?);
-                let field_value = |field: &optobus_device::FieldInfo| {
-                    let value = optobus_codec::value::BitField {
-                        shift: field.lsb,
-                        width: field.width,
-                    }
-                    .get(raw);
-                    field.codes.iter().find(|c| c.code == value)
-                };
-                let source = field_value(statistic.source_field)?;
-                let kind = field_value(statistic.kind_field)?;
-                let source = self.layout.find(source.name)?;
-                let source = *self.signals.of_register(source)?.first()?;
-                Some((source, StatisticKind::from_code_name(kind.name)?))
-            })
+        self.signals.reading(id, t, |statistic| {
+            let config = self.register(statistic.config)?;
+            let raw = join(config, self.words.get(statistic.config)?);
+            let field_value = |field: &optobus_device::FieldInfo| {
+                let value = optobus_codec::value::BitField {
+                    shift: field.lsb,
+                    width: field.width,
+                }
+                .get(raw);
+                field.codes.iter().find(|c| c.code == value)
+            };
+            let source = field_value(statistic.source_field)?;
+            let kind = field_value(statistic.kind_field)?;
+            let source = self.layout.find(source.name)?;
+            let source = *self.signals.of_register(source)?.first()?;
+            Some((source, StatisticKind::from_code_name(kind.name)?))
+        })
     }
 
     fn buffer_words(&self, buffer: &Buffer, register: &RegisterInfo, role: Role) -> Vec<u16> {

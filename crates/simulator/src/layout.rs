@@ -2,7 +2,7 @@
 
 use std::collections::HashMap;
 
-use optobus_device::{Addressing, CommandInfo, DeviceInfo, RegisterInfo, Table};
+use optobus_device::{Addressing, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo, Table};
 
 /// What one address holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -92,4 +92,29 @@ pub(crate) fn command_copy(
     let prefix = format!("{repeat}_{copy}_");
     let base = register.name.strip_prefix(prefix.as_str())?;
     (base == command.register).then_some(Some(prefix))
+}
+
+/// The registers a group names, in order; a repeat member's base name stands for every copy,
+/// in copy order.
+pub(crate) fn group_members(device: &DeviceInfo, group: &GroupInfo) -> Vec<usize> {
+    let mut members = Vec::new();
+    for name in group.registers {
+        if let Some(index) = device.registers.iter().position(|r| r.name == *name) {
+            members.push(index);
+            continue;
+        }
+        let mut copies: Vec<(u8, usize)> = device
+            .registers
+            .iter()
+            .enumerate()
+            .filter_map(|(index, register)| {
+                let (repeat, copy) = register.copy?;
+                let base = register.name.strip_prefix(&format!("{repeat}_{copy}_"))?;
+                (base == *name).then_some((copy, index))
+            })
+            .collect();
+        copies.sort_unstable();
+        members.extend(copies.into_iter().map(|(_, index)| index));
+    }
+    members
 }

@@ -125,6 +125,10 @@ pub(crate) struct Signals {
     by_register: Vec<Option<Vec<SignalId>>>,
     offsets: Vec<i64>,
     resets: Vec<Option<f64>>,
+    /// Varies phases, noise and sentinel samples.
+    pub(crate) seed: u64,
+    /// One sample in this many of a reading with a sentinel is invalid (0: never).
+    pub(crate) sentinel_every: u32,
 }
 
 /// SplitMix64: a cheap, good 64-bit mix for deterministic pseudo-randomness.
@@ -339,6 +343,8 @@ impl Signals {
             by_register,
             offsets: vec![0; count],
             resets: vec![None; count],
+            seed: 0,
+            sentinel_every: 50,
         }
     }
 
@@ -371,8 +377,10 @@ impl Signals {
         match signal.source {
             Source::Level(level) => {
                 let sample = (t / SAMPLE).floor() as u64;
-                let noise = (mix(signal.key ^ sample) % 2_001) as f64 / 1_000.0 - 1.0;
-                level.at(t) + noise * level.amplitude / 100.0
+                let noise = (mix(self.seed ^ signal.key ^ mix(sample)) % 2_001) as f64 / 1_000.0;
+                // The seed shifts the sine by up to a whole period.
+                let shift = (mix(self.seed) % 10_000) as f64 / 10_000.0 * level.period;
+                level.at(t + shift) + (noise - 1.0) * level.amplitude / 100.0
             }
             Source::Counter { per_second } => {
                 let since = self.resets.get(root).copied().flatten().unwrap_or(0.0);
@@ -387,7 +395,8 @@ impl Signals {
     }
 
     /// Whether `id` reads as its sentinel at `t`.
-    fn is_sentinel_sample(&self, id: SignalId, t: f64, seed: u64, every: u32) -> bool {
+    fn is_sentinel_sample(&self, id: SignalId, t: f64) -> bool {
+        let (seed, every) = (self.seed, self.sentinel_every);
         let Some(signal) = self.signals.get(id) else {
             return false;
         };
@@ -407,12 +416,10 @@ impl Signals {
         &self,
         id: SignalId,
         t: f64,
-        seed: u64,
-        sentinel_every: u32,
         statistic: impl Fn(&Statistic) -> Option<(SignalId, StatisticKind)>,
     ) -> Option<i64> {
         let signal = self.signals.get(id)?;
-        if self.is_sentinel_sample(id, t, seed, sentinel_every) {
+        if self.is_sentinel_sample(id, t) {
             return None;
         }
         let reset = self.resets.get(id).copied().flatten();
@@ -437,7 +444,10 @@ impl Signals {
     /// A statistic of `source`'s reading over `[from, to]`.
     fn statistic(&self, source: SignalId, kind: StatisticKind, from: f64, to: f64) -> f64 {
         let (low, high) = match self.root(source).map(|(_, signal)| signal.source) {
-            Some(Source::Level(level)) => level.extremes(from.min(to), to),
+            Some(Source::Level(level)) => {
+                let shift = (mix(self.seed) % 10_000) as f64 / 10_000.0 * level.period;
+                level.extremes(from.min(to) + shift, to + shift)
+            }
             _ => {
                 let (a, b) = (self.underlying(source, from), self.underlying(source, to));
                 (a.min(b), a.max(b))

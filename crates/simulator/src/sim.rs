@@ -89,14 +89,14 @@ impl Simulator {
 
     /// Varies the measurement signals (phases, noise, sentinel samples); default 0.
     pub fn seed(self, seed: u64) -> Self {
-        self.lock().seed = seed;
+        self.lock().signals.seed = seed;
         self
     }
 
     /// One sample in `every` of a reading with a sentinel reads as the sentinel (default 50;
     /// 0 never).
     pub fn sentinel_every(self, every: u32) -> Self {
-        self.lock().sentinel_every = every;
+        self.lock().signals.sentinel_every = every;
         self
     }
 
