@@ -895,3 +895,25 @@ fn every_family_answers_every_readable_register() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------- drivers
+
+#[tokio::test(start_paused = true)]
+async fn the_generated_driver_downloads_the_buffer_from_the_simulator() {
+    use optobus_transport::RtuClient;
+    let sim = Simulator::new(&p_series::DEVICE).sentinel_every(0);
+    let (stream, _server) = sim.duplex();
+    let mut sensor = p_series::PSeries::new(RtuClient::new(stream), 1);
+    sensor
+        .start_buffering(p_series::MeasurementSource::Distance1, 1000)
+        .await
+        .unwrap();
+    sleep(Duration::from_millis(20)).await;
+    let mut pages = 0;
+    let values = sensor.download_buffer(|p| pages = p.pages).await.unwrap();
+    assert_eq!((values.len(), pages), (1000, 17));
+    assert!(values.iter().all(Option::is_some));
+    assert_eq!(sim.register("buffer_locked").unwrap().words, [0]);
+    let distance = sensor.distance_1().await.unwrap().unwrap();
+    assert!((4.0..6.0).contains(&distance.to_f64()), "{distance:?}");
+}

@@ -40,9 +40,12 @@
 //!   6 words). Every read in the manual does so (1.2, 3.1-3.38; 3.6's printed count 1 is an
 //!   erratum), so reads spanning several fields, or with another count, are refused (02).
 //!   A reserved field reads as one zero word.
-//! - **32-bit writes**: split writes (two FC06, in the register's `write_order`) are held
-//!   until the second half arrives, then validated whole; see `split_write` in the device
-//!   model. Wide writes carry the value in one 4-byte FC06.
+//! - **32-bit writes**: of a split write (two FC06, P series 4.1.2 note 4: low word first,
+//!   latched when the high word arrives) the half that comes first in the register's
+//!   `write_order` is acknowledged and held; the second completes the value, which is
+//!   validated whole and stored, or refused (03) leaving the register unchanged. Until then
+//!   reads show the old value. A second half without a first pairs with the stored first
+//!   half. Wide writes (rangefinder) carry the value in one 4-byte FC06, echoed whole.
 //! - **Slave address changes** apply to the next request on devices that apply settings
 //!   immediately (the reply to the write itself comes from the old address). With
 //!   `needs_save_and_power_cycle` (LC-RS 2.2 3): "所有寄存器修改后必须发送保存配置指令且重新上电
@@ -50,7 +53,7 @@
 //!   says nothing about read-back, and the device keeps the value to save it), but it takes
 //!   effect, e.g. the address the device answers to, only after save and
 //!   [`Simulator::power_cycle`]; unsaved changes are lost by the power cycle.
-//! - **Commands and effects**: see [`effects`](crate::effects) and [`buffer`].
+//! - **Commands and effects**: see [`effects`] and [`buffer`].
 //! - **Measurements**: see [`signal`]; tokio's clock drives them, so paused test time works.
 //! - **Defaults**: see [`defaults`].
 //!
