@@ -29,8 +29,8 @@ use optobus_device::{CommandInfo, Effect};
 use tokio::time::Instant;
 
 use crate::buffer::parse_duration;
-use crate::device::Device;
 use crate::layout::command_copy;
+use crate::model::Device;
 use crate::names;
 use crate::value::{join, split};
 

@@ -66,9 +66,9 @@
 
 pub mod buffer;
 pub mod defaults;
-mod device;
 pub mod effects;
 mod layout;
+mod model;
 mod names;
 mod quirks;
 mod rtu;
@@ -80,7 +80,7 @@ mod value;
 #[cfg(unix)]
 mod pty;
 
-pub use device::Reply;
+pub use model::Reply;
 #[cfg(unix)]
 pub use pty::Pty;
 pub use quirks::{Quirks, UnreadableReads};

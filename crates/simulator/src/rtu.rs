@@ -15,7 +15,7 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, DuplexStream
 use tokio::task::JoinHandle;
 use tokio::time::timeout;
 
-use crate::device::{Pdu, Reply};
+use crate::model::{Pdu, Reply};
 use crate::sim::Simulator;
 
 /// Default silence after which a partial frame is dropped.

@@ -7,7 +7,7 @@ use optobus_codec::Request;
 use optobus_device::{DeviceInfo, RegisterInfo, Table};
 use tokio::time::Instant;
 
-use crate::device::{Device, Pdu, Reply};
+use crate::model::{Device, Pdu, Reply};
 use crate::quirks::Quirks;
 
 /// A virtual device of one family, driven by its `DeviceInfo`.

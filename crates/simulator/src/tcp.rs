@@ -14,7 +14,7 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream, ToSocketAddrs};
 use tokio::task::{JoinHandle, JoinSet};
 
-use crate::device::{Pdu, Reply};
+use crate::model::{Pdu, Reply};
 use crate::names;
 use crate::sim::Simulator;
 
