@@ -917,3 +917,40 @@ async fn the_generated_driver_downloads_the_buffer_from_the_simulator() {
     let distance = sensor.distance_1().await.unwrap().unwrap();
     assert!((4.0..6.0).contains(&distance.to_f64()), "{distance:?}");
 }
+
+/// mbpoll, when installed, reads holding registers through the pseudo-terminal and over TCP.
+#[tokio::test]
+async fn mbpoll_reads_the_simulator_when_installed() {
+    let Ok(found) = std::process::Command::new("mbpoll").arg("-V").output() else {
+        eprintln!("mbpoll not installed: skipped");
+        return;
+    };
+    assert!(found.status.success() || !found.stdout.is_empty());
+    let sim = Simulator::new(&p_series::DEVICE);
+    let pty = sim.serve_pty().unwrap();
+    let server = sim.serve_tcp("127.0.0.1:0").await.unwrap();
+    let port = server.local_addr().port().to_string();
+    let path = pty.path().display().to_string();
+    // Holding 0031-0032 (mbpoll counts from 1): slave address 1, baud code 4.
+    let rtu = [
+        "-m", "rtu", "-a", "1", "-b", "115200", "-P", "none", "-t", "4", "-r", "32",
+    ];
+    let tcp = ["-m", "tcp", "-a", "1", "-p", &port, "-t", "4", "-r", "32"];
+    for (args, target) in [(&rtu[..], path.as_str()), (&tcp[..], "127.0.0.1")] {
+        let mut command = std::process::Command::new("mbpoll");
+        command
+            .args(args)
+            .args(["-c", "2", "-1", "-o", "2", target]);
+        let output = tokio::task::spawn_blocking(move || command.output());
+        let output = timeout(Duration::from_secs(10), output)
+            .await
+            .unwrap()
+            .unwrap()
+            .unwrap();
+        let text = String::from_utf8_lossy(&output.stdout);
+        assert!(
+            text.contains("[32]: \t1") && text.contains("[33]: \t4"),
+            "{text}"
+        );
+    }
+}
