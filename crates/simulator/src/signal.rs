@@ -15,7 +15,8 @@
 //!   selects) of another reading since the statistic was last reset.
 //!
 //! Readings with a sentinel read as the sentinel in one sample of `sentinel_every` (10 ms
-//! samples, chosen by a hash of the seed, the register and the sample number).
+//! samples, chosen by a hash of the seed, the register and the sample number); statistics and
+//! counters never do. A valid reading that would equal the sentinel is moved by one step.
 
 use std::f64::consts::TAU;
 
