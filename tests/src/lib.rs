@@ -4,6 +4,7 @@
 //! format in `tests/golden/FORMAT.md`), so that every suite can replay real bytes.
 #![forbid(unsafe_code)]
 
+pub mod e2e;
 pub mod golden;
 
 /// The code generated from every spec: the five driver crates, and the `mini` test spec

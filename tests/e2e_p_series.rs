@@ -1,0 +1,209 @@
+//! P series end to end: typed driver → transport → simulated device → back, over our RTU
+//! client on an in-memory line and over Modbus TCP (tokio-modbus) on 127.0.0.1.
+
+use std::net::Ipv4Addr;
+use std::time::Duration;
+
+use optobus_driver::transport::Error as WireError;
+use optobus_driver::units::Percent;
+use optobus_driver::{Error, Fixed, Transport};
+use optobus_p_series::download::DownloadProgress;
+use optobus_p_series::{MeasurementSource, MedianFilterWidth, PSeries, DEVICE};
+use optobus_simulator::Simulator;
+use optobus_tests::e2e;
+
+fn simulator() -> Simulator {
+    Simulator::new(&DEVICE).sentinel_every(0)
+}
+
+async fn every_register_and_group<T: Transport>(sensor: &mut PSeries<T>) {
+    // Every P-series register is readable, write-only command registers included.
+    assert_eq!(e2e::read_every_register(sensor.core()).await, 106);
+    assert!(e2e::write_every_register(sensor.core()).await > 60);
+    every_group(sensor).await;
+}
+
+async fn every_group<T: Transport>(sensor: &mut PSeries<T>) {
+    let m = sensor.read_measurements().await.unwrap();
+    let d1 = m.distance_1.expect("valid distance");
+    assert!((3.0..7.0).contains(&d1.to_f64()), "{d1}");
+    sensor.read_sampled_data().await.unwrap();
+    let status = sensor.read_buffer_status().await.unwrap();
+    assert_eq!(
+        (status.buffer_read_count, status.buffer_valid_count),
+        (0, 0)
+    );
+    let page = sensor.read_buffer_page().await.unwrap();
+    assert_eq!(page.buffered_value.len(), 60);
+    let network = sensor.read_network_info().await.unwrap();
+    assert_eq!(network.ip_address, Ipv4Addr::new(192, 168, 0, 10));
+    sensor.read_laser().await.unwrap();
+    sensor.read_filters().await.unwrap();
+    sensor.read_statistics_config().await.unwrap();
+    sensor.read_buffer_settings().await.unwrap();
+    sensor.read_corrections().await.unwrap();
+    let modbus = sensor.read_modbus_settings().await.unwrap();
+    assert_eq!(modbus.slave_address, 1);
+}
+
+#[tokio::test(start_paused = true)]
+async fn rtu_every_register_and_group() {
+    let sim = simulator();
+    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    every_register_and_group(&mut sensor).await;
+}
+
+#[tokio::test]
+async fn tcp_every_register_and_group() {
+    let sim = simulator();
+    let (context, _server) = e2e::tcp(&sim).await;
+    let mut sensor = PSeries::with_default_slave(context);
+    every_register_and_group(&mut sensor).await;
+}
+
+#[tokio::test(start_paused = true)]
+async fn typed_values_round_trip() {
+    let sim = simulator();
+    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    sensor
+        .set_light_power("42.5".parse().unwrap())
+        .await
+        .unwrap();
+    assert_eq!(sim.peek(optobus_device::Table::Holding, 2), Some(vec![425]));
+    assert_eq!(
+        sensor.light_power().await.unwrap(),
+        "42.5".parse::<Percent>().unwrap()
+    );
+    sensor
+        .set_median_filter_width(MedianFilterWidth::ALL[1])
+        .await
+        .unwrap();
+    assert_eq!(
+        sensor.median_filter_width().await.unwrap(),
+        MedianFilterWidth::ALL[1]
+    );
+    // Slope 2.0 (×2^20) and offset -1.5 mm, each written low word first.
+    sensor.set_position_1_slope(Fixed::from(2)).await.unwrap();
+    assert_eq!(sensor.position_1_slope().await.unwrap().to_string(), "2");
+    sensor
+        .set_position_1_offset("-1.5".parse().unwrap())
+        .await
+        .unwrap();
+    let offset = sensor.position_1_offset().await.unwrap();
+    assert_eq!(offset.micrometres().to_string(), "-1500.000");
+    let words = [29, 30].map(|a| sim.peek(optobus_device::Table::Holding, a));
+    assert_eq!(words, [Some(vec![0xFFE9]), Some(vec![0x1CA0])]);
+    // A pinned reading is exact: 0x0036B0BE is 3.584190 mm (5.3.1).
+    sim.set("distance_1", &[0x0036, 0xB0BE]).unwrap();
+    let distance = sensor.distance_1().await.unwrap().unwrap();
+    assert_eq!(distance.to_string(), "3.584190 mm");
+    // The invalid sentinel reads as None.
+    sim.set("distance_1", &[0x7FFF, 0xFFFF]).unwrap();
+    assert_eq!(sensor.distance_1().await.unwrap(), None);
+    // An undefined code reads as Unknown, never an error.
+    sim.set("median_filter_width", &[0x00EE]).unwrap();
+    assert_eq!(
+        sensor.median_filter_width().await.unwrap(),
+        MedianFilterWidth::Unknown(0xEE)
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn commands_act_on_the_device() {
+    let sim = simulator();
+    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    let before = sensor.distance_1().await.unwrap().unwrap();
+    assert!(before.to_f64() > 1.0);
+    sensor.zero_position_1().await.unwrap();
+    let zeroed = sensor.distance_1().await.unwrap().unwrap();
+    assert!(zeroed.to_f64().abs() < 0.5, "{zeroed}");
+    sensor.clear_zero_position_1().await.unwrap();
+    let back = sensor.distance_1().await.unwrap().unwrap();
+    assert!(back.to_f64() > 1.0, "{back}");
+    sensor.save_parameters().await.unwrap();
+    // The reboot keeps the device busy: the driver waits it out, then the device answers.
+    let started = tokio::time::Instant::now();
+    sensor.reboot().await.unwrap();
+    assert!(started.elapsed() >= Duration::from_millis(5000));
+    sensor.laser_enabled().await.unwrap();
+}
+
+#[tokio::test(start_paused = true)]
+async fn download_1000_buffered_values() {
+    let sim = simulator();
+    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    sensor
+        .start_buffering(MeasurementSource::ALL[0], 1000)
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let mut seen = Vec::new();
+    let values = sensor
+        .download_buffer(|p: DownloadProgress| seen.push(p))
+        .await
+        .unwrap();
+    assert_eq!(values.len(), 1000);
+    assert!(values
+        .iter()
+        .all(|v| v.is_some_and(|d| d.to_f64() > 3.0 && d.to_f64() < 7.0)));
+    assert_eq!(seen.len(), 17, "17 pages of at most 60 (5.4)");
+    assert_eq!(
+        seen.last().map(|p| (p.received, p.expected)),
+        Some((1000, 1000))
+    );
+    // Unlocked again afterwards, which clears the buffer.
+    assert!(!sensor.buffer_locked().await.unwrap());
+    assert_eq!(
+        sensor.read_buffer_status().await.unwrap().buffer_read_count,
+        0
+    );
+    // Over the limit the manual gives: refused before the wire.
+    let error = sensor
+        .start_buffering(MeasurementSource::ALL[0], 2501)
+        .await
+        .unwrap_err();
+    assert!(
+        matches!(error, Error::OutOfRange { max: 2500, .. }),
+        "{error}"
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn device_exceptions_are_typed() {
+    let sim = simulator();
+    let mut client = e2e::rtu(&sim);
+    // Reserved input 141: reads as zeros (spec README); past the table: 02.
+    let error = client
+        .read(1, optobus_driver::transport::ReadFunction::Input, 158, 4)
+        .await
+        .unwrap_err();
+    assert!(
+        matches!(error, WireError::Exception { function: 4, code } if code.0 == 2),
+        "{error}"
+    );
+    // A value the device refuses when written raw (light power 0): 03, register unchanged.
+    let error = client
+        .write(1, 2, optobus_driver::transport::WriteValue::Word(0))
+        .await
+        .unwrap_err();
+    assert!(
+        matches!(error, WireError::Exception { function: 6, code } if code.0 == 3),
+        "{error}"
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn wait_ready_after_a_power_cycle() {
+    let sim = simulator();
+    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    sim.power_cycle();
+    let took = sensor.wait_ready().await.unwrap();
+    assert!(took >= Duration::from_millis(4000), "{took:?}");
+    sim.set_silent(true);
+    let error = sensor
+        .core()
+        .wait_ready(Duration::from_secs(3))
+        .await
+        .unwrap_err();
+    assert!(matches!(error, Error::NotReady { .. }), "{error}");
+}
