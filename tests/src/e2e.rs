@@ -73,12 +73,19 @@ pub fn valid_values(register: &'static RegisterInfo) -> Vec<Vec<u16>> {
             }
         }
         ValueKind::Packed(fields) => {
-            let first = |f: &optobus_device::FieldInfo| f.codes.first().map_or(0, |c| c.code);
-            let base: u32 = fields.iter().map(|f| first(f) << f.lsb).sum();
+            // Every field at its first code or lowest value, then each field varied alone.
+            let choices = |f: &optobus_device::FieldInfo| -> Vec<u32> {
+                match f.range {
+                    _ if !f.codes.is_empty() => f.codes.iter().map(|c| c.code).collect(),
+                    Some((min, max)) => vec![min as u32, max as u32],
+                    None => vec![0],
+                }
+            };
+            let base: u32 = fields.iter().map(|f| choices(f)[0] << f.lsb).sum();
             for field in fields {
-                for code in field.codes {
+                for value in choices(field) {
                     let mask = (((1u64 << field.width) - 1) as u32) << field.lsb;
-                    let bits = (base & !mask) | (code.code << field.lsb);
+                    let bits = (base & !mask) | (value << field.lsb);
                     values.push(encode_packed(register, Some(bits)));
                 }
             }

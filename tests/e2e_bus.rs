@@ -1,0 +1,102 @@
+//! Several drivers on one serial line, and what a silent device looks like.
+
+use std::time::Duration;
+
+use optobus_ccs::Ccs;
+use optobus_driver::transport::{Error as WireError, RtuClient, Shared};
+use optobus_driver::{rtu_config, Error};
+use optobus_p_series::PSeries;
+use optobus_simulator::{Bus, Simulator};
+use optobus_tests::e2e;
+
+#[tokio::test(start_paused = true)]
+async fn two_drivers_share_one_port_from_two_tasks() {
+    let p_sim = Simulator::new(&optobus_p_series::DEVICE)
+        .slave(1)
+        .sentinel_every(0);
+    let ccs_sim = Simulator::new(&optobus_ccs::DEVICE)
+        .slave(2)
+        .sentinel_every(0);
+    let (stream, _server) = Bus::new([p_sim.clone(), ccs_sim.clone()]).duplex();
+    let line = Shared::new(RtuClient::with_config(
+        stream,
+        rtu_config(&optobus_p_series::DEVICE),
+    ));
+    let mut p_series = PSeries::new(line.clone(), 1);
+    let mut ccs = Ccs::new(line, 2);
+    let p_task = tokio::spawn(async move {
+        for round in 0..50u16 {
+            let power = format!("{}.{}", 10 + round, round % 10);
+            p_series
+                .set_light_power(power.parse().unwrap())
+                .await
+                .unwrap();
+            assert_eq!(
+                p_series.light_power().await.unwrap().to_string(),
+                format!("{power} %")
+            );
+            assert!(p_series
+                .read_measurements()
+                .await
+                .unwrap()
+                .distance_1
+                .is_some());
+        }
+    });
+    let ccs_task = tokio::spawn(async move {
+        for round in 0..50u16 {
+            let time = format!("{}.5", 100 + round);
+            ccs.set_exposure_time(time.parse().unwrap()).await.unwrap();
+            let settings = ccs.read_exposure_settings().await.unwrap();
+            assert_eq!(settings.exposure_time.to_string(), format!("{time} us"));
+        }
+    });
+    p_task.await.unwrap();
+    ccs_task.await.unwrap();
+    // Each device saw its own writes only.
+    assert_eq!(
+        p_sim.peek(optobus_device::Table::Holding, 2),
+        Some(vec![599])
+    );
+    assert_eq!(
+        ccs_sim.peek(optobus_device::Table::Holding, 2),
+        Some(vec![1495])
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_silent_device_times_out_and_the_line_recovers() {
+    let sim = Simulator::new(&optobus_p_series::DEVICE);
+    let mut client = e2e::rtu(&sim);
+    client.config_mut().timeout = Duration::from_millis(200);
+    let mut sensor = PSeries::with_default_slave(client);
+    sim.set_silent(true);
+    let started = tokio::time::Instant::now();
+    let error = sensor.laser_enabled().await.unwrap_err();
+    assert!(
+        matches!(error, Error::Transport(WireError::Timeout { after }) if after == Duration::from_millis(200)),
+        "{error}"
+    );
+    assert!(started.elapsed() >= Duration::from_millis(200));
+    // Writes time out too, and are not retried.
+    let error = sensor.set_laser_enabled(true).await.unwrap_err();
+    assert!(
+        matches!(error, Error::Transport(WireError::Timeout { .. })),
+        "{error}"
+    );
+    sim.set_silent(false);
+    sensor.laser_enabled().await.unwrap();
+}
+
+#[tokio::test]
+async fn a_silent_device_times_out_over_tcp() {
+    let sim = Simulator::new(&optobus_p_series::DEVICE);
+    let (context, _server) = e2e::tcp(&sim).await;
+    let mut sensor = PSeries::with_default_slave(context.with_timeout(Duration::from_millis(100)));
+    sim.set_silent(true);
+    let error = sensor.laser_enabled().await.unwrap_err();
+    assert!(
+        matches!(error, Error::Transport(WireError::Timeout { .. })),
+        "{error}"
+    );
+}

@@ -1,0 +1,107 @@
+//! LC-RS end to end over our RTU client, which decodes its 7-byte exception replies.
+
+use optobus_device::Table;
+use optobus_driver::transport::{Error as WireError, ReadFunction, WriteValue};
+use optobus_driver::{Error, Transport};
+use optobus_lc_rs::{LcRs, Parity, WorkMode, DEVICE};
+use optobus_simulator::Simulator;
+use optobus_tests::e2e;
+
+#[tokio::test(start_paused = true)]
+async fn every_register_and_group() {
+    let sim = Simulator::new(&DEVICE);
+    let mut sensor = LcRs::with_default_slave(e2e::rtu(&sim));
+    let readable = DEVICE
+        .registers
+        .iter()
+        .filter(|r| r.access.readable())
+        .count();
+    assert_eq!(e2e::read_every_register(sensor.core()).await, readable);
+    // Baud rate (range ends and middle), three parities, two work modes.
+    assert_eq!(e2e::write_every_register(sensor.core()).await, 8);
+    sensor.read_measurements().await.unwrap();
+    let serial = sensor.read_serial_settings().await.unwrap();
+    assert_eq!(serial.slave_address, DEVICE.default_slave.into());
+    let version = sensor.firmware_version().await.unwrap();
+    assert!(!version.to_string().is_empty());
+}
+
+#[tokio::test(start_paused = true)]
+async fn settings_apply_after_save_and_power_cycle() {
+    let sim = Simulator::new(&DEVICE);
+    let mut sensor = LcRs::with_default_slave(e2e::rtu(&sim));
+    sensor.set_parity(Parity::Even).await.unwrap();
+    sensor.set_work_mode(WorkMode::Query).await.unwrap();
+    sensor.set_baud_rate(9600).await.unwrap();
+    // 32-bit baud rate in two FC06, high word first: 0x0000 2580.
+    assert_eq!(
+        [131, 132].map(|a| sim.peek(Table::Holding, a)),
+        [Some(vec![0]), Some(vec![0x2580])]
+    );
+    assert_eq!(sensor.parity().await.unwrap(), Parity::Even);
+    sensor.save_parameters().await.unwrap();
+    sim.power_cycle();
+    sensor.wait_ready().await.unwrap();
+    assert_eq!(sensor.baud_rate().await.unwrap(), 9600);
+}
+
+#[tokio::test(start_paused = true)]
+async fn seven_byte_exceptions() {
+    let sim = Simulator::new(&DEVICE);
+    let mut client = e2e::rtu(&sim);
+    let slave = DEVICE.default_slave;
+    // Undefined address: the manual's 0x0001 "register address error".
+    let error = client
+        .read(slave, ReadFunction::Holding, 0x0088, 1)
+        .await
+        .unwrap_err();
+    assert!(
+        matches!(error, WireError::Exception { code, .. } if code.0 == 0x0001),
+        "{error}"
+    );
+    // More than 8 words in one read.
+    let error = client
+        .read(slave, ReadFunction::Holding, 0x0080, 9)
+        .await
+        .unwrap_err();
+    assert!(
+        matches!(error, WireError::Exception { code, .. } if code.0 == 0x0001),
+        "{error}"
+    );
+    // A bad value: 0x0002 "register write value error", register unchanged.
+    let before = sim.peek(Table::Holding, 0x0086);
+    let error = client
+        .write(slave, 0x0086, WriteValue::Word(7))
+        .await
+        .unwrap_err();
+    assert!(
+        matches!(error, WireError::Exception { code, .. } if code.0 == 0x0002),
+        "{error}"
+    );
+    assert_eq!(sim.peek(Table::Holding, 0x0086), before);
+    // The next transaction is fine.
+    assert_eq!(
+        client
+            .read(slave, ReadFunction::Holding, 0x0086, 1)
+            .await
+            .unwrap()
+            .len(),
+        1
+    );
+    // Through the driver, the exception code is reachable.
+    let mut sensor = LcRs::with_default_slave(client);
+    sim.set_silent(false);
+    let error = sensor
+        .core()
+        .read_words(DEVICE.register("distance").unwrap())
+        .await;
+    assert!(error.is_ok());
+    let error: Error = sensor
+        .core()
+        .transport_mut()
+        .read(slave, ReadFunction::Input, 0, 1)
+        .await
+        .unwrap_err()
+        .into();
+    assert!(error.exception().is_some(), "{error}");
+}
