@@ -508,9 +508,26 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
             "Reads `{}` in the fewest requests the device allows: {doc}",
             group.name
         );
-        let param = match &per_copy {
-            Some((index_type, _)) => quote!(#copy_param: #index_type),
-            None => quote!(),
+        let (param, plan) = match &per_copy {
+            Some((index_type, copies)) => {
+                let copies = Literal::usize_unsuffixed(*copies);
+                (
+                    quote!(#copy_param: #index_type),
+                    quote! {
+                        static PLANS: [::std::sync::OnceLock<::std::vec::Vec<::optobus_driver::ReadSpan>>; #copies] =
+                            [const { ::std::sync::OnceLock::new() }; #copies];
+                        let plan = &PLANS[usize::from(#copy_param.number()) - 1];
+                    },
+                )
+            }
+            None => (
+                quote!(),
+                quote! {
+                    static PLAN: ::std::sync::OnceLock<::std::vec::Vec<::optobus_driver::ReadSpan>> =
+                        ::std::sync::OnceLock::new();
+                    let plan = &PLAN;
+                },
+            ),
         };
         group_types.push(quote! {
             #[doc = #struct_doc]
@@ -526,7 +543,9 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
             #[doc = #method_doc]
             pub async fn #method(&mut self, #param) -> ::core::result::Result<#struct_ident, ::optobus_driver::Error> {
                 let registers: [&'static ::optobus_device::RegisterInfo; #count] = [#(#entries),*];
-                let readings = self.core.read_group(&registers).await?;
+                // The requests are planned on the first call and kept.
+                #plan
+                let readings = self.core.read_group_with(plan, &registers).await?;
                 Ok(#struct_ident { #(#fields: #values,)* })
             }
         });

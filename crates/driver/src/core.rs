@@ -1,5 +1,6 @@
 //! The engine of every generated driver: reads, validated writes, groups, commands.
 
+use std::sync::OnceLock;
 use std::time::Duration;
 
 use optobus_codec::value::{join_u32, u32_writes};
@@ -21,15 +22,19 @@ pub struct Core<T> {
 /// The words a group read fetched, by request.
 #[derive(Clone, Debug)]
 pub struct Readings {
-    spans: Vec<(ReadSpan, Vec<u16>)>,
+    /// The first request's words inline: most groups are one request, read without another
+    /// allocation.
+    first: Option<(ReadSpan, Vec<u16>)>,
+    rest: Vec<(ReadSpan, Vec<u16>)>,
     addressing: Addressing,
 }
 
 impl Readings {
     /// The words of `register` (empty if the plan did not read it).
     pub fn words(&self, register: &RegisterInfo) -> &[u16] {
-        self.spans
+        self.first
             .iter()
+            .chain(&self.rest)
             .find_map(|(span, words)| {
                 let offset = span.offset_of(register, self.addressing)?;
                 words.get(offset..offset + usize::from(register.words))
@@ -44,7 +49,7 @@ impl Readings {
 
     /// The requests that were made.
     pub fn requests(&self) -> impl Iterator<Item = &ReadSpan> {
-        self.spans.iter().map(|(span, _)| span)
+        self.first.iter().chain(&self.rest).map(|(span, _)| span)
     }
 }
 
@@ -122,18 +127,39 @@ impl<T: Transport> Core<T> {
         registers: &[&'static RegisterInfo],
     ) -> Result<Readings, Error> {
         let plan = plan_reads(self.device, registers);
-        let mut spans = Vec::with_capacity(plan.len());
-        for span in plan {
+        self.read_plan(&plan).await
+    }
+
+    /// Like [`Core::read_group`], planning once: `plan` keeps the requests for the next call
+    /// (generated group methods keep one per group in a static).
+    pub async fn read_group_with(
+        &mut self,
+        plan: &OnceLock<Vec<ReadSpan>>,
+        registers: &[&'static RegisterInfo],
+    ) -> Result<Readings, Error> {
+        let device = self.device;
+        let plan = plan.get_or_init(|| plan_reads(device, registers));
+        self.read_plan(plan).await
+    }
+
+    async fn read_plan(&mut self, plan: &[ReadSpan]) -> Result<Readings, Error> {
+        let mut readings = Readings {
+            first: None,
+            rest: Vec::new(),
+            addressing: self.device.addressing,
+        };
+        for &span in plan {
             let words = self
                 .transport
                 .read(self.slave, function(span.table), span.address, span.count)
                 .await?;
-            spans.push((span, words));
+            if readings.first.is_none() {
+                readings.first = Some((span, words));
+            } else {
+                readings.rest.push((span, words));
+            }
         }
-        Ok(Readings {
-            spans,
-            addressing: self.device.addressing,
-        })
+        Ok(readings)
     }
 
     /// Validates `value` and writes it: nothing is sent if it is invalid.

@@ -2,7 +2,9 @@
 
 use std::time::Duration;
 
-use tokio::time::timeout;
+use std::pin::Pin;
+
+use tokio::time::{sleep, timeout, Instant, Sleep};
 use tokio_modbus::client::{Client, Context};
 use tokio_modbus::slave::{Slave, SlaveContext};
 use tokio_modbus::{Request, Response};
@@ -16,6 +18,8 @@ use crate::{Error, ExceptionCode, ReadFunction, Transport, WriteValue, DEFAULT_T
 pub struct ModbusContext {
     context: Context,
     timeout: Duration,
+    /// One timer, re-armed for every request: cheaper than a new one each time.
+    deadline: Pin<Box<Sleep>>,
 }
 
 impl std::fmt::Debug for ModbusContext {
@@ -32,6 +36,7 @@ impl ModbusContext {
         Self {
             context,
             timeout: DEFAULT_TIMEOUT,
+            deadline: Box::pin(sleep(DEFAULT_TIMEOUT)),
         }
     }
 
@@ -63,20 +68,28 @@ impl ModbusContext {
     async fn call(&mut self, slave: u8, request: Request<'static>) -> Result<Response, Error> {
         let function = request.function_code().value();
         self.context.set_slave(Slave(slave));
-        match timeout(self.timeout, self.context.call(request)).await {
-            Err(_) => Err(Error::Timeout {
+        self.deadline.as_mut().reset(Instant::now() + self.timeout);
+        let outcome = tokio::select! {
+            biased;
+            outcome = self.context.call(request) => Some(outcome),
+            () = self.deadline.as_mut() => None,
+        };
+        match outcome {
+            None => Err(Error::Timeout {
                 after: self.timeout,
             }),
-            Ok(Err(tokio_modbus::Error::Transport(error))) => Err(Error::Io(error)),
-            Ok(Err(tokio_modbus::Error::Protocol(error))) => Err(Error::Io(std::io::Error::new(
-                std::io::ErrorKind::InvalidData,
-                error.to_string(),
-            ))),
-            Ok(Ok(Err(code))) => Err(Error::Exception {
-                function,
-                code: ExceptionCode(u16::from(u8::from(code))),
-            }),
-            Ok(Ok(Ok(response))) => Ok(response),
+            Some(outcome) => match outcome {
+                Err(tokio_modbus::Error::Transport(error)) => Err(Error::Io(error)),
+                Err(tokio_modbus::Error::Protocol(error)) => Err(Error::Io(std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    error.to_string(),
+                ))),
+                Ok(Err(code)) => Err(Error::Exception {
+                    function,
+                    code: ExceptionCode(u16::from(u8::from(code))),
+                }),
+                Ok(Ok(response)) => Ok(response),
+            },
         }
     }
 }
