@@ -4,9 +4,31 @@
 //! `specs/ccs.yaml`, the transcription of the vendor manual: [`Ccs`] has one async
 //! method per readable register, one `set_…` per writable one, one per command and one
 //! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
+//!
+//! A driver wraps any [`Transport`]: our RTU client on a serial port (settings from the
+//! manual's defaults), tokio-modbus over TCP or an existing `tokio_modbus` context, or, as
+//! here, an in-memory line to the simulator generated from the same spec:
+//!
+//! ```
+//! # #[tokio::main(flavor = "current_thread")]
+//! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use optobus_ccs::{Ccs, DEVICE};
+//! use optobus_ccs::transport::RtuClient;
+//!
+//! let sim = optobus_simulator::Simulator::new(&DEVICE);
+//! let (line, _server) = sim.duplex();
+//! // A real sensor: `optobus_ccs::serial_settings(&DEVICE, "/dev/ttyUSB0").open()?`.
+//! let client = RtuClient::with_config(line, optobus_ccs::rtu_config(&DEVICE));
+//! let mut sensor = Ccs::with_default_slave(client);
+//! sensor.set_exposure_time("1234.5".parse()?).await?;
+//! let readings = sensor.read_measurements().await?;
+//! println!("thickness: {:?}", readings.thickness);
+//! # Ok(())
+//! # }
+//! ```
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
 include!(concat!(env!("OUT_DIR"), "/ccs.rs"));
 
-pub use optobus_driver::{units, Error, Fixed, Transport};
+pub use optobus_driver::{rtu_config, serial_settings, transport, units, Error, Fixed, Transport};

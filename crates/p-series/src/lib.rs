@@ -4,6 +4,30 @@
 //! `specs/p_series.yaml`, the transcription of the vendor manual: [`PSeries`] has one async
 //! method per readable register, one `set_…` per writable one, one per command and one
 //! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
+//!
+//! A driver wraps any [`Transport`]: our RTU client on a serial port (settings from the
+//! manual's defaults), tokio-modbus over TCP or an existing `tokio_modbus` context, or, as
+//! here, an in-memory line to the simulator generated from the same spec:
+//!
+//! ```
+//! # #[tokio::main(flavor = "current_thread")]
+//! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use optobus_p_series::{PSeries, DEVICE};
+//! use optobus_p_series::transport::RtuClient;
+//!
+//! let sim = optobus_simulator::Simulator::new(&DEVICE);
+//! let (line, _server) = sim.duplex();
+//! // A real sensor: `optobus_p_series::serial_settings(&DEVICE, "/dev/ttyUSB0").open()?`.
+//! let client = RtuClient::with_config(line, optobus_p_series::rtu_config(&DEVICE));
+//! let mut sensor = PSeries::with_default_slave(client);
+//! sensor.set_light_power("42.5".parse()?).await?;
+//! let readings = sensor.read_measurements().await?;
+//! if let Some(distance) = readings.distance_1 {
+//!     println!("distance 1: {distance}"); // exact: "5.012345 mm"
+//! }
+//! # Ok(())
+//! # }
+//! ```
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
@@ -11,4 +35,4 @@ include!(concat!(env!("OUT_DIR"), "/p_series.rs"));
 
 pub mod download;
 
-pub use optobus_driver::{units, Error, Fixed, Transport};
+pub use optobus_driver::{rtu_config, serial_settings, transport, units, Error, Fixed, Transport};

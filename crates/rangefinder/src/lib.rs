@@ -4,9 +4,31 @@
 //! `specs/rangefinder.yaml`, the transcription of the vendor manual: [`Rangefinder`] has one async
 //! method per readable register, one `set_…` per writable one, one per command and one
 //! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
+//!
+//! A driver wraps any [`Transport`]: our RTU client on a serial port (settings from the
+//! manual's defaults), tokio-modbus over TCP or an existing `tokio_modbus` context, or, as
+//! here, an in-memory line to the simulator generated from the same spec:
+//!
+//! ```
+//! # #[tokio::main(flavor = "current_thread")]
+//! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use optobus_rangefinder::{Rangefinder, DEVICE};
+//! use optobus_rangefinder::transport::RtuClient;
+//!
+//! let sim = optobus_simulator::Simulator::new(&DEVICE);
+//! let (line, _server) = sim.duplex();
+//! // A real sensor: `optobus_rangefinder::serial_settings(&DEVICE, "/dev/ttyUSB0").open()?`.
+//! let client = RtuClient::with_config(line, optobus_rangefinder::rtu_config(&DEVICE));
+//! let mut sensor = Rangefinder::with_default_slave(client);
+//! sensor.set_dac_range_max(654_321).await?; // one 4-byte FC06
+//! let status = sensor.read_status().await?;
+//! println!("{:?} at {:?}", status.run_state, status.distance);
+//! # Ok(())
+//! # }
+//! ```
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
 include!(concat!(env!("OUT_DIR"), "/rangefinder.rs"));
 
-pub use optobus_driver::{units, Error, Fixed, Transport};
+pub use optobus_driver::{rtu_config, serial_settings, transport, units, Error, Fixed, Transport};
