@@ -86,5 +86,5 @@ pub use model::Reply;
 pub use pty::Pty;
 pub use quirks::{Quirks, UnreadableReads};
 pub use rtu::Bus;
-pub use sim::{PokeError, RegisterState, Simulator};
+pub use sim::{Exchange, PokeError, RegisterState, Simulator};
 pub use tcp::TcpServer;

@@ -26,6 +26,30 @@ use crate::quirks::Quirks;
 #[derive(Clone, Debug)]
 pub struct Simulator {
     shared: Arc<Mutex<Device>>,
+    observer: Option<Observer>,
+}
+
+/// One request the device saw and its answer, as passed to [`Simulator::observe`].
+#[derive(Clone, Copy, Debug)]
+pub struct Exchange<'a> {
+    /// The slave address of an RTU frame (`None` over TCP, where the unit id is ignored).
+    pub slave: Option<u8>,
+    /// The request's function code.
+    pub function: u8,
+    /// The decoded request (`None` for function codes the codec does not decode).
+    pub request: Option<&'a Request>,
+    /// What the device answers (`Reply::Silent` when it does not).
+    pub reply: &'a Reply,
+}
+
+/// A callback that sees every exchange (for logs).
+#[derive(Clone)]
+struct Observer(Arc<dyn Fn(&Exchange<'_>) + Send + Sync>);
+
+impl std::fmt::Debug for Observer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Observer")
+    }
 }
 
 /// A register's current state, for inspection.
@@ -72,7 +96,15 @@ impl Simulator {
     pub fn new(device: &'static DeviceInfo) -> Self {
         Self {
             shared: Arc::new(Mutex::new(Device::new(device))),
+            observer: None,
         }
+    }
+
+    /// Calls `observer` with every request this handle (and clones made from it afterwards)
+    /// answers, e.g. to log them.
+    pub fn observe(mut self, observer: impl Fn(&Exchange<'_>) + Send + Sync + 'static) -> Self {
+        self.observer = Some(Observer(Arc::new(observer)));
+        self
     }
 
     pub(crate) fn lock(&self) -> MutexGuard<'_, Device> {
@@ -166,7 +198,20 @@ impl Simulator {
     }
 
     pub(crate) fn respond(&self, slave: Option<u8>, pdu: Pdu<'_>) -> Reply {
-        self.lock().respond(slave, pdu, Instant::now())
+        let reply = self.lock().respond(slave, pdu, Instant::now());
+        if let Some(Observer(observer)) = &self.observer {
+            let (request, function) = match pdu {
+                Pdu::Request(request) => (Some(request), request.function_code()),
+                Pdu::Unsupported(function) => (None, function),
+            };
+            observer(&Exchange {
+                slave,
+                function,
+                request,
+                reply: &reply,
+            });
+        }
+        reply
     }
 
     /// Every register with the words it shows now.

@@ -10,8 +10,8 @@ use std::io;
 use std::net::SocketAddr;
 
 use optobus_codec::{tcp, DecodeError, Decoded, Response, Words};
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpListener, TcpStream, ToSocketAddrs};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::net::{TcpListener, ToSocketAddrs};
 use tokio::task::{JoinHandle, JoinSet};
 
 use crate::model::{Pdu, Reply};
@@ -82,8 +82,12 @@ impl Simulator {
         }
     }
 
-    /// Serves Modbus TCP on one connection until the peer closes it.
-    pub async fn serve_tcp_stream(&self, mut stream: TcpStream) -> io::Result<()> {
+    /// Serves Modbus TCP on one connection (a `TcpStream`, or any byte stream carrying MBAP
+    /// frames) until the peer closes it.
+    pub async fn serve_tcp_stream<IO>(&self, mut stream: IO) -> io::Result<()>
+    where
+        IO: AsyncRead + AsyncWrite + Unpin,
+    {
         let shape = self.device().frame_shape;
         let mut pending: Vec<u8> = Vec::with_capacity(tcp::MAX_FRAME_LEN);
         let mut chunk = [0u8; tcp::MAX_FRAME_LEN];

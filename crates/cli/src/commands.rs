@@ -1,0 +1,458 @@
+//! The commands that talk to a device (or list what the specs say).
+
+use std::io::{IsTerminal, Write};
+use std::time::Duration;
+
+use optobus_device::{DeviceInfo, Effect, RegisterInfo};
+use optobus_driver::{plan_reads, Core};
+use serde_json::{json, Map, Value as Json};
+
+use crate::error::{driver_error, CliError};
+use crate::link::{self, Link, Target};
+use crate::models::{self, MODELS};
+use crate::values::{self, Validated};
+use crate::{serve, Command, Global};
+
+/// Runs one command line.
+pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError> {
+    match command {
+        Command::Models => {
+            print(&models_text(global.json));
+            Ok(())
+        }
+        Command::Registers { model } => {
+            let device = models::find(model.as_deref().unwrap_or(&global.model))?;
+            print(&registers_text(device, global.json));
+            Ok(())
+        }
+        Command::Simulate {
+            model,
+            pty,
+            duration,
+        } => {
+            let device = models::find(model.as_deref().unwrap_or(&global.model))?;
+            serve::simulate(device, &global, pty, duration).await
+        }
+        Command::Frame(frame) => {
+            print(&crate::frame::run(&frame, global.json, global.slave)?);
+            Ok(())
+        }
+        Command::Scan { bauds, slaves } => serve::scan(&global, &bauds, slaves.as_deref()).await,
+        Command::Buffer {
+            count,
+            source,
+            wait,
+            out,
+        } => {
+            let device = models::find(&global.model)?;
+            if device.family != "p_series" {
+                return Err(CliError::new(format!(
+                    "`buffer` is the P series' buffered download; {} has no data buffer",
+                    device.family
+                ))
+                .hint("use --model p-series"));
+            }
+            let slave = global.slave.unwrap_or(device.default_slave);
+            let link = link::open(device, slave, &target(&global)).await?;
+            serve::buffer(link, &global, count, &source, wait, out.as_deref()).await
+        }
+        command => {
+            let device = models::find(&global.model)?;
+            let slave = global.slave.unwrap_or(device.default_slave);
+            // Bad names and values are refused before any connection is made.
+            precheck(device, &command)?;
+            let link = link::open(device, slave, &target(&global)).await?;
+            let mut core = Core::new(link, slave, device);
+            device_command(&mut core, &global, command).await
+        }
+    }
+}
+
+pub(crate) fn target(global: &Global) -> Target {
+    Target {
+        serial: global.serial.clone(),
+        baud: global.baud,
+        parity: global.parity.clone(),
+        tcp: global.tcp.clone(),
+        timeout: global.timeout,
+        verbose: global.verbose,
+    }
+}
+
+fn print(text: &str) {
+    let mut out = std::io::stdout().lock();
+    // A closed pipe (`| head`) is not an error worth a message.
+    let _ = out.write_all(text.as_bytes());
+    if !text.ends_with('\n') {
+        let _ = out.write_all(b"\n");
+    }
+    let _ = out.flush();
+}
+
+fn models_text(json: bool) -> String {
+    if json {
+        let list: Vec<Json> = MODELS
+            .iter()
+            .map(|d| {
+                json!({
+                    "model": d.family,
+                    "title": d.title,
+                    "rtu": d.rtu.map(|r| json!({"default_baud": r.default_baud, "bauds": r.bauds, "parity": r.parity, "data_bits": r.data_bits, "stop_bits": r.stop_bits})),
+                    "tcp": d.tcp.map(|t| json!({"port": t.port, "default_ip": t.default_ip.map(|ip| std::net::Ipv4Addr::from(ip).to_string())})),
+                    "default_slave": d.default_slave,
+                    "registers": d.registers.len(),
+                    "groups": d.groups.iter().map(|g| g.name).collect::<Vec<_>>(),
+                    "commands": d.commands.iter().map(|c| c.name).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        return pretty(&Json::Array(list));
+    }
+    let mut out = String::new();
+    for d in MODELS {
+        out.push_str(&format!("{}  {}\n", d.family.replace('_', "-"), d.title));
+        if let Some(rtu) = d.rtu {
+            out.push_str(&format!(
+                "    RTU  {} baud {}{}{} (also {}), slave {}\n",
+                rtu.default_baud,
+                rtu.data_bits,
+                rtu.parity
+                    .chars()
+                    .next()
+                    .unwrap_or('n')
+                    .to_ascii_uppercase(),
+                rtu.stop_bits,
+                rtu.bauds
+                    .iter()
+                    .map(u32::to_string)
+                    .collect::<Vec<_>>()
+                    .join("/"),
+                d.default_slave
+            ));
+        }
+        if let Some(tcp) = d.tcp {
+            let ip = tcp
+                .default_ip
+                .map(|ip| std::net::Ipv4Addr::from(ip).to_string())
+                .unwrap_or_else(|| "-".into());
+            out.push_str(&format!("    TCP  port {}, factory IP {ip}\n", tcp.port));
+        }
+        out.push_str(&format!(
+            "    {} registers; groups: {}\n    commands: {}\n",
+            d.registers.len(),
+            d.groups
+                .iter()
+                .map(|g| g.name)
+                .collect::<Vec<_>>()
+                .join(", "),
+            d.commands
+                .iter()
+                .map(|c| c.name)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    out
+}
+
+fn registers_text(device: &'static DeviceInfo, json: bool) -> String {
+    let rows: Vec<(String, Json)> = device.registers.iter().map(values::describe).collect();
+    if json {
+        return pretty(&json!({
+            "model": device.family,
+            "registers": rows.iter().map(|(_, j)| j.clone()).collect::<Vec<_>>(),
+            "groups": device.groups.iter().map(|g| json!({"name": g.name, "registers": g.registers, "doc": g.doc})).collect::<Vec<_>>(),
+            "commands": device.commands.iter().map(|c| json!({"name": c.name, "register": c.register, "value": c.value, "doc": c.doc})).collect::<Vec<_>>(),
+        }));
+    }
+    let mut out = format!(
+        "{} — {}\n{:<34} {:<7} {:>5} {:<2} {:<7} {:<4} range or codes\n",
+        device.family, device.title, "register", "table", "addr", "rw", "type", "unit"
+    );
+    for (text, _) in rows {
+        out.push_str(text.trim_end());
+        out.push('\n');
+    }
+    out.push_str("\ngroups:\n");
+    for g in device.groups {
+        out.push_str(&format!("  {:<22} {}\n", g.name, g.registers.join(", ")));
+    }
+    out.push_str("\ncommands (optobus do NAME):\n");
+    for c in device.commands {
+        out.push_str(&format!("  {:<22} {}\n", c.name, c.doc));
+    }
+    out
+}
+
+fn pretty(json: &Json) -> String {
+    serde_json::to_string_pretty(json).unwrap_or_default()
+}
+
+/// The registers behind names, in order, without repeats.
+fn registers_of(
+    device: &'static DeviceInfo,
+    names: &[String],
+    channel: Option<u8>,
+) -> Result<Vec<&'static RegisterInfo>, CliError> {
+    let mut registers: Vec<&'static RegisterInfo> = Vec::new();
+    for name in names {
+        for register in values::resolve(device, name, channel)? {
+            if !register.access.readable() {
+                return Err(CliError::new(format!("`{}` is write-only", register.name)));
+            }
+            if !registers.iter().any(|r| r.name == register.name) {
+                registers.push(register);
+            }
+        }
+    }
+    Ok(registers)
+}
+
+/// Reads `registers` in the fewest requests and decodes them.
+async fn read_values(
+    core: &mut Core<Link>,
+    registers: &[&'static RegisterInfo],
+) -> Result<Vec<(&'static RegisterInfo, values::Value)>, CliError> {
+    let readings = core.read_group(registers).await.map_err(|e| {
+        let names: Vec<&str> = registers.iter().map(|r| r.name).collect();
+        driver_error(e, Some(&names.join(", ")))
+    })?;
+    Ok(registers
+        .iter()
+        .map(|r| (*r, values::decode(r, readings.words(r))))
+        .collect())
+}
+
+fn values_text(values: &[(&'static RegisterInfo, values::Value)]) -> String {
+    let width = values.iter().map(|(r, _)| r.name.len()).max().unwrap_or(0);
+    values
+        .iter()
+        .map(|(r, v)| format!("{:<width$}  {v}\n", r.name))
+        .collect()
+}
+
+fn values_json(values: &[(&'static RegisterInfo, values::Value)]) -> Json {
+    Json::Object(
+        values
+            .iter()
+            .map(|(r, v)| (r.name.to_owned(), v.to_json()))
+            .collect::<Map<_, _>>(),
+    )
+}
+
+async fn device_command(
+    core: &mut Core<Link>,
+    global: &Global,
+    command: Command,
+) -> Result<(), CliError> {
+    let device = core.device();
+    match command {
+        Command::Read { names, channel } => {
+            let registers = registers_of(device, &names, channel)?;
+            let values = read_values(core, &registers).await?;
+            if global.json {
+                print(&pretty(&values_json(&values)));
+            } else {
+                print(&values_text(&values));
+            }
+            Ok(())
+        }
+        Command::Dump => {
+            let registers: Vec<&'static RegisterInfo> = device
+                .registers
+                .iter()
+                .filter(|r| r.access.readable())
+                .collect();
+            let requests = plan_reads(device, &registers).len();
+            let values = read_values(core, &registers).await?;
+            if global.json {
+                print(&pretty(&json!({
+                    "model": device.family,
+                    "slave": core.slave(),
+                    "requests": requests,
+                    "values": values_json(&values),
+                })));
+            } else {
+                print(&values_text(&values));
+                eprintln!(
+                    "optobus: {} registers in {requests} requests",
+                    registers.len()
+                );
+            }
+            Ok(())
+        }
+        Command::Watch {
+            names,
+            interval,
+            channel,
+            count,
+        } => {
+            let registers = registers_of(device, &names, channel)?;
+            watch(core, &registers, interval, count, global.json).await
+        }
+        Command::Set {
+            name,
+            value,
+            channel,
+        } => {
+            let register = single(device, &name, channel)?;
+            let words = values::parse(register, &value)?;
+            core.write(register, &Validated(words))
+                .await
+                .map_err(|e| driver_error(e, Some(register.name)))?;
+            if register.access.readable() {
+                let back = core
+                    .read_words(register)
+                    .await
+                    .map_err(|e| driver_error(e, Some(register.name)))?;
+                let value = values::decode(register, &back);
+                if global.json {
+                    print(&pretty(&json!({ register.name: value.to_json() })));
+                } else {
+                    print(&format!("{}  {value}", register.name));
+                }
+            } else if !global.json {
+                print(&format!("{} written", register.name));
+            }
+            Ok(())
+        }
+        Command::Do {
+            command,
+            channel,
+            yes,
+        } => {
+            let info = device.command(&command).ok_or_else(|| {
+                let names: Vec<&str> = device.commands.iter().map(|c| c.name).collect();
+                CliError::new(format!("`{command}` is no command of {}", device.family))
+                    .hint(format!("commands: {}", names.join(", ")))
+            })?;
+            let drastic = matches!(
+                info.effect,
+                Effect::Save | Effect::Reboot | Effect::FactoryReset | Effect::NetworkReset
+            );
+            if drastic && !yes {
+                return Err(CliError::new(format!(
+                    "`{command}` {}; add --yes to go ahead",
+                    info.doc.trim_end_matches('.').to_lowercase()
+                )));
+            }
+            let register = single(device, info.register, channel)?;
+            if info.busy_ms > 0 && !global.json {
+                eprintln!(
+                    "optobus: the device is busy for {} ms afterwards",
+                    info.busy_ms
+                );
+            }
+            core.run(info, register)
+                .await
+                .map_err(|e| driver_error(e, Some(register.name)))?;
+            if global.json {
+                print(&json!({"command": info.name, "done": true}).to_string());
+            } else {
+                print(&format!("{} done", info.name));
+            }
+            Ok(())
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Checks names and values of a device command without touching the device.
+fn precheck(device: &'static DeviceInfo, command: &Command) -> Result<(), CliError> {
+    match command {
+        Command::Read { names, channel } | Command::Watch { names, channel, .. } => {
+            registers_of(device, names, *channel).map(drop)
+        }
+        Command::Set {
+            name,
+            value,
+            channel,
+        } => values::parse(single(device, name, *channel)?, value).map(drop),
+        _ => Ok(()),
+    }
+}
+
+/// The one register `name` (with `channel` for per-channel registers) names.
+fn single(
+    device: &'static DeviceInfo,
+    name: &str,
+    channel: Option<u8>,
+) -> Result<&'static RegisterInfo, CliError> {
+    let registers = values::resolve(device, name, channel)?;
+    match registers.as_slice() {
+        [register] => Ok(register),
+        [first, ..] => Err(CliError::new(format!(
+            "`{name}` stands for {} registers",
+            registers.len()
+        ))
+        .hint(match first.copy {
+            Some((repeat, _)) => format!("choose one with --{repeat} N… try --channel N"),
+            None => "name one register".into(),
+        })),
+        [] => Err(CliError::new(format!("`{name}` names no register"))),
+    }
+}
+
+/// Redraws the values every `interval` until Ctrl-C (or `count` refreshes).
+async fn watch(
+    core: &mut Core<Link>,
+    registers: &[&'static RegisterInfo],
+    interval: Duration,
+    count: Option<u64>,
+    json: bool,
+) -> Result<(), CliError> {
+    let terminal = std::io::stdout().is_terminal() && !json;
+    let mut drawn_lines = 0usize;
+    let mut last: Option<String> = None;
+    let mut refresh = 0u64;
+    let ctrl_c = tokio::signal::ctrl_c();
+    tokio::pin!(ctrl_c);
+    loop {
+        let started = tokio::time::Instant::now();
+        let outcome = tokio::select! {
+            outcome = read_values(core, registers) => outcome,
+            _ = &mut ctrl_c => break,
+        };
+        refresh += 1;
+        let stamp = link::timestamp();
+        let block = match &outcome {
+            Ok(values) if json => {
+                json!({"time": stamp, "values": values_json(values)}).to_string() + "\n"
+            }
+            Ok(values) => {
+                let text = values_text(values);
+                last = Some(text.clone());
+                format!(
+                    "{stamp}  {} · slave {} · every {} ms\n{text}",
+                    core.device().family,
+                    core.slave(),
+                    interval.as_millis()
+                )
+            }
+            Err(error) if json => {
+                json!({"time": stamp, "error": error.to_string()}).to_string() + "\n"
+            }
+            // Keep the last values on screen, marked, and try again.
+            Err(error) => format!(
+                "{stamp}  ! {error} — retrying\n{}",
+                last.as_deref().unwrap_or("")
+            ),
+        };
+        let mut out = std::io::stdout().lock();
+        if terminal && drawn_lines > 0 {
+            // Back to the top of the last drawing and clear it: the view refreshes in place.
+            let _ = write!(out, "\x1b[{drawn_lines}F\x1b[J");
+        }
+        let _ = out.write_all(block.as_bytes());
+        let _ = out.flush();
+        drawn_lines = block.lines().count();
+        if count.is_some_and(|n| refresh >= n) {
+            break;
+        }
+        tokio::select! {
+            () = tokio::time::sleep_until(started + interval) => {}
+            _ = &mut ctrl_c => break,
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,216 @@
+//! Connecting to a device: a serial port, a TCP address, or the built-in simulator; with
+//! `--verbose`, every frame sent and received is printed in hex with a timestamp.
+
+use std::io;
+use std::pin::Pin;
+use std::task::{Context, Poll};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use optobus_device::DeviceInfo;
+use optobus_driver::transport::{
+    Error as WireError, ModbusContext, Parity, ReadFunction, RtuClient, SerialStream, WriteValue,
+};
+use optobus_driver::{rtu_config, serial_settings, Transport};
+use optobus_simulator::Simulator;
+use tokio::io::{AsyncRead, AsyncWrite, DuplexStream, ReadBuf};
+use tokio::net::TcpStream;
+
+use crate::error::CliError;
+
+/// `HH:MM:SS.mmm` (UTC) of now.
+pub(crate) fn timestamp() -> String {
+    let now = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap_or_default();
+    let day = now.as_secs() % 86_400;
+    format!(
+        "{:02}:{:02}:{:02}.{:03}",
+        day / 3600,
+        day / 60 % 60,
+        day % 60,
+        now.subsec_millis()
+    )
+}
+
+pub(crate) fn hex(bytes: &[u8]) -> String {
+    bytes
+        .iter()
+        .map(|b| format!("{b:02X}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// A byte stream that prints what passes through it when `verbose`.
+#[derive(Debug)]
+pub(crate) struct Tap<S> {
+    inner: S,
+    verbose: bool,
+}
+
+impl<S> Tap<S> {
+    pub(crate) fn new(inner: S, verbose: bool) -> Self {
+        Self { inner, verbose }
+    }
+}
+
+impl<S: AsyncRead + Unpin> AsyncRead for Tap<S> {
+    fn poll_read(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &mut ReadBuf<'_>,
+    ) -> Poll<io::Result<()>> {
+        let before = buf.filled().len();
+        let polled = Pin::new(&mut self.inner).poll_read(cx, buf);
+        if self.verbose && buf.filled().len() > before {
+            eprintln!("{} <- {}", timestamp(), hex(&buf.filled()[before..]));
+        }
+        polled
+    }
+}
+
+impl<S: AsyncWrite + Unpin> AsyncWrite for Tap<S> {
+    fn poll_write(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        bytes: &[u8],
+    ) -> Poll<io::Result<usize>> {
+        let polled = Pin::new(&mut self.inner).poll_write(cx, bytes);
+        if let Poll::Ready(Ok(written)) = &polled {
+            if self.verbose && *written > 0 {
+                eprintln!("{} -> {}", timestamp(), hex(&bytes[..*written]));
+            }
+        }
+        polled
+    }
+
+    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.inner).poll_flush(cx)
+    }
+
+    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.inner).poll_shutdown(cx)
+    }
+}
+
+/// Where requests go.
+#[derive(Debug)]
+pub(crate) enum Link {
+    Serial(RtuClient<Tap<SerialStream>>),
+    Simulator(RtuClient<Tap<DuplexStream>>),
+    Tcp(ModbusContext),
+}
+
+impl Transport for Link {
+    async fn read(
+        &mut self,
+        slave: u8,
+        function: ReadFunction,
+        address: u16,
+        count: u16,
+    ) -> Result<Vec<u16>, WireError> {
+        match self {
+            Self::Serial(client) => client.read(slave, function, address, count).await,
+            Self::Simulator(client) => client.read(slave, function, address, count).await,
+            Self::Tcp(client) => client.read(slave, function, address, count).await,
+        }
+    }
+
+    async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), WireError> {
+        match self {
+            Self::Serial(client) => client.write(slave, address, value).await,
+            Self::Simulator(client) => client.write(slave, address, value).await,
+            Self::Tcp(client) => client.write(slave, address, value).await,
+        }
+    }
+}
+
+/// How to reach the device, from the command line.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Target {
+    pub(crate) serial: Option<String>,
+    pub(crate) baud: Option<u32>,
+    pub(crate) parity: Option<String>,
+    pub(crate) tcp: Option<String>,
+    pub(crate) timeout: Duration,
+    pub(crate) verbose: bool,
+}
+
+/// `host`, `host:port` or `[v6]:port`, with the device's port as the default.
+pub(crate) async fn resolve_tcp(
+    address: &str,
+    default_port: u16,
+) -> Result<std::net::SocketAddr, CliError> {
+    let with_port = if address.parse::<std::net::SocketAddr>().is_ok()
+        || address
+            .rsplit_once(':')
+            .is_some_and(|(host, port)| !host.contains(':') && port.parse::<u16>().is_ok())
+    {
+        address.to_owned()
+    } else {
+        format!("{address}:{default_port}")
+    };
+    let mut found = tokio::net::lookup_host(with_port.as_str())
+        .await
+        .map_err(|e| CliError::new(format!("cannot resolve `{address}`: {e}")))?;
+    found
+        .next()
+        .ok_or_else(|| CliError::new(format!("`{address}` resolves to no address")))
+}
+
+/// Opens the link `target` describes to `device`; without a serial port or TCP address, the
+/// built-in simulator (said on stderr).
+pub(crate) async fn open(
+    device: &'static DeviceInfo,
+    slave: u8,
+    target: &Target,
+) -> Result<Link, CliError> {
+    let mut config = rtu_config(device);
+    config.timeout = target.timeout;
+    if let Some(path) = &target.serial {
+        let mut settings = serial_settings(device, path.as_str());
+        if let Some(baud) = target.baud {
+            settings.baud = baud;
+            config.baud = baud;
+        }
+        if let Some(parity) = &target.parity {
+            settings.parity = Parity::from_name(parity).ok_or_else(|| {
+                CliError::new(format!("unknown parity `{parity}`")).hint("use none, odd or even")
+            })?;
+        }
+        let port = settings.open().map_err(|e| {
+            CliError::new(format!("cannot open {path}: {e}"))
+                .hint("check the path, that no other program holds the port, and your permissions")
+        })?;
+        return Ok(Link::Serial(RtuClient::with_config(
+            Tap::new(port, target.verbose),
+            config,
+        )));
+    }
+    if let Some(address) = &target.tcp {
+        let port = device.tcp.map_or(502, |t| t.port);
+        let address = resolve_tcp(address, port).await?;
+        let stream = tokio::time::timeout(target.timeout, TcpStream::connect(address))
+            .await
+            .map_err(|_| {
+                CliError::new(format!(
+                    "no TCP connection to {address} within {} ms",
+                    target.timeout.as_millis()
+                ))
+            })?
+            .map_err(|e| CliError::new(format!("cannot connect to {address}: {e}")))?;
+        let _ = stream.set_nodelay(true);
+        let context = tokio_modbus::client::tcp::attach(Tap::new(stream, target.verbose));
+        return Ok(Link::Tcp(
+            ModbusContext::new(context).with_timeout(target.timeout),
+        ));
+    }
+    eprintln!(
+        "optobus: no --serial or --tcp given: using the built-in {} simulator (slave {slave})",
+        device.family
+    );
+    let (line, _server) = Simulator::new(device).slave(slave).duplex();
+    Ok(Link::Simulator(RtuClient::with_config(
+        Tap::new(line, target.verbose),
+        config,
+    )))
+}

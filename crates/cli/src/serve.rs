@@ -1,0 +1,282 @@
+//! Commands that are more than a read or a write: serving a simulator, scanning a line, and
+//! the P-series buffer download.
+
+use std::io::{IsTerminal, Write};
+use std::path::Path;
+use std::time::Duration;
+
+use optobus_codec::{ReadFunction, Request, WriteValue};
+use optobus_device::DeviceInfo;
+use optobus_driver::{serial_settings, Core};
+use optobus_simulator::{Exchange, Reply, Simulator};
+
+use crate::commands::target;
+use crate::error::{driver_error, CliError};
+use crate::link::{self, Link};
+use crate::{models, values, Global};
+
+/// One log line for a request the simulator answered.
+fn describe(exchange: &Exchange<'_>) -> String {
+    let slave = exchange
+        .slave
+        .map(|s| format!("slave {s} "))
+        .unwrap_or_default();
+    let request = match exchange.request {
+        Some(Request::Read {
+            function,
+            address,
+            count,
+        }) => {
+            let table = match function {
+                ReadFunction::Holding => "holding",
+                ReadFunction::Input => "input",
+            };
+            format!("read {table} {address} x{count}")
+        }
+        Some(Request::Write { address, value }) => match value {
+            WriteValue::Word(word) => format!("write {address} = {word}"),
+            WriteValue::DoubleWord(value) => format!("write {address} = {value} (4 bytes)"),
+        },
+        None => format!("function {:02X}", exchange.function),
+    };
+    let reply = match exchange.reply {
+        Reply::Read { words, .. } => format!("{} words", words.len()),
+        Reply::Write { .. } => "echo".to_owned(),
+        Reply::Exception { code, .. } => format!("exception {:02X}", code.0),
+        Reply::Silent => "no reply".to_owned(),
+    };
+    format!("{} {slave}{request} -> {reply}", link::timestamp())
+}
+
+/// `optobus simulate`: serves a virtual device until Ctrl-C or `duration`.
+pub(crate) async fn simulate(
+    device: &'static DeviceInfo,
+    global: &Global,
+    pty: bool,
+    duration: Option<Duration>,
+) -> Result<(), CliError> {
+    let slave = global.slave.unwrap_or(device.default_slave);
+    let sim = Simulator::new(device)
+        .slave(slave)
+        .observe(|exchange| eprintln!("{}", describe(exchange)));
+    // Kept alive while serving.
+    let _server: Box<dyn std::any::Any> = if pty {
+        let pty = sim
+            .serve_pty()
+            .map_err(|e| CliError::new(format!("cannot open a pty: {e}")))?;
+        println!("{}", pty.path().display());
+        eprintln!(
+            "optobus: simulating {} (slave {slave}) on RTU at {}",
+            device.family,
+            pty.path().display()
+        );
+        Box::new(pty)
+    } else if let Some(path) = &global.serial {
+        let port = serial_settings(device, path.as_str())
+            .open()
+            .map_err(|e| CliError::new(format!("cannot open {path}: {e}")))?;
+        println!("{path}");
+        eprintln!(
+            "optobus: simulating {} (slave {slave}) on RTU at {path}",
+            device.family
+        );
+        let sim = sim.clone();
+        Box::new(tokio::spawn(async move { sim.serve_rtu(port).await }))
+    } else {
+        let address = global.tcp.as_deref().unwrap_or("127.0.0.1:5020");
+        let address = link::resolve_tcp(address, 5020).await?;
+        let server = sim.serve_tcp(address).await.map_err(|e| {
+            CliError::new(format!("cannot listen on {address}: {e}"))
+                .hint("is another server using the port? try --tcp 127.0.0.1:0")
+        })?;
+        println!("{}", server.local_addr());
+        eprintln!(
+            "optobus: simulating {} (slave {slave}) on Modbus TCP at {}",
+            device.family,
+            server.local_addr()
+        );
+        Box::new(server)
+    };
+    let _ = std::io::stdout().flush();
+    match duration {
+        Some(duration) => tokio::select! {
+            () = tokio::time::sleep(duration) => {}
+            _ = tokio::signal::ctrl_c() => {}
+        },
+        None => {
+            let _ = tokio::signal::ctrl_c().await;
+        }
+    }
+    Ok(())
+}
+
+/// `1-10,247` as a list of addresses.
+fn parse_slaves(text: &str) -> Result<Vec<u8>, CliError> {
+    let mut slaves = Vec::new();
+    for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let bad = || {
+            CliError::new(format!(
+                "`{part}` is not a slave address or range (e.g. 1-10,247)"
+            ))
+        };
+        match part.split_once('-') {
+            Some((from, to)) => {
+                let from: u8 = from.trim().parse().map_err(|_| bad())?;
+                let to: u8 = to.trim().parse().map_err(|_| bad())?;
+                slaves.extend(from..=to);
+            }
+            None => slaves.push(part.parse().map_err(|_| bad())?),
+        }
+    }
+    Ok(slaves)
+}
+
+/// `optobus scan`: which baud rate and slave address a device answers on.
+pub(crate) async fn scan(
+    global: &Global,
+    bauds: &[u32],
+    slaves: Option<&str>,
+) -> Result<(), CliError> {
+    let device = models::find(&global.model)?;
+    let Some(path) = &global.serial else {
+        return Err(CliError::new("scan needs a serial port").hint("give --serial PORT"));
+    };
+    let bauds: Vec<u32> = if bauds.is_empty() {
+        device
+            .rtu
+            .map(|r| r.bauds.to_vec())
+            .unwrap_or_else(|| vec![9600])
+    } else {
+        bauds.to_vec()
+    };
+    let slaves = match slaves {
+        Some(text) => parse_slaves(text)?,
+        None => (device.slaves.0..=device.slaves.1).collect(),
+    };
+    let probe = device
+        .registers
+        .iter()
+        .find(|r| r.access.readable())
+        .ok_or_else(|| CliError::new("the model has no readable register"))?;
+    let progress = std::io::stderr().is_terminal();
+    let mut found = Vec::new();
+    for &baud in &bauds {
+        let mut target = target(global);
+        target.baud = Some(baud);
+        // A silent address costs the whole timeout: keep it short unless asked otherwise.
+        target.timeout = global.timeout.min(Duration::from_millis(200));
+        let link = link::open(device, 0, &target).await?;
+        let mut core = Core::new(link, 1, device);
+        for (i, &slave) in slaves.iter().enumerate() {
+            if progress {
+                eprint!(
+                    "\rscanning {baud} baud: slave {slave} ({}/{})   ",
+                    i + 1,
+                    slaves.len()
+                );
+            }
+            core.set_slave(slave);
+            let answered = match core.read_words(probe).await {
+                Ok(_) => true,
+                // An exception is an answer too: something lives at this address.
+                Err(e) => e.exception().is_some(),
+            };
+            if answered {
+                if progress {
+                    eprintln!();
+                }
+                println!("found: slave {slave} at {baud} baud");
+                found.push((baud, slave));
+            }
+        }
+    }
+    if progress {
+        eprintln!();
+    }
+    if global.json {
+        let list: Vec<serde_json::Value> = found
+            .iter()
+            .map(|(baud, slave)| serde_json::json!({"baud": baud, "slave": slave}))
+            .collect();
+        println!("{}", serde_json::Value::Array(list));
+    }
+    if found.is_empty() {
+        return Err(CliError::new(format!("no device answered on {path}"))
+            .hint("check wiring and parity, or widen --bauds and --slaves"));
+    }
+    Ok(())
+}
+
+/// `optobus buffer` (P series): buffer `count` values of `source`, download, write CSV.
+pub(crate) async fn buffer(
+    link: Link,
+    global: &Global,
+    count: u16,
+    source: &str,
+    wait: Duration,
+    out: Option<&Path>,
+) -> Result<(), CliError> {
+    use optobus_p_series::{MeasurementSource, PSeries, DEVICE};
+    let slave = global.slave.unwrap_or(DEVICE.default_slave);
+    let register = DEVICE
+        .register("buffer_data_type")
+        .ok_or_else(|| CliError::new("the P-series spec has no buffer_data_type"))?;
+    let words = values::parse(register, source)?;
+    let source = MeasurementSource::from_raw(u32::from(words.first().copied().unwrap_or(0)));
+    let mut sensor = PSeries::new(link, slave);
+    sensor
+        .start_buffering(source, count)
+        .await
+        .map_err(|e| driver_error(e, Some("buffer_report_count")))?;
+    eprintln!(
+        "optobus: buffering {count} values of {source}; reading out in {} ms",
+        wait.as_millis()
+    );
+    tokio::time::sleep(wait).await;
+    let terminal = std::io::stderr().is_terminal();
+    let values = sensor
+        .download_buffer(|p| {
+            let width = 30;
+            let done = (p.received * width)
+                .checked_div(p.expected)
+                .unwrap_or(width);
+            let bar = format!(
+                "[{}{}] {}/{} values, {} pages",
+                "#".repeat(done),
+                "-".repeat(width - done.min(width)),
+                p.received,
+                p.expected,
+                p.pages
+            );
+            if terminal {
+                eprint!("\r{bar}");
+            } else {
+                eprintln!("{bar}");
+            }
+        })
+        .await
+        .map_err(|e| driver_error(e, Some("buffer")))?;
+    if terminal {
+        eprintln!();
+    }
+    let mut csv = String::from("index,value_mm\n");
+    for (index, value) in values.iter().enumerate() {
+        match value {
+            Some(value) => csv.push_str(&format!("{index},{}\n", value.millimetres())),
+            None => csv.push_str(&format!("{index},\n")),
+        }
+    }
+    match out {
+        Some(path) => {
+            std::fs::write(path, csv)
+                .map_err(|e| CliError::new(format!("cannot write {}: {e}", path.display())))?;
+            eprintln!(
+                "optobus: {} values written to {}",
+                values.len(),
+                path.display()
+            );
+        }
+        None => print!("{csv}"),
+    }
+    Ok(())
+}
