@@ -1,0 +1,274 @@
+//! Every command of `optobus` against the built-in simulator (or one it serves): output,
+//! exit codes, JSON, and invalid input refused before anything is sent.
+
+mod common;
+
+use common::{fails, json, ok, run, Served};
+
+#[test]
+fn models_lists_the_five_families() {
+    let text = ok(&["models"]);
+    for family in ["p-series", "rangefinder", "ccs", "lc-rs", "ccf"] {
+        assert!(text.contains(family), "{text}");
+    }
+    assert!(text.contains("115200"), "P-series default baud: {text}");
+    let list = json(&["models"]);
+    let list = list.as_array().expect("array");
+    assert_eq!(list.len(), 5);
+    assert_eq!(list[0]["model"], "p_series");
+    assert_eq!(list[0]["tcp"]["port"], 502);
+}
+
+#[test]
+fn registers_prints_the_map_from_the_spec() {
+    let text = ok(&["registers", "p-series"]);
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("light_power "))
+        .expect("light_power row");
+    for part in ["holding", " 2 ", "rw", "u16", "%", "0.5 % ..= 100.0 %"] {
+        assert!(line.contains(part), "{line}");
+    }
+    let map = json(&["registers", "ccf"]);
+    let registers = map["registers"].as_array().expect("registers");
+    assert_eq!(registers.len(), 48);
+    assert!(registers
+        .iter()
+        .any(|r| r["name"] == "channel_4_exposure_time"));
+    // Model aliases.
+    assert_eq!(json(&["registers", "LC_RS"])["model"], "lc_rs");
+    let error = fails(&["registers", "nosuch"]);
+    assert!(error.contains("unknown model `nosuch`"), "{error}");
+}
+
+#[test]
+fn read_prints_values_with_units() {
+    let output = run(&["read", "measurements"]);
+    assert!(output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(
+        stderr
+            .lines()
+            .filter(|l| l.contains("built-in p_series simulator"))
+            .count(),
+        1,
+        "{stderr}"
+    );
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert_eq!(text.lines().count(), 5, "{text}");
+    assert!(text.lines().all(|l| l.ends_with(" mm")), "{text}");
+    let values = json(&["read", "distance_1", "laser", "ip_address"]);
+    assert_eq!(values["distance_1"]["unit"], "mm");
+    assert!(values["distance_1"]["value"].as_f64().is_some());
+    assert_eq!(values["ip_address"], "192.168.0.10");
+    assert!(values["laser_enabled"].is_boolean());
+    // Per-channel registers and groups.
+    let ccf = json(&["--model", "ccf", "read", "measurements", "--channel", "3"]);
+    assert!(
+        ccf["channel_3_distance_1"]["value"].as_f64().is_some(),
+        "{ccf}"
+    );
+    let error = fails(&["read", "distance_9"]);
+    assert!(
+        error.contains("`distance_9` is no register or group"),
+        "{error}"
+    );
+}
+
+#[test]
+fn dump_reads_everything_in_few_requests() {
+    let dump = json(&["dump"]);
+    assert_eq!(dump["values"].as_object().expect("values").len(), 106);
+    assert_eq!(
+        dump["requests"], 5,
+        "two tables, split at 125 words and at reserved gaps"
+    );
+    let rangefinder = json(&["--model", "rangefinder", "dump"]);
+    // 26 fields, one of them write-only: one request per field.
+    assert_eq!(rangefinder["requests"], 25);
+}
+
+#[test]
+fn watch_refreshes_and_stops() {
+    let text = ok(&["watch", "distance_1", "--count", "3", "--interval", "20ms"]);
+    assert_eq!(
+        text.lines().filter(|l| l.starts_with("distance_1")).count(),
+        3
+    );
+    let lines = ok(&[
+        "watch",
+        "measurements",
+        "--count",
+        "2",
+        "--interval",
+        "20ms",
+        "--json",
+    ]);
+    let refreshes: Vec<serde_json::Value> = lines
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object per refresh"))
+        .collect();
+    assert_eq!(refreshes.len(), 2);
+    assert!(refreshes[1]["values"]["thickness"]["value"].is_number());
+}
+
+#[test]
+fn set_takes_engineering_units_and_code_names() {
+    assert_eq!(
+        ok(&["set", "light_power", "42.5"]).trim(),
+        "light_power  42.5 %"
+    );
+    assert_eq!(
+        ok(&["set", "light_power", "42.5%"]).trim(),
+        "light_power  42.5 %"
+    );
+    assert_eq!(
+        ok(&["set", "sampling_interval", "100us"]).trim(),
+        "sampling_interval  us_100 (20)"
+    );
+    let set = json(&[
+        "--model",
+        "ccf",
+        "set",
+        "exposure_time",
+        "204.7us",
+        "--channel",
+        "2",
+    ]);
+    assert_eq!(set["channel_2_exposure_time"]["exact"], "204.7");
+    assert_eq!(
+        ok(&["--model", "rangefinder", "set", "dac_range_max", "654321"]).trim(),
+        "dac_range_max  654321"
+    );
+}
+
+#[test]
+fn invalid_values_are_refused_before_anything_is_sent() {
+    for (args, message) in [
+        (
+            vec!["set", "light_power", "100.1"],
+            "allowed 0.5 % ..= 100.0 %",
+        ),
+        (vec!["set", "light_power", "50.05"], "whole steps of 1e-1 %"),
+        (
+            vec!["set", "sampling_interval", "7us"],
+            "codes are us_6_25 (8)",
+        ),
+        (vec!["set", "distance_1", "1"], "read-only"),
+        (
+            vec!["--model", "ccf", "set", "exposure_time", "1"],
+            "--channel",
+        ),
+    ] {
+        let mut verbose = args.clone();
+        verbose.push("--verbose");
+        let output = run(&verbose);
+        assert!(!output.status.success(), "{args:?}");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(stderr.contains(message), "{args:?}: {stderr}");
+        assert!(!stderr.contains(" -> "), "a frame was sent: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+}
+
+#[test]
+fn commands_run_and_drastic_ones_need_yes() {
+    assert_eq!(
+        ok(&["do", "zero_position_1"]).trim(),
+        "zero_position_1 done"
+    );
+    let error = fails(&["do", "save_parameters"]);
+    assert!(error.contains("--yes"), "{error}");
+    assert_eq!(
+        ok(&["do", "save_parameters", "--yes"]).trim(),
+        "save_parameters done"
+    );
+    assert_eq!(
+        ok(&["--model", "ccf", "do", "zero_position", "--channel", "4"]).trim(),
+        "zero_position done"
+    );
+    let error = fails(&["do", "self_destruct"]);
+    assert!(error.contains("commands: zero_position_1"), "{error}");
+}
+
+#[test]
+fn buffer_downloads_to_csv() {
+    let dir = std::env::temp_dir().join(format!("optobus-buffer-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let csv = dir.join("buffer.csv");
+    let path = csv.to_string_lossy().into_owned();
+    ok(&[
+        "buffer", "--count", "150", "--wait", "100ms", "--out", &path,
+    ]);
+    let text = std::fs::read_to_string(&csv).expect("csv");
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("index,value_mm"));
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 150);
+    assert!(rows[149].starts_with("149,"));
+    let value: f64 = rows[0]
+        .split(',')
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .expect("a number in mm");
+    assert!((1.0..10.0).contains(&value), "{value}");
+    let _ = std::fs::remove_dir_all(&dir);
+    let error = fails(&["--model", "ccs", "buffer", "--count", "10"]);
+    assert!(error.contains("no data buffer"), "{error}");
+}
+
+#[test]
+fn verbose_shows_every_frame() {
+    let output = run(&["read", "laser_enabled", "--verbose"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    // The request of 5.1.1's shape, and a reply.
+    assert!(stderr.contains(" -> 01 03 00 00 00 01 84 0A"), "{stderr}");
+    assert!(stderr.contains(" <- 01 03 02"), "{stderr}");
+}
+
+#[test]
+fn simulate_over_tcp_serves_other_clients() {
+    let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
+    let address = served.at.clone();
+    assert!(address.starts_with("127.0.0.1:"), "{address}");
+    ok(&["--tcp", &address, "set", "light_power", "33.3"]);
+    let values = json(&["--tcp", &address, "read", "light_power"]);
+    assert_eq!(values["light_power"]["exact"], "33.3");
+}
+
+#[test]
+fn scan_finds_the_device_on_a_pty() {
+    let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
+    let text = ok(&[
+        "scan", "--serial", &served.at, "--bauds", "115200", "--slaves", "1-4",
+    ]);
+    assert_eq!(text.trim(), "found: slave 3 at 115200 baud");
+}
+
+#[test]
+fn connection_errors_are_one_clear_line() {
+    // Nothing listens on port 1.
+    let error = fails(&["--tcp", "127.0.0.1:1", "read", "distance_1"]);
+    assert!(
+        error.starts_with("optobus: cannot connect to 127.0.0.1:1"),
+        "{error}"
+    );
+    assert_eq!(error.lines().count(), 1, "{error}");
+    let error = fails(&["--serial", "/dev/nonexistent-port", "read", "distance_1"]);
+    assert!(
+        error.contains("cannot open /dev/nonexistent-port"),
+        "{error}"
+    );
+    // A device that answers another slave address: a timeout naming what to check.
+    let error = fails(&[
+        "--slave",
+        "9",
+        "--timeout",
+        "100ms",
+        "--tcp",
+        "127.0.0.1:1",
+        "read",
+        "laser",
+    ]);
+    assert!(!error.contains("panicked"), "{error}");
+}
