@@ -34,7 +34,12 @@ pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError
             serve::simulate(device, &global, pty, duration).await
         }
         Command::Frame(frame) => {
-            print(&crate::frame::run(&frame, global.json, global.slave)?);
+            print(&crate::frame::run(
+                &frame,
+                global.json,
+                global.slave,
+                global.tcp.is_some(),
+            )?);
             Ok(())
         }
         Command::Scan { bauds, slaves } => serve::scan(&global, &bauds, slaves.as_deref()).await,
