@@ -110,6 +110,29 @@ fn watch_refreshes_and_stops() {
         .collect();
     assert_eq!(refreshes.len(), 2);
     assert!(refreshes[1]["values"]["thickness"]["value"].is_number());
+    // A device that does not answer: each refresh marks the error and watch carries on.
+    let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
+    let text = ok(&[
+        "--serial",
+        &served.at,
+        "--slave",
+        "9",
+        "--timeout",
+        "50ms",
+        "watch",
+        "distance_1",
+        "--count",
+        "2",
+        "--interval",
+        "10ms",
+    ]);
+    assert_eq!(
+        text.lines()
+            .filter(|l| l.contains("! no reply within 50 ms") && l.ends_with("retrying"))
+            .count(),
+        2,
+        "{text}"
+    );
 }
 
 #[test]
@@ -259,16 +282,22 @@ fn connection_errors_are_one_clear_line() {
         error.contains("cannot open /dev/nonexistent-port"),
         "{error}"
     );
-    // A device that answers another slave address: a timeout naming what to check.
+    // A device at another slave address stays silent: a timeout that says what to check.
+    let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
     let error = fails(&[
+        "--serial",
+        &served.at,
         "--slave",
         "9",
         "--timeout",
         "100ms",
-        "--tcp",
-        "127.0.0.1:1",
         "read",
         "laser",
     ]);
-    assert!(!error.contains("panicked"), "{error}");
+    assert!(
+        error.starts_with("optobus: no reply within 100 ms for `laser_enabled"),
+        "{error}"
+    );
+    assert!(error.contains("--slave"), "{error}");
+    assert_eq!(error.lines().count(), 1, "{error}");
 }
