@@ -266,6 +266,17 @@ pub(crate) async fn buffer(
             None => csv.push_str(&format!("{index},\n")),
         }
     }
+    if global.json && out.is_none() {
+        let list: Vec<serde_json::Value> = values
+            .iter()
+            .map(|v| match v {
+                Some(v) => serde_json::json!(v.to_f64()),
+                None => serde_json::Value::Null,
+            })
+            .collect();
+        println!("{}", serde_json::json!({"unit": "mm", "values": list}));
+        return Ok(());
+    }
     match out {
         Some(path) => {
             std::fs::write(path, csv)
