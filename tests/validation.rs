@@ -2,7 +2,7 @@
 //! every writable register of every family (through the driver core the generated setters
 //! call), and through the typed setters themselves.
 
-use optobus_device::{DeviceInfo, RegisterInfo, Scalar, ValueKind};
+use optobus_device::{DeviceInfo, RegisterInfo, ValueKind};
 use optobus_driver::transport::{Error as WireError, ReadFunction, WriteValue};
 use optobus_driver::{Core, Error, Fixed, Scale, Transport};
 use optobus_tests::generated::{ccf, ccs, lc_rs, p_series, rangefinder};
@@ -39,23 +39,9 @@ const FAMILIES: [&DeviceInfo; 5] = [
     &ccf::DEVICE,
 ];
 
-fn type_bounds(register: &RegisterInfo) -> (i64, i64) {
-    let scalar = match register.kind {
-        ValueKind::Scalar(scalar) => scalar,
-        _ if register.words >= 2 => Scalar::U32,
-        _ => Scalar::U16,
-    };
-    match scalar {
-        Scalar::U16 => (0, 0xFFFF),
-        Scalar::I16 => (-0x8000, 0x7FFF),
-        Scalar::U32 => (0, 0xFFFF_FFFF),
-        Scalar::I32 => (-0x8000_0000, 0x7FFF_FFFF),
-    }
-}
-
 /// Raw values outside the register's range or type, as exact values in its scale.
 fn out_of_range(register: &RegisterInfo) -> Vec<i64> {
-    let (type_min, type_max) = type_bounds(register);
+    let (type_min, type_max) = register.scalar().bounds();
     let (min, max) = register.range.unwrap_or((type_min, type_max));
     vec![min - 1, max + 1]
 }

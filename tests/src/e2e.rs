@@ -1,7 +1,7 @@
 //! End-to-end helpers: connect a driver to a simulator through real bytes, and sweep every
 //! register of a device through the driver core the generated methods call.
 
-use optobus_device::{DeviceInfo, RegisterInfo, Scalar, Table, ValueKind};
+use optobus_device::{DeviceInfo, RegisterInfo, Table, ValueKind};
 use optobus_driver::transport::{ModbusContext, RtuClient};
 use optobus_driver::{
     encode_code, encode_packed, rtu_config, Core, Decode, Encode, Error, Fixed, Scale, Transport,
@@ -36,10 +36,7 @@ impl Encode for Words {
 /// Registers a sweep leaves alone: command registers (writing them acts, it does not set)
 /// and the slave address (the device would move away from the driver).
 fn sweepable(device: &DeviceInfo, register: &RegisterInfo) -> bool {
-    let prefix = register.copy.map(|(repeat, n)| format!("{repeat}_{n}_"));
-    let base = prefix
-        .and_then(|p| register.name.strip_prefix(p.as_str()))
-        .unwrap_or(register.name);
+    let base = register.member_name().unwrap_or(register.name);
     !device
         .commands
         .iter()
@@ -61,12 +58,7 @@ pub fn valid_values(register: &'static RegisterInfo) -> Vec<Vec<u16>> {
             values.extend(register.codes.iter().map(|c| encode_code(register, c.code)));
         }
         ValueKind::Scalar(scalar) => {
-            let (type_min, type_max) = match scalar {
-                Scalar::U16 => (0, 0xFFFF),
-                Scalar::I16 => (-0x8000, 0x7FFF),
-                Scalar::U32 => (0, 0xFFFF_FFFF),
-                Scalar::I32 => (-0x8000_0000, 0x7FFF_FFFF),
-            };
+            let (type_min, type_max) = scalar.bounds();
             let (min, max) = register.range.unwrap_or((type_min, type_max));
             for raw in [min, max, min + (max - min) / 3] {
                 values.push(Fixed::new(raw, scale).encode(register));
@@ -84,9 +76,8 @@ pub fn valid_values(register: &'static RegisterInfo) -> Vec<Vec<u16>> {
             let base: u32 = fields.iter().map(|f| choices(f)[0] << f.lsb).sum();
             for field in fields {
                 for value in choices(field) {
-                    let mask = (((1u64 << field.width) - 1) as u32) << field.lsb;
-                    let bits = (base & !mask) | (value << field.lsb);
-                    values.push(encode_packed(register, Some(bits)));
+                    let bits = field.bit_field().set(base, value);
+                    values.push(encode_packed(register, bits));
                 }
             }
         }

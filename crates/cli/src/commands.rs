@@ -63,12 +63,7 @@ pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError
         }
         command => {
             let device = models::find(&global.model)?;
-            let slave = global.slave.unwrap_or(device.default_slave);
-            // Bad names and values are refused before any connection is made.
-            precheck(device, &command)?;
-            let link = link::open(device, slave, &target(&global)).await?;
-            let mut core = Core::new(link, slave, device);
-            device_command(&mut core, &global, command).await
+            device_command(device, &global, command).await
         }
     }
 }
@@ -245,16 +240,25 @@ fn values_json(values: &[(&'static RegisterInfo, values::Value)]) -> Json {
     )
 }
 
+/// Connects to the device `global` names (or the built-in simulator).
+async fn connect(device: &'static DeviceInfo, global: &Global) -> Result<Core<Link>, CliError> {
+    let slave = global.slave.unwrap_or(device.default_slave);
+    let link = link::open(device, slave, &target(global)).await?;
+    Ok(Core::new(link, slave, device))
+}
+
+/// A command that talks to the device: names and values are checked first, so bad input is
+/// refused before any connection is made.
 async fn device_command(
-    core: &mut Core<Link>,
+    device: &'static DeviceInfo,
     global: &Global,
     command: Command,
 ) -> Result<(), CliError> {
-    let device = core.device();
     match command {
         Command::Read { names, channel } => {
             let registers = registers_of(device, &names, channel)?;
-            let values = read_values(core, &registers).await?;
+            let mut core = connect(device, global).await?;
+            let values = read_values(&mut core, &registers).await?;
             if global.json {
                 print(&pretty(&values_json(&values)));
             } else {
@@ -269,7 +273,8 @@ async fn device_command(
                 .filter(|r| r.access.readable())
                 .collect();
             let requests = plan_reads(device, &registers).len();
-            let values = read_values(core, &registers).await?;
+            let mut core = connect(device, global).await?;
+            let values = read_values(&mut core, &registers).await?;
             if global.json {
                 print(&pretty(&json!({
                     "model": device.family,
@@ -293,7 +298,8 @@ async fn device_command(
             count,
         } => {
             let registers = registers_of(device, &names, channel)?;
-            watch(core, &registers, interval, count, global.json).await
+            let mut core = connect(device, global).await?;
+            watch(&mut core, &registers, interval, count, global.json).await
         }
         Command::Set {
             name,
@@ -302,6 +308,7 @@ async fn device_command(
         } => {
             let register = single(device, &name, channel)?;
             let words = values::parse(register, &value)?;
+            let mut core = connect(device, global).await?;
             core.write(register, &Validated(words))
                 .await
                 .map_err(|e| driver_error(e, Some(register.name)))?;
@@ -348,6 +355,7 @@ async fn device_command(
                     info.busy_ms
                 );
             }
+            let mut core = connect(device, global).await?;
             core.run(info, register)
                 .await
                 .map_err(|e| driver_error(e, Some(register.name)))?;
@@ -358,21 +366,6 @@ async fn device_command(
             }
             Ok(())
         }
-        _ => Ok(()),
-    }
-}
-
-/// Checks names and values of a device command without touching the device.
-fn precheck(device: &'static DeviceInfo, command: &Command) -> Result<(), CliError> {
-    match command {
-        Command::Read { names, channel } | Command::Watch { names, channel, .. } => {
-            registers_of(device, names, *channel).map(drop)
-        }
-        Command::Set {
-            name,
-            value,
-            channel,
-        } => values::parse(single(device, name, *channel)?, value).map(drop),
         _ => Ok(()),
     }
 }

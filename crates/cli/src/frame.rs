@@ -512,14 +512,6 @@ fn span_text(device: &DeviceInfo, table: Table, start: u16, count: usize) -> Str
     )
 }
 
-/// The register a repeat copy is a copy of, if it is one (`channel_2_exposure_time` →
-/// `exposure_time`): commands name the base.
-fn base_name(register: &RegisterInfo) -> Option<&'static str> {
-    let (repeat, number) = register.copy?;
-    let prefix = format!("{repeat}_{number}_");
-    register.name.strip_prefix(prefix.as_str())
-}
-
 /// The command that writes `raw` to `register`, if one does.
 fn command_for(
     device: &'static DeviceInfo,
@@ -527,7 +519,8 @@ fn command_for(
     raw: u32,
 ) -> Option<&'static CommandInfo> {
     device.commands.iter().find(|c| {
-        c.value == raw && (c.register == register.name || base_name(register) == Some(c.register))
+        c.value == raw
+            && (c.register == register.name || register.member_name() == Some(c.register))
     })
 }
 
@@ -561,12 +554,7 @@ fn write_problem(register: &RegisterInfo, words: &[u16], value: &Value) -> Optio
         return None;
     };
     let bits = optobus_driver::raw_bits(register, words);
-    let raw = match scalar {
-        optobus_device::Scalar::U16 => i64::from(bits as u16),
-        optobus_device::Scalar::I16 => i64::from(bits as u16 as i16),
-        optobus_device::Scalar::U32 => i64::from(bits),
-        optobus_device::Scalar::I32 => i64::from(bits as i32),
-    };
+    let raw = scalar.extend(bits);
     (!(min..=max).contains(&raw)).then(|| {
         format!(
             "outside the allowed range {}",

@@ -11,13 +11,6 @@ use serde_json::{json, Value as Json};
 
 use crate::error::CliError;
 
-/// The register a repeat member's copy `number` is, if `register` is one.
-fn base_name(register: &RegisterInfo) -> Option<&'static str> {
-    let (repeat, number) = register.copy?;
-    let prefix = format!("{repeat}_{number}_");
-    register.name.strip_prefix(prefix.as_str())
-}
-
 /// The registers `name` stands for: a register, a repeat member (all copies, or copy `copy`),
 /// or a group (its members, expanded the same way).
 pub(crate) fn resolve(
@@ -46,7 +39,7 @@ fn resolve_register(
     let copies: Vec<&'static RegisterInfo> = device
         .registers
         .iter()
-        .filter(|r| base_name(r) == Some(name))
+        .filter(|r| r.member_name() == Some(name))
         .collect();
     if copies.is_empty() {
         return Err(unknown(device, name));
@@ -72,7 +65,7 @@ fn unknown(device: &DeviceInfo, name: &str) -> CliError {
     let mut near: Vec<&str> = device
         .registers
         .iter()
-        .map(|r| base_name(r).unwrap_or(r.name))
+        .map(|r| r.member_name().unwrap_or(r.name))
         .chain(device.groups.iter().map(|g| g.name))
         .filter(|n| n.contains(name) || name.contains(n))
         .collect();
@@ -159,15 +152,6 @@ fn code(codes: &'static [CodeInfo], raw: u32) -> Value {
     Value::Code(raw, codes.iter().find(|c| c.code == raw).map(|c| c.name))
 }
 
-fn integer(scalar: Scalar, bits: u32) -> i64 {
-    match scalar {
-        Scalar::U16 => i64::from(bits as u16),
-        Scalar::I16 => i64::from(bits as u16 as i16),
-        Scalar::U32 => i64::from(bits),
-        Scalar::I32 => i64::from(bits as i32),
-    }
-}
-
 fn number(raw: i64, scale: Option<Scale>, unit: Option<&'static str>) -> Value {
     match (scale, unit) {
         (None, None) => Value::Integer(raw),
@@ -183,7 +167,7 @@ pub(crate) fn decode(register: &'static RegisterInfo, words: &[u16]) -> Value {
     }
     match register.kind {
         ValueKind::Bool => Value::Bool(bits != 0),
-        ValueKind::Scalar(scalar) => number(integer(scalar, bits), register.scale, register.unit),
+        ValueKind::Scalar(scalar) => number(scalar.extend(bits), register.scale, register.unit),
         ValueKind::Enum => code(register.codes, bits),
         ValueKind::Packed(fields) => Value::Fields(
             fields
@@ -217,7 +201,7 @@ pub(crate) fn decode(register: &'static RegisterInfo, words: &[u16]) -> Value {
                 let value = if member.sentinel == Some(bits) {
                     Value::Invalid
                 } else if member.codes.is_empty() {
-                    number(integer(member.scalar, bits), member.scale, member.unit)
+                    number(member.scalar.extend(bits), member.scale, member.unit)
                 } else {
                     code(member.codes, bits)
                 };
@@ -229,12 +213,7 @@ pub(crate) fn decode(register: &'static RegisterInfo, words: &[u16]) -> Value {
 }
 
 fn field_value(field: &FieldInfo, bits: u32) -> Value {
-    let mask = if field.width >= 32 {
-        u32::MAX
-    } else {
-        (1u32 << field.width) - 1
-    };
-    let raw = (bits >> field.lsb) & mask;
+    let raw = field.get(bits);
     if field.codes.is_empty() {
         number(i64::from(raw), field.scale, field.unit)
     } else {
@@ -449,18 +428,7 @@ pub(crate) fn parse(register: &'static RegisterInfo, text: &str) -> Result<Vec<u
 /// The registers of `device` readable in a terminal or as JSON: name, table, address,
 /// access, type, unit, range or codes.
 pub(crate) fn describe(register: &RegisterInfo) -> (String, Json) {
-    let kind = match register.kind {
-        ValueKind::Bool => "bool".to_owned(),
-        ValueKind::Scalar(Scalar::U16) => "u16".into(),
-        ValueKind::Scalar(Scalar::I16) => "i16".into(),
-        ValueKind::Scalar(Scalar::U32) => "u32".into(),
-        ValueKind::Scalar(Scalar::I32) => "i32".into(),
-        ValueKind::Enum => "enum".into(),
-        ValueKind::Packed(_) => "packed".into(),
-        ValueKind::Ipv4 => "ipv4".into(),
-        ValueKind::Version(_) => "version".into(),
-        ValueKind::Record(_) => "record".into(),
-    };
+    let kind = register.kind.name();
     let values = match register.kind {
         ValueKind::Enum => code_list(register.codes),
         ValueKind::Packed(fields) => fields

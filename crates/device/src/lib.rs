@@ -84,6 +84,28 @@ pub enum Scalar {
     I32,
 }
 
+impl Scalar {
+    /// The smallest and largest value the type holds.
+    pub const fn bounds(self) -> (i64, i64) {
+        match self {
+            Self::U16 => (0, u16::MAX as i64),
+            Self::I16 => (i16::MIN as i64, i16::MAX as i64),
+            Self::U32 => (0, u32::MAX as i64),
+            Self::I32 => (i32::MIN as i64, i32::MAX as i64),
+        }
+    }
+
+    /// The value of a register's raw bits read as this type (sign-extended when signed).
+    pub const fn extend(self, bits: u32) -> i64 {
+        match self {
+            Self::U16 => bits as u16 as i64,
+            Self::I16 => bits as u16 as i16 as i64,
+            Self::U32 => bits as i64,
+            Self::I32 => bits as i32 as i64,
+        }
+    }
+}
+
 /// One code of an enumerated value.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CodeInfo {
@@ -122,6 +144,21 @@ pub struct FieldInfo {
     pub sentinel: Option<u32>,
 }
 
+impl FieldInfo {
+    /// The field's bits as a codec bit field.
+    pub const fn bit_field(&self) -> optobus_codec::value::BitField {
+        optobus_codec::value::BitField {
+            shift: self.lsb,
+            width: self.width,
+        }
+    }
+
+    /// The field's raw value in a packed register's bits.
+    pub const fn get(&self, bits: u32) -> u32 {
+        self.bit_field().get(bits)
+    }
+}
+
 /// The value type of a register.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ValueKind {
@@ -139,6 +176,24 @@ pub enum ValueKind {
     Version(&'static [&'static str; 4]),
     /// Consecutive members.
     Record(&'static [FieldInfo]),
+}
+
+impl ValueKind {
+    /// The spec's name for the type (`bool`, `u16`, …, `enum`, `packed`, `record`).
+    pub const fn name(&self) -> &'static str {
+        match self {
+            Self::Bool => "bool",
+            Self::Scalar(Scalar::U16) => "u16",
+            Self::Scalar(Scalar::I16) => "i16",
+            Self::Scalar(Scalar::U32) => "u32",
+            Self::Scalar(Scalar::I32) => "i32",
+            Self::Enum => "enum",
+            Self::Packed(_) => "packed",
+            Self::Ipv4 => "ipv4",
+            Self::Version(_) => "version",
+            Self::Record(_) => "record",
+        }
+    }
 }
 
 /// One register.
@@ -178,6 +233,31 @@ pub struct RegisterInfo {
     pub write_order: WriteOrder,
     /// Repeat copy: (repeat index name, 1-based copy number).
     pub copy: Option<(&'static str, u8)>,
+}
+
+impl RegisterInfo {
+    /// The integer type the register's raw bits are read as (unsigned for enums, packed and
+    /// boolean registers).
+    pub const fn scalar(&self) -> Scalar {
+        match self.kind {
+            ValueKind::Scalar(scalar) => scalar,
+            _ if self.words >= 2 => Scalar::U32,
+            _ => Scalar::U16,
+        }
+    }
+
+    /// For a repeat copy, the repeat member it is a copy of (`channel_2_exposure_time` →
+    /// `exposure_time`), the name commands and groups use for all copies.
+    pub fn member_name(&self) -> Option<&'static str> {
+        let (repeat, number) = self.copy?;
+        let rest = self.name.strip_prefix(repeat)?.strip_prefix('_')?;
+        let digits = rest.len() - rest.trim_start_matches(|c: char| c.is_ascii_digit()).len();
+        let (copy, member) = rest.split_at(digits);
+        if copy.parse::<u8>().ok()? != number {
+            return None;
+        }
+        member.strip_prefix('_')
+    }
 }
 
 /// An address range the device reserves (reads answer zeros).

@@ -3,7 +3,7 @@
 use std::net::Ipv4Addr;
 
 use optobus_codec::value::{join_u32, split_u32, Fixed, Scale};
-use optobus_device::{RegisterInfo, Scalar, ValueKind};
+use optobus_device::{RegisterInfo, ValueKind};
 
 use crate::Error;
 
@@ -32,23 +32,9 @@ pub fn raw_bits(register: &RegisterInfo, words: &[u16]) -> u32 {
     }
 }
 
-fn scalar(register: &RegisterInfo) -> Scalar {
-    match register.kind {
-        ValueKind::Scalar(scalar) => scalar,
-        _ if register.words >= 2 => Scalar::U32,
-        _ => Scalar::U16,
-    }
-}
-
 /// The register's integer value, sign-extended by its wire type.
 fn integer(register: &RegisterInfo, words: &[u16]) -> i64 {
-    let bits = raw_bits(register, words);
-    match scalar(register) {
-        Scalar::U16 => i64::from(bits as u16),
-        Scalar::I16 => i64::from(bits as u16 as i16),
-        Scalar::U32 => i64::from(bits),
-        Scalar::I32 => i64::from(bits as i32),
-    }
+    register.scalar().extend(raw_bits(register, words))
 }
 
 /// The words of `bits` for `register`.
@@ -62,12 +48,7 @@ pub(crate) fn bits_to_words(register: &RegisterInfo, bits: u32) -> Vec<u16> {
 
 /// Checks `value` against the register's range and wire type, and gives its words.
 pub fn encode_integer(register: &'static RegisterInfo, value: i64) -> Result<Vec<u16>, Error> {
-    let (type_min, type_max) = match scalar(register) {
-        Scalar::U16 => (0, i64::from(u16::MAX)),
-        Scalar::I16 => (i64::from(i16::MIN), i64::from(i16::MAX)),
-        Scalar::U32 => (0, i64::from(u32::MAX)),
-        Scalar::I32 => (i64::from(i32::MIN), i64::from(i32::MAX)),
-    };
+    let (type_min, type_max) = register.scalar().bounds();
     let (min, max) = register.range.unwrap_or((type_min, type_max));
     let (min, max) = (min.max(type_min), max.min(type_max));
     if value < min || value > max {
@@ -104,12 +85,7 @@ pub fn encode_packed(
     })?;
     if let ValueKind::Packed(fields) = register.kind {
         for field in fields {
-            let mask = if field.width >= 32 {
-                u32::MAX
-            } else {
-                (1u32 << field.width) - 1
-            };
-            let value = (bits >> field.lsb) & mask;
+            let value = field.get(bits);
             if !field.codes.is_empty() && !field.codes.iter().any(|c| c.code == value) {
                 return Err(Error::UndefinedCode {
                     register: register.name,

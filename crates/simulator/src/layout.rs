@@ -89,9 +89,7 @@ pub(crate) fn command_copy(
         return Some(None);
     }
     let (repeat, copy) = register.copy?;
-    let prefix = format!("{repeat}_{copy}_");
-    let base = register.name.strip_prefix(prefix.as_str())?;
-    (base == command.register).then_some(Some(prefix))
+    (register.member_name()? == command.register).then(|| Some(format!("{repeat}_{copy}_")))
 }
 
 /// The registers a group names, in order; a repeat member's base name stands for every copy,
@@ -108,9 +106,8 @@ pub(crate) fn group_members(device: &DeviceInfo, group: &GroupInfo) -> Vec<usize
             .iter()
             .enumerate()
             .filter_map(|(index, register)| {
-                let (repeat, copy) = register.copy?;
-                let base = register.name.strip_prefix(&format!("{repeat}_{copy}_"))?;
-                (base == *name).then_some((copy, index))
+                let (_, copy) = register.copy?;
+                (register.member_name()? == *name).then_some((copy, index))
             })
             .collect();
         copies.sort_unstable();

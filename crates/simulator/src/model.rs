@@ -14,7 +14,7 @@ use crate::layout::{Cell, Layout};
 use crate::names;
 use crate::quirks::{Quirks, UnreadableReads};
 use crate::signal::{raw_reading, raw_value, Signals, StatisticKind};
-use crate::value::{join, scalar_of, split, valid};
+use crate::value::{join, split, valid};
 
 /// What the device answers to one request.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -405,7 +405,7 @@ impl Device {
                     let id = *self.signals.of_register(source)?.first()?;
                     self.signal_value(id, at)
                 });
-                raw_value(scalar_of(register), register.sentinel, value)
+                raw_value(register.scalar(), register.sentinel, value)
             }
         };
         split(register, raw)

@@ -26,7 +26,7 @@ use optobus_device::{
 };
 
 use crate::names;
-use crate::value::{domain, scalar_of, to_raw};
+use crate::value::to_raw;
 
 /// Index into [`Signals`].
 pub(crate) type SignalId = usize;
@@ -181,7 +181,7 @@ fn level(
         };
         (center / step, amplitude / step)
     };
-    let (min, max) = domain(scalar);
+    let (min, max) = scalar.bounds();
     let (min, max) = (min as f64, max as f64);
     let amplitude = amplitude.min((max - min) / 4.0).max(0.0);
     let center = center.clamp(min + amplitude, max - amplitude);
@@ -194,15 +194,7 @@ fn level(
 }
 
 fn in_group(group: &GroupInfo, register: &RegisterInfo) -> bool {
-    let base = register
-        .copy
-        .and_then(|(repeat, copy)| {
-            register
-                .name
-                .strip_prefix(&format!("{repeat}_{copy}_"))
-                .map(str::to_owned)
-        })
-        .unwrap_or_else(|| register.name.to_owned());
+    let base = register.member_name().unwrap_or(register.name);
     group
         .registers
         .iter()
@@ -295,7 +287,7 @@ impl Signals {
                     by_register[index] = Some(ids);
                 }
                 _ => {
-                    let scalar = scalar_of(register);
+                    let scalar = register.scalar();
                     let source = if let Some(statistic) = statistic(device, register) {
                         Source::Statistic(statistic)
                     } else if register.name.ends_with(names::COUNT_SUFFIX)
@@ -507,7 +499,7 @@ pub(crate) fn raw_value(scalar: Scalar, sentinel: Option<u32>, value: Option<i64
     let Some(value) = value else {
         return sentinel.unwrap_or(0);
     };
-    let (min, max) = domain(scalar);
+    let (min, max) = scalar.bounds();
     let value = value.clamp(min, max);
     let raw = to_raw(scalar, value);
     if Some(raw) == sentinel {

@@ -24,40 +24,11 @@ pub(crate) fn split(register: &RegisterInfo, raw: u32) -> Vec<u16> {
     }
 }
 
-/// `raw` as the number a range is expressed in (signed registers sign-extend).
-pub(crate) fn number(scalar: Scalar, raw: u32) -> i64 {
-    match scalar {
-        Scalar::U16 => i64::from(raw & 0xFFFF),
-        Scalar::U32 => i64::from(raw),
-        Scalar::I16 => i64::from(raw as u16 as i16),
-        Scalar::I32 => i64::from(raw as i32),
-    }
-}
-
-/// The integer type of a one- or two-word register, for range checks and signals.
-pub(crate) fn scalar_of(register: &RegisterInfo) -> Scalar {
-    match register.kind {
-        ValueKind::Scalar(scalar) => scalar,
-        _ if register.words >= 2 => Scalar::U32,
-        _ => Scalar::U16,
-    }
-}
-
 /// The raw bits of `value` in `scalar`'s width.
 pub(crate) fn to_raw(scalar: Scalar, value: i64) -> u32 {
     match scalar {
         Scalar::U16 | Scalar::I16 => u32::from(value as u16),
         Scalar::U32 | Scalar::I32 => value as u32,
-    }
-}
-
-/// The values `scalar` can hold.
-pub(crate) fn domain(scalar: Scalar) -> (i64, i64) {
-    match scalar {
-        Scalar::U16 => (0, i64::from(u16::MAX)),
-        Scalar::I16 => (i64::from(i16::MIN), i64::from(i16::MAX)),
-        Scalar::U32 => (0, i64::from(u32::MAX)),
-        Scalar::I32 => (i64::from(i32::MIN), i64::from(i32::MAX)),
     }
 }
 
@@ -92,8 +63,8 @@ pub(crate) fn valid(register: &RegisterInfo, raw: u32) -> bool {
     let kind_ok = match register.kind {
         ValueKind::Bool => raw <= 1,
         ValueKind::Scalar(scalar) => {
-            let (min, max) = domain(scalar);
-            (min..=max).contains(&number(scalar, raw))
+            let (min, max) = scalar.bounds();
+            (min..=max).contains(&scalar.extend(raw))
         }
         ValueKind::Enum => is_code(register.codes, raw),
         ValueKind::Packed(fields) => valid_fields(fields, raw),
@@ -101,7 +72,7 @@ pub(crate) fn valid(register: &RegisterInfo, raw: u32) -> bool {
         ValueKind::Ipv4 => raw <= 0xFF,
         ValueKind::Version(_) | ValueKind::Record(_) => true,
     };
-    kind_ok && in_range(register.range, number(scalar_of(register), raw))
+    kind_ok && in_range(register.range, register.scalar().extend(raw))
 }
 
 #[cfg(test)]
