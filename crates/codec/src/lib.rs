@@ -10,11 +10,13 @@
 #![forbid(unsafe_code)]
 
 pub mod crc;
+mod line;
 mod pdu;
 pub mod rtu;
 pub mod tcp;
 pub mod value;
 
+pub use line::{LineFormat, LineFormatError, Parity};
 pub use pdu::{
     DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, PayloadWidth,
     ReadFunction, Request, Response, Words, WriteValue, EXCEPTION_BIT, MAX_READ_WORDS,
