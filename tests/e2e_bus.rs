@@ -22,8 +22,8 @@ async fn two_drivers_share_one_port_from_two_tasks() {
         stream,
         rtu_config(&optobus_p_series::DEVICE),
     ));
-    let mut p_series = PSeries::new(line.clone(), 1);
-    let mut ccs = Ccs::new(line, 2);
+    let mut p_series = PSeries::new(line.clone(), 1).expect("slave 1");
+    let mut ccs = Ccs::new(line, 2).expect("slave 2");
     let p_task = tokio::spawn(async move {
         for round in 0..50u16 {
             let power = format!("{}.{}", 10 + round, round % 10);
@@ -91,12 +91,16 @@ async fn a_silent_device_times_out_and_the_line_recovers() {
 #[tokio::test]
 async fn a_silent_device_times_out_over_tcp() {
     let sim = Simulator::new(&optobus_p_series::DEVICE);
-    let (context, _server) = e2e::tcp(&sim).await;
-    let mut sensor = PSeries::with_default_slave(context.with_timeout(Duration::from_millis(100)));
+    let (mut client, _server) = e2e::tcp(&sim).await;
+    client.config_mut().timeout = Duration::from_millis(100);
+    let mut sensor = PSeries::with_default_slave(client);
     sim.set_silent(true);
     let error = sensor.laser_enabled().await.unwrap_err();
     assert!(
         matches!(error, Error::Transport(WireError::Timeout { .. })),
         "{error}"
     );
+    // The connection survives the timeout, and the next transaction is answered.
+    sim.set_silent(false);
+    assert!(sensor.laser_enabled().await.is_ok());
 }

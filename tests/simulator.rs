@@ -903,7 +903,7 @@ async fn the_generated_driver_downloads_the_buffer_from_the_simulator() {
     use optobus_transport::RtuClient;
     let sim = Simulator::new(&p_series::DEVICE).sentinel_every(0);
     let (stream, _server) = sim.duplex();
-    let mut sensor = p_series::PSeries::new(RtuClient::new(stream), 1);
+    let mut sensor = p_series::PSeries::new(RtuClient::new(stream), 1).expect("slave 1");
     sensor
         .start_buffering(p_series::MeasurementSource::Distance1, 1000)
         .await

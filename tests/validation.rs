@@ -58,7 +58,7 @@ fn block_on<F: std::future::Future>(future: F) -> F::Output {
 fn invalid_values_never_reach_the_wire() {
     let mut refused = 0;
     for device in FAMILIES {
-        let mut core = Core::new(NoWire::default(), device.default_slave, device);
+        let mut core = Core::with_default_slave(NoWire::default(), device);
         for register in device.registers {
             let register: &'static RegisterInfo = register;
             if !register.access.writable() {
@@ -141,7 +141,7 @@ fn invalid_values_never_reach_the_wire() {
 fn typed_setters_refuse_before_sending() {
     use p_series::{MedianFilterWidth, PSeries, Statistic1Config};
     block_on(async {
-        let mut sensor = PSeries::new(NoWire::default(), 1);
+        let mut sensor = PSeries::new(NoWire::default(), 1).expect("slave 1");
         // Range: 0.5 % to 100 %.
         let error = sensor
             .set_light_power("100.1".parse().unwrap())

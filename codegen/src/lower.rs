@@ -371,6 +371,7 @@ impl Lowering<'_> {
                 OrderName::LowFirst => WriteOrder::LowWordFirst,
             }),
             alias_of: decl.alias_of.clone(),
+            read_side_effect: decl.read_side_effect.clone(),
             repeat: None,
             path: path.clone(),
         }

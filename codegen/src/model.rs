@@ -270,6 +270,9 @@ pub struct Register {
     pub write_order: Option<WriteOrder>,
     /// The register this one deliberately overlaps.
     pub alias_of: Option<String>,
+    /// What reading the register changes in the device (a read that turns a buffer page):
+    /// such a read is never retried.
+    pub read_side_effect: Option<String>,
     /// Set for repeat copies.
     pub repeat: Option<RepeatCopy>,
     /// Where it is declared (for copies: the block's entry).

@@ -180,6 +180,7 @@ pub(crate) struct RegisterDecl {
     pub(crate) word_order: Option<OrderName>,
     pub(crate) write_order: Option<OrderName>,
     pub(crate) alias_of: Option<String>,
+    pub(crate) read_side_effect: Option<String>,
     pub(crate) note: Option<String>,
     pub(crate) fields: Option<Vec<FieldDecl>>,
     pub(crate) parts: Option<Vec<String>>,

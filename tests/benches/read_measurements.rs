@@ -25,7 +25,7 @@ fn median(mut samples: Vec<Duration>) -> Duration {
 
 /// Median time of a round of `PER_ROUND` transactions: (typed, raw).
 async fn measure(typed_context: Context, mut raw: Context) -> (Duration, Duration) {
-    let mut sensor = PSeries::new(ModbusContext::new(typed_context), 1);
+    let mut sensor = PSeries::new(ModbusContext::new(typed_context), 1).expect("slave 1");
     let (mut typed_rounds, mut raw_rounds) = (Vec::new(), Vec::new());
     for round in 0..=ROUNDS {
         let started = Instant::now();

@@ -2,26 +2,32 @@
 //! register of a device through the driver core the generated methods call.
 
 use optobus_device::{DeviceInfo, RegisterInfo, Table, ValueKind};
-use optobus_driver::transport::{ModbusContext, RtuClient};
+use optobus_driver::transport::{RtuClient, RtuConfig, TcpClient};
 use optobus_driver::{
-    encode_code, encode_packed, rtu_config, Core, Decode, Encode, Error, Fixed, Scale, Transport,
+    encode_code, encode_packed, rtu_config, tcp_config, Core, Decode, Encode, Error, Fixed, Scale,
+    Transport,
 };
 use optobus_simulator::{Simulator, TcpServer};
 use tokio::io::DuplexStream;
 
-/// Our RTU client on an in-memory line to `sim`, configured from the device description.
+/// Our RTU client on an in-memory line to `sim`, configured from the device description
+/// (without line timing: the line is memory).
 pub fn rtu(sim: &Simulator) -> RtuClient<DuplexStream> {
     let (stream, _server) = sim.duplex();
-    RtuClient::with_config(stream, rtu_config(sim.device()))
+    let config = RtuConfig {
+        line: None,
+        ..rtu_config(sim.device())
+    };
+    RtuClient::with_config(stream, config)
 }
 
-/// tokio-modbus's TCP client connected to `sim` served on 127.0.0.1 (keep the server).
-pub async fn tcp(sim: &Simulator) -> (ModbusContext, TcpServer) {
+/// Our Modbus TCP client connected to `sim` served on 127.0.0.1 (keep the server).
+pub async fn tcp(sim: &Simulator) -> (TcpClient, TcpServer) {
     let server = sim.serve_tcp("127.0.0.1:0").await.expect("serve TCP");
-    let context = ModbusContext::connect_tcp(server.local_addr())
+    let client = TcpClient::connect(server.local_addr(), tcp_config(sim.device()))
         .await
         .expect("connect");
-    (context, server)
+    (client, server)
 }
 
 /// Raw words that a value occupies, to compare what was written with what is read back.

@@ -154,6 +154,12 @@ fn register_doc(model: &Model, register: &Register, copies: Option<&[&Register]>
         lines.push(String::new());
         lines.push("Written as two registers, low word first, as the manual demands.".into());
     }
+    if let Some(effect) = &register.read_side_effect {
+        lines.push(String::new());
+        lines.push(format!(
+            "Reading it {effect}, so a failed read is never retried."
+        ));
+    }
     lines
 }
 
@@ -587,7 +593,7 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
         model.family
     );
     let slave_doc = format!(
-        "A driver for the device at `slave` (factory setting {}).",
+        "A driver for the device at `slave` (factory setting {}); 0 broadcasts (writes and commands only), 248 to 255 are refused.",
         model.device.default_slave
     );
     let ready_ms = Literal::u64_unsuffixed(u64::from(model.device.power_up_ms.unwrap_or(0)) + 1000);
@@ -609,13 +615,13 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
 
         impl<T: ::optobus_driver::Transport> #driver<T> {
             #[doc = #slave_doc]
-            pub fn new(transport: T, slave: u8) -> Self {
-                Self { core: ::optobus_driver::Core::new(transport, slave, &DEVICE) }
+            pub fn new(transport: T, slave: u8) -> ::core::result::Result<Self, ::optobus_driver::Error> {
+                ::optobus_driver::Core::new(transport, slave, &DEVICE).map(|core| Self { core })
             }
 
             /// A driver for the device at its factory slave address.
             pub fn with_default_slave(transport: T) -> Self {
-                Self::new(transport, DEVICE.default_slave)
+                Self { core: ::optobus_driver::Core::with_default_slave(transport, &DEVICE) }
             }
 
             /// The slave address requests go to.

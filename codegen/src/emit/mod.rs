@@ -672,6 +672,10 @@ fn register_info(model: &Model, register: &Register, names: &TypeNames) -> Token
         WriteOrder::HighWordFirst => quote!(::optobus_device::WriteOrder::HighWordFirst),
         WriteOrder::LowWordFirst => quote!(::optobus_device::WriteOrder::LowWordFirst),
     };
+    let read_side_effect = match &register.read_side_effect {
+        Some(effect) => quote!(Some(#effect)),
+        None => quote!(None),
+    };
     let copy = match &register.repeat {
         Some(copy) => {
             let repeat = &model.repeats[copy.repeat].name;
@@ -699,6 +703,7 @@ fn register_info(model: &Model, register: &Register, names: &TypeNames) -> Token
             word_order: #word_order,
             write_order: #write_order,
             copy: #copy,
+            read_side_effect: #read_side_effect,
         }
     }
 }

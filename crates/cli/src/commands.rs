@@ -244,7 +244,7 @@ fn values_json(values: &[(&'static RegisterInfo, values::Value)]) -> Json {
 async fn connect(device: &'static DeviceInfo, global: &Global) -> Result<Core<Link>, CliError> {
     let slave = global.slave.unwrap_or(device.default_slave);
     let link = link::open(device, slave, &target(global)).await?;
-    Ok(Core::new(link, slave, device))
+    Core::new(link, slave, device).map_err(CliError::from)
 }
 
 /// A command that talks to the device: names and values are checked first, so bad input is

@@ -8,9 +8,9 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use optobus_device::DeviceInfo;
 use optobus_driver::transport::{
-    Error as WireError, ModbusContext, Parity, ReadFunction, RtuClient, SerialStream, WriteValue,
+    Error as WireError, Parity, ReadFunction, RtuClient, SerialStream, TcpClient, WriteValue,
 };
-use optobus_driver::{rtu_config, serial_settings, Transport};
+use optobus_driver::{rtu_config, serial_settings, tcp_config, Transport};
 use optobus_simulator::Simulator;
 use tokio::io::{AsyncRead, AsyncWrite, DuplexStream, ReadBuf};
 use tokio::net::TcpStream;
@@ -97,7 +97,24 @@ impl<S: AsyncWrite + Unpin> AsyncWrite for Tap<S> {
 pub(crate) enum Link {
     Serial(RtuClient<Tap<SerialStream>>),
     Simulator(RtuClient<Tap<DuplexStream>>),
-    Tcp(ModbusContext),
+    Tcp(TcpClient<TapConnect>),
+}
+
+/// Opens TCP connections (again after one broke) with `--verbose` frames printed.
+#[derive(Debug)]
+pub(crate) struct TapConnect {
+    address: std::net::SocketAddr,
+    verbose: bool,
+}
+
+impl optobus_driver::transport::Connect for TapConnect {
+    type Stream = Tap<TcpStream>;
+
+    async fn connect(&mut self) -> io::Result<Self::Stream> {
+        let stream = TcpStream::connect(self.address).await?;
+        stream.set_nodelay(true)?;
+        Ok(Tap::new(stream, self.verbose))
+    }
 }
 
 impl Transport for Link {
@@ -112,6 +129,20 @@ impl Transport for Link {
             Self::Serial(client) => client.read(slave, function, address, count).await,
             Self::Simulator(client) => client.read(slave, function, address, count).await,
             Self::Tcp(client) => client.read(slave, function, address, count).await,
+        }
+    }
+
+    async fn read_once(
+        &mut self,
+        slave: u8,
+        function: ReadFunction,
+        address: u16,
+        count: u16,
+    ) -> Result<Vec<u16>, WireError> {
+        match self {
+            Self::Serial(client) => client.read_once(slave, function, address, count).await,
+            Self::Simulator(client) => client.read_once(slave, function, address, count).await,
+            Self::Tcp(client) => client.read_once(slave, function, address, count).await,
         }
     }
 
@@ -169,14 +200,14 @@ pub(crate) async fn open(
     if let Some(path) = &target.serial {
         let mut settings = serial_settings(device, path.as_str());
         if let Some(baud) = target.baud {
-            settings.baud = baud;
-            config.baud = baud;
+            settings.line.baud = baud;
         }
         if let Some(parity) = &target.parity {
-            settings.parity = Parity::from_name(parity).ok_or_else(|| {
+            settings.line.parity = Parity::from_name(parity).ok_or_else(|| {
                 CliError::new(format!("unknown parity `{parity}`")).hint("use none, odd or even")
             })?;
         }
+        config.line = Some(settings.line);
         let port = settings.open().map_err(|e| {
             CliError::new(format!("cannot open {path}: {e}"))
                 .hint("check the path, that no other program holds the port, and your permissions")
@@ -189,26 +220,28 @@ pub(crate) async fn open(
     if let Some(address) = &target.tcp {
         let port = device.tcp.map_or(502, |t| t.port);
         let address = resolve_tcp(address, port).await?;
-        let stream = tokio::time::timeout(target.timeout, TcpStream::connect(address))
-            .await
-            .map_err(|_| {
-                CliError::new(format!(
-                    "no TCP connection to {address} within {} ms",
-                    target.timeout.as_millis()
-                ))
-            })?
-            .map_err(|e| CliError::new(format!("cannot connect to {address}: {e}")))?;
-        let _ = stream.set_nodelay(true);
-        let context = tokio_modbus::client::tcp::attach(Tap::new(stream, target.verbose));
-        return Ok(Link::Tcp(
-            ModbusContext::new(context).with_timeout(target.timeout),
-        ));
+        let mut config = tcp_config(device);
+        config.timeout = target.timeout;
+        let connector = TapConnect {
+            address,
+            verbose: target.verbose,
+        };
+        let mut client = TcpClient::new(connector, config);
+        client.open().await.map_err(|e| match e {
+            WireError::Connect { source, .. } => {
+                CliError::new(format!("cannot connect to {address}: {source}"))
+            }
+            other => CliError::new(format!("cannot connect to {address}: {other}")),
+        })?;
+        return Ok(Link::Tcp(client));
     }
     eprintln!(
         "optobus: no --serial or --tcp given: using the built-in {} simulator (slave {slave})",
         device.family
     );
     let (line, _server) = Simulator::new(device).slave(slave).duplex();
+    // The line is memory: no serial timing.
+    config.line = None;
     Ok(Link::Simulator(RtuClient::with_config(
         Tap::new(line, target.verbose),
         config,

@@ -166,7 +166,7 @@ pub(crate) async fn scan(
         // A silent address costs the whole timeout: keep it short unless asked otherwise.
         target.timeout = global.timeout.min(Duration::from_millis(200));
         let link = link::open(device, 0, &target).await?;
-        let mut core = Core::new(link, 1, device);
+        let mut core = Core::with_default_slave(link, device);
         for (i, &slave) in slaves.iter().enumerate() {
             if progress {
                 eprint!(
@@ -175,7 +175,7 @@ pub(crate) async fn scan(
                     slaves.len()
                 );
             }
-            core.set_slave(slave);
+            core.set_slave(slave)?;
             let answered = match core.read_words(probe).await {
                 Ok(_) => true,
                 // An exception is an answer too: something lives at this address.
@@ -223,7 +223,7 @@ pub(crate) async fn buffer(
         .ok_or_else(|| CliError::new("the P-series spec has no buffer_data_type"))?;
     let words = values::parse(register, source)?;
     let source = MeasurementSource::from_raw(u32::from(words.first().copied().unwrap_or(0)));
-    let mut sensor = PSeries::new(link, slave);
+    let mut sensor = PSeries::new(link, slave)?;
     sensor
         .start_buffering(source, count)
         .await

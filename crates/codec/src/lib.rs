@@ -19,6 +19,6 @@ pub mod value;
 pub use line::{LineFormat, LineFormatError, Parity};
 pub use pdu::{
     DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, PayloadWidth,
-    ReadFunction, Request, Response, Words, WriteValue, EXCEPTION_BIT, MAX_READ_WORDS,
-    WRITE_SINGLE,
+    ReadFunction, Request, Response, Words, WriteValue, BROADCAST, EXCEPTION_BIT, MAX_READ_WORDS,
+    MAX_SLAVE, WRITE_SINGLE,
 };

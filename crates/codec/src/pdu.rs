@@ -621,6 +621,12 @@ impl fmt::Display for DecodeError {
 
 impl core::error::Error for DecodeError {}
 
+/// The highest slave address; 248 to 255 are reserved (Modbus over serial line V1.02, 2.2).
+pub const MAX_SLAVE: u8 = 247;
+
+/// The broadcast address: every slave carries out the request and none answers.
+pub const BROADCAST: u8 = 0;
+
 /// Why a frame could not be encoded. Nothing is written to the caller's buffer on error.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
@@ -645,6 +651,11 @@ pub enum EncodeError {
         /// The code.
         code: ExceptionCode,
     },
+    /// A request to a reserved slave address (248 to 255).
+    ReservedSlave {
+        /// The address.
+        slave: u8,
+    },
 }
 
 impl fmt::Display for EncodeError {
@@ -664,6 +675,10 @@ impl fmt::Display for EncodeError {
             Self::CodeTooWide { code } => write!(
                 f,
                 "exception code {code} does not fit the standard one-byte exception frame"
+            ),
+            Self::ReservedSlave { slave } => write!(
+                f,
+                "slave address {slave} is reserved: slaves are 1 to {MAX_SLAVE}, 0 broadcasts"
             ),
         }
     }

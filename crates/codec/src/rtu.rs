@@ -8,7 +8,7 @@
 use crate::crc::{crc16, is_valid_frame};
 use crate::pdu::{
     DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, ReadFunction,
-    Request, Response, Words, EXCEPTION_BIT, WRITE_SINGLE,
+    Request, Response, Words, EXCEPTION_BIT, MAX_SLAVE, WRITE_SINGLE,
 };
 
 /// The longest RTU frame Modbus allows.
@@ -41,7 +41,8 @@ fn frame(
     Ok(len)
 }
 
-/// Encodes a request to `slave`; returns the frame length.
+/// Encodes a request to `slave` (0 broadcasts; 248 to 255 are refused); returns the frame
+/// length.
 ///
 /// ```
 /// use optobus_codec::{rtu, ReadFunction, Request};
@@ -51,6 +52,9 @@ fn frame(
 /// assert_eq!(&buf[..len], &[0x01, 0x04, 0x00, 0x00, 0x00, 0x06, 0x70, 0x08]);
 /// ```
 pub fn encode_request(out: &mut [u8], slave: u8, request: &Request) -> Result<usize, EncodeError> {
+    if slave > MAX_SLAVE {
+        return Err(EncodeError::ReservedSlave { slave });
+    }
     request.check()?;
     frame(out, slave, request.pdu_len(), |pdu| {
         request.write_pdu(pdu);

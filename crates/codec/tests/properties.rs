@@ -134,7 +134,7 @@ proptest! {
     }
 
     #[test]
-    fn rtu_requests_round_trip(slave in any::<u8>(), request in request()) {
+    fn rtu_requests_round_trip(slave in 0u8..=247, request in request()) {
         let mut out = [0u8; rtu::MAX_FRAME_LEN];
         let len = rtu::encode_request(&mut out, slave, &request).unwrap();
         prop_assert_eq!(len, request.pdu_len() + 3);
@@ -142,6 +142,14 @@ proptest! {
         let shape = FrameShape { exception: ExceptionShape::Standard, four_byte_writes: &wide };
         let decoded = rtu::decode_request(&out[..len], &shape).unwrap();
         prop_assert_eq!(decoded, Decoded::Frame { frame: rtu::Frame { slave, pdu: request }, consumed: len });
+    }
+
+    #[test]
+    fn rtu_requests_to_reserved_slaves_are_refused(slave in 248u8..=255, request in request()) {
+        let mut out = [0xAAu8; rtu::MAX_FRAME_LEN];
+        let refused = rtu::encode_request(&mut out, slave, &request);
+        prop_assert_eq!(refused, Err(optobus_codec::EncodeError::ReservedSlave { slave }));
+        prop_assert!(out.iter().all(|&b| b == 0xAA), "nothing written");
     }
 
     #[test]

@@ -233,9 +233,17 @@ pub struct RegisterInfo {
     pub write_order: WriteOrder,
     /// Repeat copy: (repeat index name, 1-based copy number).
     pub copy: Option<(&'static str, u8)>,
+    /// What reading the register changes in the device (it turns a buffer page), if
+    /// anything: such a read is made once, never retried.
+    pub read_side_effect: Option<&'static str>,
 }
 
 impl RegisterInfo {
+    /// Whether a failed read may simply be made again: false when reading changes the device.
+    pub const fn read_is_repeatable(&self) -> bool {
+        self.read_side_effect.is_none()
+    }
+
     /// The integer type the register's raw bits are read as (unsigned for enums, packed and
     /// boolean registers).
     pub const fn scalar(&self) -> Scalar {

@@ -1,29 +1,45 @@
 //! Transport settings taken from a device description (its serial defaults and frame shapes).
 
 use optobus_device::DeviceInfo;
-use optobus_transport::{Parity, RtuConfig, SerialSettings};
+use optobus_transport::{LineFormat, Parity, RtuConfig, SerialSettings, TcpConfig};
 
-/// Settings for our RTU client that fit `device`: its exception frame shape and factory
-/// baud rate (which sets the silence between frames), the default 1 s timeout, no retries.
+/// The factory line format of `device` (115200 8N1 for a device without serial settings).
+pub fn line_format(device: &DeviceInfo) -> LineFormat {
+    device
+        .rtu
+        .map_or(LineFormat::new(115_200), |rtu| LineFormat {
+            baud: rtu.default_baud,
+            data_bits: rtu.data_bits,
+            parity: Parity::from_name(rtu.parity).unwrap_or_default(),
+            stop_bits: rtu.stop_bits,
+        })
+}
+
+/// Settings for our RTU client on a serial line to `device`: its exception frame shape and
+/// factory line format (which sets the silence between frames), the default 1 s timeout, no
+/// retries. For an in-memory stream or RTU over TCP set `line: None`.
 pub fn rtu_config(device: &DeviceInfo) -> RtuConfig {
     RtuConfig {
-        baud: device
-            .rtu
-            .map_or(RtuConfig::default().baud, |rtu| rtu.default_baud),
+        line: Some(line_format(device)),
         exception: device.frame_shape.exception,
         ..RtuConfig::default()
     }
 }
 
-/// The serial port `path` with `device`'s factory line settings (baud, parity, data and stop
-/// bits); change fields for a device configured otherwise.
-pub fn serial_settings(device: &DeviceInfo, path: impl Into<String>) -> SerialSettings {
-    let mut settings = SerialSettings::new(path);
-    if let Some(rtu) = device.rtu {
-        settings.baud = rtu.default_baud;
-        settings.parity = Parity::from_name(rtu.parity).unwrap_or_default();
-        settings.data_bits = rtu.data_bits;
-        settings.stop_bits = rtu.stop_bits;
+/// Settings for our Modbus TCP client to `device`: its exception frame shape, the default
+/// timeout and reconnection backoff, no retries.
+pub fn tcp_config(device: &DeviceInfo) -> TcpConfig {
+    TcpConfig {
+        exception: device.frame_shape.exception,
+        ..TcpConfig::default()
     }
-    settings
+}
+
+/// The serial port `path` with `device`'s factory line format; change `line` for a device
+/// configured otherwise.
+pub fn serial_settings(device: &DeviceInfo, path: impl Into<String>) -> SerialSettings {
+    SerialSettings {
+        path: path.into(),
+        line: line_format(device),
+    }
 }

@@ -4,7 +4,7 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 use optobus_codec::value::{join_u32, u32_writes};
-use optobus_codec::{ReadFunction, WriteValue};
+use optobus_codec::{ReadFunction, WriteValue, BROADCAST, MAX_SLAVE};
 use optobus_device::{Addressing, CommandInfo, DeviceInfo, LongWrites, RegisterInfo, Table};
 use optobus_transport::Transport;
 
@@ -60,12 +60,33 @@ fn function(table: Table) -> ReadFunction {
     }
 }
 
+/// Refuses the reserved slave addresses 248 to 255.
+fn check_slave(slave: u8) -> Result<u8, Error> {
+    if slave > MAX_SLAVE {
+        return Err(Error::Slave {
+            slave,
+            reason: "248 to 255 are reserved; slaves are 1 to 247, 0 broadcasts writes",
+        });
+    }
+    Ok(slave)
+}
+
 impl<T: Transport> Core<T> {
-    /// A driver core talking to slave `slave` of `device` through `transport`.
-    pub fn new(transport: T, slave: u8, device: &'static DeviceInfo) -> Self {
+    /// A driver core talking to slave `slave` of `device` through `transport`; 0 broadcasts
+    /// (writes and commands only), 248 to 255 are refused.
+    pub fn new(transport: T, slave: u8, device: &'static DeviceInfo) -> Result<Self, Error> {
+        Ok(Self {
+            transport,
+            slave: check_slave(slave)?,
+            device,
+        })
+    }
+
+    /// A driver core talking to `device` at its factory slave address.
+    pub fn with_default_slave(transport: T, device: &'static DeviceInfo) -> Self {
         Self {
             transport,
-            slave,
+            slave: device.default_slave,
             device,
         }
     }
@@ -75,9 +96,42 @@ impl<T: Transport> Core<T> {
         self.slave
     }
 
-    /// Sends later requests to another slave address.
-    pub fn set_slave(&mut self, slave: u8) {
-        self.slave = slave;
+    /// Sends later requests to another slave address (refused like in [`Core::new`]).
+    pub fn set_slave(&mut self, slave: u8) -> Result<(), Error> {
+        self.slave = check_slave(slave)?;
+        Ok(())
+    }
+
+    /// The slave address for a request that expects a reply.
+    fn replying_slave(&self) -> Result<u8, Error> {
+        match check_slave(self.slave)? {
+            BROADCAST => Err(Error::Slave {
+                slave: BROADCAST,
+                reason: "a broadcast gets no reply, so nothing can be read from it",
+            }),
+            slave => Ok(slave),
+        }
+    }
+
+    /// Reads one span: once if reading any of its registers changes the device, else with
+    /// the transport's retries.
+    async fn read_span(
+        &mut self,
+        table: Table,
+        address: u16,
+        count: u16,
+        repeatable: bool,
+    ) -> Result<Vec<u16>, Error> {
+        let slave = self.replying_slave()?;
+        let function = function(table);
+        let words = if repeatable {
+            self.transport.read(slave, function, address, count).await?
+        } else {
+            self.transport
+                .read_once(slave, function, address, count)
+                .await?
+        };
+        Ok(words)
     }
 
     /// The device description.
@@ -103,16 +157,13 @@ impl<T: Transport> Core<T> {
                 what: "read (it is write-only)",
             });
         }
-        let words = self
-            .transport
-            .read(
-                self.slave,
-                function(register.table),
-                register.address,
-                register.words,
-            )
-            .await?;
-        Ok(words)
+        self.read_span(
+            register.table,
+            register.address,
+            register.words,
+            register.read_is_repeatable(),
+        )
+        .await
     }
 
     /// Reads one register as `V`.
@@ -149,9 +200,9 @@ impl<T: Transport> Core<T> {
             addressing: self.device.addressing,
         };
         for &span in plan {
+            let repeatable = span.is_repeatable(self.device);
             let words = self
-                .transport
-                .read(self.slave, function(span.table), span.address, span.count)
+                .read_span(span.table, span.address, span.count, repeatable)
                 .await?;
             if readings.first.is_none() {
                 readings.first = Some((span, words));

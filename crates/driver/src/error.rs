@@ -55,6 +55,24 @@ pub enum Error {
         /// What was refused.
         what: &'static str,
     },
+    /// The slave address cannot be used for this: 248 to 255 are reserved, and broadcast
+    /// (0) only writes, as nothing answers it. Nothing was sent.
+    Slave {
+        /// The address.
+        slave: u8,
+        /// Why it cannot be used.
+        reason: &'static str,
+    },
+    /// A multi-request read came back out of step with the device: the device's own count
+    /// shows data that never reached us (a buffer page lost to a failed read).
+    OutOfStep {
+        /// What was being read.
+        what: &'static str,
+        /// Values received.
+        received: u64,
+        /// Values the device reports as handed out.
+        reported: u64,
+    },
     /// The device did not answer within the time the manual gives for starting up.
     NotReady {
         /// How long we polled.
@@ -108,6 +126,15 @@ impl fmt::Display for Error {
                 write!(f, "a field of `{register}` does not fit its bits")
             }
             Self::NotAllowed { register, what } => write!(f, "`{register}` cannot be {what}"),
+            Self::Slave { slave, reason } => write!(f, "slave address {slave}: {reason}"),
+            Self::OutOfStep {
+                what,
+                received,
+                reported,
+            } => write!(
+                f,
+                "{what} lost data: {received} values received, the device handed out {reported}"
+            ),
             Self::NotReady { waited, last } => write!(
                 f,
                 "the device did not answer within {} ms (last error: {last})",

@@ -22,7 +22,7 @@ mod plan;
 pub mod units;
 mod value;
 
-pub use crate::connect::{rtu_config, serial_settings};
+pub use crate::connect::{line_format, rtu_config, serial_settings, tcp_config};
 pub use crate::core::{Core, Readings};
 pub use error::Error;
 pub use optobus_codec::value::{Fixed, ParseFixedError, Scale};

@@ -14,6 +14,21 @@ pub struct ReadSpan {
 }
 
 impl ReadSpan {
+    /// Whether a failed read of this span may be made again: false when it covers a register
+    /// whose read changes the device.
+    pub fn is_repeatable(&self, device: &DeviceInfo) -> bool {
+        let (start, end) = (
+            u32::from(self.address),
+            u32::from(self.address) + u32::from(self.count),
+        );
+        !device.registers.iter().any(|r| {
+            !r.read_is_repeatable()
+                && r.table == self.table
+                && u32::from(r.address) < end
+                && start < u32::from(r.address) + u32::from(r.words)
+        })
+    }
+
     /// Where `register`'s words start in this span's reply, if it lies inside.
     pub fn offset_of(&self, register: &RegisterInfo, addressing: Addressing) -> Option<usize> {
         if register.table != self.table {

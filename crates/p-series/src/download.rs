@@ -49,6 +49,11 @@ impl<T: Transport> PSeries<T> {
     /// Reads the buffer out (5.4 "缓存数据读取操作"): locks it, reads pages until the report
     /// count is reached or a page carries no valid value, and unlocks it again, also when a
     /// read fails. Values come oldest first; `None` is a reading the sensor marked invalid.
+    ///
+    /// Reading a page turns it, so a page read is never retried, and every page's
+    /// `buffer_read_count` (the device's count of values handed out since the lock) is checked
+    /// against the values received: a page lost on the way fails the download with
+    /// [`Error::OutOfStep`] instead of returning fewer values.
     pub async fn download_buffer(
         &mut self,
         mut progress: impl FnMut(DownloadProgress),
@@ -68,15 +73,25 @@ impl<T: Transport> PSeries<T> {
         progress: &mut impl FnMut(DownloadProgress),
     ) -> Result<Vec<Option<Millimetres>>, Error> {
         let mut values = Vec::with_capacity(expected);
+        // Values the device handed out in the pages we received.
+        let mut handed_out = 0u64;
         // Each page must be read whole, or values are lost (appendix 3); a device that keeps
         // reporting values is stopped after the pages `expected` needs.
         let max_pages = expected.div_ceil(PAGE_VALUES);
         for pages in 1..=max_pages {
             let BufferPage {
+                buffer_read_count,
                 buffer_valid_count,
                 buffered_value,
-                ..
             } = self.read_buffer_page().await?;
+            handed_out += u64::from(buffer_valid_count.min(PAGE_VALUES as u16));
+            if u64::from(buffer_read_count) != handed_out {
+                return Err(Error::OutOfStep {
+                    what: "the buffer download",
+                    received: handed_out,
+                    reported: u64::from(buffer_read_count),
+                });
+            }
             let valid = usize::from(buffer_valid_count)
                 .min(PAGE_VALUES)
                 .min(expected - values.len());

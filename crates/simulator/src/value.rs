@@ -99,6 +99,7 @@ mod tests {
             word_order: WordOrder::HighFirst,
             write_order: WriteOrder::HighWordFirst,
             copy: None,
+            read_side_effect: None,
         }
     }
 

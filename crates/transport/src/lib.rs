@@ -1,17 +1,23 @@
 //! The transport under every optobus driver: read words, write one register.
 //!
-//! It knows nothing about sensor families. Two backends implement [`Transport`]:
+//! It knows nothing about sensor families. Three backends implement [`Transport`]:
 //!
 //! - [`RtuClient`]: our own Modbus RTU client over any `AsyncRead + AsyncWrite` (a serial
 //!   port, a pty, an in-memory duplex), built on `optobus-codec`, so it speaks the frame shapes
 //!   tokio-modbus cannot decode (the rangefinder's 10-byte FC06 echo, LC-RS's 7-byte
-//!   exceptions). It keeps the 3.5-character silence between frames, drains stale bytes before
-//!   a request, resynchronises after a garbled reply, and sends broadcasts without waiting.
+//!   exceptions). It keeps t3.5 of silence before each request to within microseconds,
+//!   recovers the line after any fault so that a late reply never answers a later request,
+//!   and sends broadcasts without waiting.
+//! - [`TcpClient`]: our own Modbus TCP client: replies matched by transaction id (stale ones
+//!   skipped), broken connections re-established with a bounded backoff.
 //! - [`ModbusContext`]: a user's `tokio_modbus::client::Context` (TCP or standard RTU), so an
-//!   optobus driver can share a bus with other Modbus devices.
+//!   optobus driver can share a connection with other Modbus devices; see its docs for what it
+//!   cannot recover from.
 //!
-//! Every request has a timeout; reads may be retried, writes never are. [`Shared`] serialises
-//! transactions of several drivers (several slaves on one port) used from different tasks.
+//! Every request has a timeout (a huge one means "wait forever", never an overflow);
+//! repeatable reads may be retried, writes and reads with a side effect never are. [`Shared`]
+//! serialises transactions of several drivers (several slaves on one port) used from
+//! different tasks.
 #![forbid(unsafe_code)]
 
 use std::fmt;
@@ -19,18 +25,23 @@ use std::future::Future;
 use std::time::Duration;
 
 pub use optobus_codec::{
-    DecodeError, EncodeError, ExceptionCode, ExceptionShape, ReadFunction, WriteValue,
+    DecodeError, EncodeError, ExceptionCode, ExceptionShape, LineFormat, LineFormatError, Parity,
+    ReadFunction, WriteValue,
 };
 
 mod modbus;
 mod rtu;
 mod serial;
 mod shared;
+mod tcp;
+pub mod timing;
+mod transact;
 
 pub use modbus::ModbusContext;
 pub use rtu::{RtuClient, RtuConfig};
-pub use serial::{Parity, SerialSettings, SerialStream};
+pub use serial::{SerialSettings, SerialStream};
 pub use shared::Shared;
+pub use tcp::{Connect, TcpClient, TcpConfig};
 
 /// The default time to wait for a reply.
 pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(1);
@@ -45,6 +56,19 @@ pub trait Transport: Send {
         address: u16,
         count: u16,
     ) -> impl Future<Output = Result<Vec<u16>, Error>> + Send;
+
+    /// Reads like [`Transport::read`] but makes one attempt whatever the retry setting: for
+    /// registers whose read has a side effect (turns a buffer page), where a second attempt
+    /// would read something else.
+    fn read_once(
+        &mut self,
+        slave: u8,
+        function: ReadFunction,
+        address: u16,
+        count: u16,
+    ) -> impl Future<Output = Result<Vec<u16>, Error>> + Send {
+        self.read(slave, function, address, count)
+    }
 
     /// Writes one register with FC06 (two or four data bytes). Slave 0 broadcasts: the write
     /// is sent and no reply is awaited.
@@ -72,10 +96,11 @@ pub enum Error {
         /// The device's code.
         code: ExceptionCode,
     },
-    /// The reply was malformed (bad CRC, wrong slave, wrong length…); the line was
-    /// resynchronised.
+    /// The reply was malformed (bad CRC, wrong slave, wrong length…); it was discarded and the
+    /// line is recovered before the next request.
     Frame(DecodeError),
-    /// The request could not be encoded (for example a read of 0 or more than 125 words).
+    /// The request could not be encoded (a read of 0 or more than 125 words, a reserved
+    /// slave address…); nothing was sent.
     Request(EncodeError),
     /// The reply carried another number of words than asked for.
     WordCount {
@@ -85,11 +110,24 @@ pub enum Error {
         received: usize,
     },
     /// The backend cannot send this request (a 4-byte FC06 or a broadcast through
-    /// tokio-modbus).
+    /// tokio-modbus, a broadcast read); nothing was sent.
     Unsupported(&'static str),
-    /// The stream was closed.
+    /// The peer closed the connection or the stream ended; a TCP client reconnects on the
+    /// next request.
     Closed,
-    /// An I/O error of the underlying stream.
+    /// No connection could be made (the first or a renewed one).
+    Connect {
+        /// Connection attempts since the last working connection.
+        attempts: u32,
+        /// Why the last attempt failed.
+        source: std::io::Error,
+    },
+    /// A reply answered another request and the backend cannot skip it (tokio-modbus, which
+    /// stays one reply behind afterwards; the optobus clients skip stale replies instead).
+    Desynchronised(&'static str),
+    /// The serial line format cannot work (a baud rate of 0, 9 data bits…).
+    Line(LineFormatError),
+    /// Another I/O error of the underlying stream.
     Io(std::io::Error),
 }
 
@@ -112,7 +150,12 @@ impl fmt::Display for Error {
                 )
             }
             Self::Unsupported(what) => write!(f, "not supported by this transport: {what}"),
-            Self::Closed => f.write_str("the connection is closed"),
+            Self::Closed => f.write_str("the connection was closed by the other end"),
+            Self::Connect { attempts, source } => {
+                write!(f, "cannot connect ({attempts} attempts): {source}")
+            }
+            Self::Desynchronised(what) => write!(f, "reply out of step: {what}"),
+            Self::Line(error) => write!(f, "unusable serial line format: {error}"),
             Self::Io(error) => write!(f, "I/O error: {error}"),
         }
     }
@@ -123,6 +166,8 @@ impl std::error::Error for Error {
         match self {
             Self::Frame(error) => Some(error),
             Self::Request(error) => Some(error),
+            Self::Connect { source, .. } => Some(source),
+            Self::Line(error) => Some(error),
             Self::Io(error) => Some(error),
             _ => None,
         }
@@ -130,14 +175,28 @@ impl std::error::Error for Error {
 }
 
 impl From<std::io::Error> for Error {
+    /// A stream that ended or was reset is [`Error::Closed`]; anything else stays
+    /// [`Error::Io`].
     fn from(error: std::io::Error) -> Self {
-        Self::Io(error)
+        use std::io::ErrorKind::{
+            BrokenPipe, ConnectionAborted, ConnectionReset, NotConnected, UnexpectedEof,
+        };
+        match error.kind() {
+            BrokenPipe | ConnectionAborted | ConnectionReset | NotConnected | UnexpectedEof => {
+                Self::Closed
+            }
+            _ => Self::Io(error),
+        }
     }
 }
 
 impl Error {
-    /// True for failures a read may be retried after (no reply, garbled reply).
+    /// True for failures a repeatable read may be retried after: no reply, a garbled reply,
+    /// a connection that closed or could not be made (a TCP client reconnects).
     pub fn is_transient(&self) -> bool {
-        matches!(self, Self::Timeout { .. } | Self::Frame(_))
+        matches!(
+            self,
+            Self::Timeout { .. } | Self::Frame(_) | Self::Closed | Self::Connect { .. }
+        )
     }
 }

@@ -1,20 +1,33 @@
-//! tokio-modbus as a backend: Modbus TCP, and RTU for devices whose frames are standard.
+//! tokio-modbus as a backend: a bridge for users who share a tokio-modbus `Context` with
+//! other Modbus devices.
 
 use std::time::Duration;
 
 use std::pin::Pin;
 
-use tokio::time::{sleep, timeout, Instant, Sleep};
+use tokio::time::{sleep, Sleep};
 use tokio_modbus::client::{Client, Context};
 use tokio_modbus::slave::{Slave, SlaveContext};
+use tokio_modbus::ProtocolError;
 use tokio_modbus::{Request, Response};
 
+use crate::timing::deadline_after;
 use crate::{Error, ExceptionCode, ReadFunction, Transport, WriteValue, DEFAULT_TIMEOUT};
 
 /// A tokio-modbus client context (TCP or RTU), possibly shared with other Modbus devices.
 ///
 /// Requests go through `Client::call` and their replies are checked here, not through the
 /// `read_*_registers` helpers, which `debug_assert!` on the word count a device returns.
+///
+/// # What it guarantees, and what it does not
+///
+/// A reply whose header or function code does not match the request is refused
+/// ([`Error::Desynchronised`]), so no value of another request is returned. But tokio-modbus
+/// reads one frame per request: after a reply arrives late (or a call is dropped), every later
+/// call gets the reply of the call before it and fails, and a broken connection is not
+/// re-established. Use [`crate::TcpClient`] (Modbus TCP: stale replies skipped, reconnects)
+/// or [`crate::RtuClient`] (RTU: recovers the line after a fault) unless the context must be
+/// shared.
 pub struct ModbusContext {
     context: Context,
     timeout: Duration,
@@ -40,20 +53,6 @@ impl ModbusContext {
         }
     }
 
-    /// Connects to a Modbus TCP server (tokio-modbus's client), with the default timeout.
-    pub async fn connect_tcp(address: std::net::SocketAddr) -> Result<Self, Error> {
-        let context =
-            match timeout(DEFAULT_TIMEOUT, tokio_modbus::client::tcp::connect(address)).await {
-                Err(_) => {
-                    return Err(Error::Timeout {
-                        after: DEFAULT_TIMEOUT,
-                    })
-                }
-                Ok(context) => context?,
-            };
-        Ok(Self::new(context))
-    }
-
     /// Sets the reply timeout.
     pub fn with_timeout(mut self, timeout: Duration) -> Self {
         self.timeout = timeout;
@@ -68,7 +67,7 @@ impl ModbusContext {
     async fn call(&mut self, slave: u8, request: Request<'static>) -> Result<Response, Error> {
         let function = request.function_code().value();
         self.context.set_slave(Slave(slave));
-        self.deadline.as_mut().reset(Instant::now() + self.timeout);
+        self.deadline.as_mut().reset(deadline_after(self.timeout));
         let outcome = tokio::select! {
             biased;
             outcome = self.context.call(request) => Some(outcome),
@@ -79,11 +78,15 @@ impl ModbusContext {
                 after: self.timeout,
             }),
             Some(outcome) => match outcome {
-                Err(tokio_modbus::Error::Transport(error)) => Err(Error::Io(error)),
-                Err(tokio_modbus::Error::Protocol(error)) => Err(Error::Io(std::io::Error::new(
-                    std::io::ErrorKind::InvalidData,
-                    error.to_string(),
-                ))),
+                Err(tokio_modbus::Error::Transport(error)) => Err(error.into()),
+                Err(tokio_modbus::Error::Protocol(ProtocolError::HeaderMismatch { .. })) => Err(
+                    Error::Desynchronised("tokio-modbus got a reply with another header"),
+                ),
+                Err(tokio_modbus::Error::Protocol(ProtocolError::FunctionCodeMismatch {
+                    ..
+                })) => Err(Error::Desynchronised(
+                    "tokio-modbus got a reply with another function code",
+                )),
                 Ok(Err(code)) => Err(Error::Exception {
                     function,
                     code: ExceptionCode(u16::from(u8::from(code))),

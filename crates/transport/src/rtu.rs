@@ -1,23 +1,39 @@
 //! Our own Modbus RTU client over any byte stream, built on `optobus-codec`.
 
+use std::future::poll_fn;
+use std::pin::Pin;
+use std::task::Poll;
 use std::time::Duration;
 
-use optobus_codec::{rtu, DecodeError, Decoded, ExceptionShape, Request, Response};
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
-use tokio::time::{sleep_until, timeout, timeout_at, Instant};
+use optobus_codec::{rtu, DecodeError, Decoded, ExceptionShape, LineFormat, Request, BROADCAST};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};
+use tokio::time::{timeout_at, Instant};
 
-use crate::{Error, ReadFunction, Transport, WriteValue, DEFAULT_TIMEOUT};
+use crate::timing::{deadline_from, sleep_until_precise};
+use crate::transact::{Reply, Transact};
+use crate::{Error, DEFAULT_TIMEOUT};
+
+/// The longest quiet period recovery waits for by default, whatever the timeout.
+const MAX_DEFAULT_RECOVERY: Duration = Duration::from_secs(10);
 
 /// Settings of an [`RtuClient`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RtuConfig {
-    /// How long to wait for a reply.
+    /// How long to wait for a reply, counted from the end of the request on the line.
     pub timeout: Duration,
-    /// How many times a failed read (timeout or garbled reply) is tried again. Writes are
-    /// never retried.
+    /// How many times a failed read (timeout, garbled reply) is tried again. Writes and reads
+    /// with a side effect ([`Transport::read_once`]) are never retried.
     pub read_retries: u8,
-    /// Line speed, which sets the 3.5-character silence between frames.
-    pub baud: u32,
+    /// The serial line, which sets the silence kept before each request (t3.5) and how long a
+    /// request takes to leave; `None` where no line timing applies (an in-memory stream, RTU
+    /// tunnelled over TCP).
+    pub line: Option<LineFormat>,
+    /// The silence kept before each request instead of t3.5 of `line`, e.g. the Modbus
+    /// specification's fixed 1.75 ms above 19200 baud for a device that needs it.
+    pub frame_gap: Option<Duration>,
+    /// After a fault (timeout, garbled reply, a transaction dropped half-way) the line must
+    /// have been quiet this long before the next request; `None`: the timeout, at most 10 s.
+    pub recovery: Option<Duration>,
     /// How the device frames exception replies.
     pub exception: ExceptionShape,
 }
@@ -27,37 +43,69 @@ impl Default for RtuConfig {
         Self {
             timeout: DEFAULT_TIMEOUT,
             read_retries: 0,
-            baud: 115_200,
+            line: Some(LineFormat::new(115_200)),
+            frame_gap: None,
+            recovery: None,
             exception: ExceptionShape::Standard,
         }
     }
 }
 
 impl RtuConfig {
-    /// The silence that separates frames: 3.5 characters of 11 bits, and 1.75 ms above
-    /// 19200 baud (the Modbus serial line specification).
+    /// The silence kept before each request.
     pub fn frame_gap(&self) -> Duration {
-        if self.baud > 19_200 || self.baud == 0 {
-            Duration::from_micros(1_750)
-        } else {
-            Duration::from_micros(38_500_000 / u64::from(self.baud))
-        }
+        self.frame_gap
+            .or(self.line.map(|line| line.frame_gap()))
+            .unwrap_or(Duration::ZERO)
+    }
+
+    /// How long the line must be quiet after a fault before the next request.
+    pub fn recovery(&self) -> Duration {
+        self.recovery
+            .unwrap_or(self.timeout.min(MAX_DEFAULT_RECOVERY))
+            .max(self.frame_gap())
+    }
+
+    /// How long `bytes` take to leave on the line (zero without line timing).
+    fn transmit_time(&self, bytes: usize) -> Duration {
+        self.line
+            .map_or(Duration::ZERO, |line| line.transmit_time(bytes))
     }
 }
 
 /// A Modbus RTU client over `stream`.
+///
+/// # A reply is only ever taken as the answer to its own request
+///
+/// RTU frames carry no transaction id: a reply that arrives after its request timed out
+/// looks exactly like the reply to the next request of the same shape. So after anything
+/// that leaves the line in an unknown state (a timeout, a garbled or foreign reply, or a
+/// transaction whose future was dropped before its reply was read) the client recovers before
+/// its next request: it discards input until the line has been quiet for
+/// [`RtuConfig::recovery`] (by default the timeout) since the failed transaction's deadline,
+/// or since the last byte seen if that is later. A late reply therefore lands during the
+/// recovery and is thrown away, never answers a later request; libmodbus's error recovery
+/// does the same. Recovery costs time only after a fault.
+///
+/// Before every request the client also keeps the line silent for t3.5 after the last byte
+/// seen (of the actual character format, within microseconds rather than tokio's 1 ms timer
+/// tick), and discards any byte already waiting.
 #[derive(Debug)]
 pub struct RtuClient<S> {
     stream: S,
     config: RtuConfig,
-    /// When the line was last busy (a byte sent or received).
+    /// When the line was last busy (a byte sent or received), for the frame gap.
     last_activity: Option<Instant>,
+    /// `Some(since)` while the line state is unknown: set when a transaction starts and
+    /// cleared when it completes cleanly, so a dropped transaction leaves it set. Recovery
+    /// waits for quiet counted from `since`.
+    unsettled: Option<Instant>,
     buffer: Box<[u8; rtu::MAX_FRAME_LEN + 4]>,
 }
 
 impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
-    /// A client with default settings (1 s timeout, no retries, 115200 baud, standard
-    /// exceptions).
+    /// A client with default settings (1 s timeout, no retries, 115200 baud 8N1 line
+    /// timing, standard exceptions).
     pub fn new(stream: S) -> Self {
         Self::with_config(stream, RtuConfig::default())
     }
@@ -68,6 +116,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             stream,
             config,
             last_activity: None,
+            unsettled: None,
             buffer: Box::new([0; rtu::MAX_FRAME_LEN + 4]),
         }
     }
@@ -87,58 +136,86 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         self.stream
     }
 
-    /// Waits until the line has been silent for a frame gap.
-    async fn wait_for_silence(&mut self) {
-        if let Some(last) = self.last_activity {
-            sleep_until(last + self.config.frame_gap()).await;
-        }
-    }
-
-    /// Discards bytes already waiting (a late reply to an earlier request, line noise).
-    async fn drain(&mut self) -> Result<(), Error> {
+    /// Takes in bytes already waiting, without waiting for more; `true` if there were any.
+    async fn discard_waiting(&mut self) -> Result<bool, Error> {
+        let mut discarded = false;
         loop {
-            match timeout(Duration::ZERO, self.stream.read(&mut self.buffer[..])).await {
-                Ok(Ok(0)) => return Err(Error::Closed),
-                Ok(Ok(_)) => self.last_activity = Some(Instant::now()),
-                Ok(Err(error)) => return Err(Error::Io(error)),
-                Err(_) => return Ok(()),
-            }
-        }
-    }
-
-    /// After a garbled reply: discard bytes until the line is silent for a frame gap, so that
-    /// the next transaction starts clean.
-    async fn resynchronise(&mut self, deadline: Instant) {
-        let gap = self.config.frame_gap();
-        loop {
-            let quiet_until = Instant::now() + gap;
-            match timeout_at(
-                quiet_until.min(deadline),
-                self.stream.read(&mut self.buffer[..]),
-            )
-            .await
-            {
-                Ok(Ok(n)) if n > 0 && Instant::now() < deadline => {
+            let mut buf = ReadBuf::new(&mut self.buffer[..]);
+            let stream = &mut self.stream;
+            let polled = poll_fn(|cx| match Pin::new(&mut *stream).poll_read(cx, &mut buf) {
+                Poll::Ready(result) => Poll::Ready(Some(result)),
+                Poll::Pending => Poll::Ready(None),
+            })
+            .await;
+            match polled {
+                None => return Ok(discarded),
+                Some(Ok(())) if buf.filled().is_empty() => return Err(Error::Closed),
+                Some(Ok(())) => {
+                    discarded = true;
                     self.last_activity = Some(Instant::now());
                 }
-                _ => return,
+                Some(Err(error)) => return Err(error.into()),
             }
         }
+    }
+
+    /// Discards input until the line has been quiet for the recovery time, counted from
+    /// `since` or the last byte seen, whichever is later.
+    async fn recover(&mut self, since: Instant) -> Result<(), Error> {
+        let quiet = self.config.recovery();
+        let mut heard = since;
+        if self.discard_waiting().await? {
+            heard = Instant::now();
+        }
+        loop {
+            let until = deadline_from(heard.max(since), quiet);
+            match timeout_at(until, self.stream.read(&mut self.buffer[..])).await {
+                Err(_quiet) => break,
+                Ok(Ok(0)) => return Err(Error::Closed),
+                Ok(Ok(_)) => heard = Instant::now(),
+                Ok(Err(error)) => return Err(error.into()),
+            }
+            self.last_activity = Some(heard);
+        }
+        self.unsettled = None;
+        Ok(())
+    }
+
+    /// Makes the line ready for a request: recovered after a fault, stray bytes discarded,
+    /// and silent for a frame gap.
+    async fn prepare(&mut self) -> Result<(), Error> {
+        match self.unsettled {
+            Some(since) => self.recover(since).await?,
+            None => {
+                self.discard_waiting().await?;
+            }
+        }
+        if let Some(last) = self.last_activity {
+            sleep_until_precise(deadline_from(last, self.config.frame_gap())).await;
+        }
+        Ok(())
     }
 
     /// One request and its reply; `Ok(None)` for a broadcast.
     async fn transact(&mut self, slave: u8, request: Request) -> Result<Option<Reply>, Error> {
         let mut frame = [0u8; rtu::MAX_FRAME_LEN];
         let len = rtu::encode_request(&mut frame, slave, &request).map_err(Error::Request)?;
-        self.wait_for_silence().await;
-        self.drain().await?;
+        self.prepare().await?;
+        // From here until the reply is complete the line state is unknown, also if this
+        // future is dropped: the next transaction then recovers first.
+        let sent = Instant::now() + self.config.transmit_time(len);
+        let deadline = deadline_from(sent, self.config.timeout);
+        self.unsettled = Some(deadline_from(
+            sent,
+            self.config.timeout.min(MAX_DEFAULT_RECOVERY),
+        ));
         self.stream.write_all(&frame[..len]).await?;
         self.stream.flush().await?;
-        self.last_activity = Some(Instant::now());
-        if slave == 0 {
+        self.last_activity = Some(sent.max(Instant::now()));
+        if slave == BROADCAST {
+            self.unsettled = None;
             return Ok(None);
         }
-        let deadline = Instant::now() + self.config.timeout;
         let mut filled = 0;
         loop {
             match rtu::decode_response(
@@ -147,13 +224,21 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                 &request,
                 self.config.exception,
             ) {
-                Ok(Decoded::Frame { frame, .. }) => return Ok(Some(Reply::from(frame))),
+                Ok(Decoded::Frame { frame, consumed }) => {
+                    // Bytes behind a good reply mean something else is talking: recover
+                    // before the next request.
+                    self.unsettled = (consumed < filled).then(Instant::now);
+                    return Ok(Some(Reply::from(frame)));
+                }
                 Ok(Decoded::NeedMore { .. }) => {}
                 Err(DecodeError::Exception { function, code }) => {
-                    return Err(Error::Exception { function, code })
+                    self.unsettled = None;
+                    return Err(Error::Exception { function, code });
                 }
                 Err(error) => {
-                    self.resynchronise(deadline).await;
+                    // The device may still be sending, or this was another slave's reply
+                    // and ours is yet to come: quiet is counted from now.
+                    self.unsettled = Some(Instant::now());
                     return Err(Error::Frame(error));
                 }
             }
@@ -169,61 +254,21 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                     filled += n;
                     self.last_activity = Some(Instant::now());
                 }
-                Ok(Err(error)) => return Err(Error::Io(error)),
+                Ok(Err(error)) => return Err(error.into()),
             }
         }
     }
 }
 
-/// A reply with its data copied out of the receive buffer.
-enum Reply {
-    Words(Vec<u16>),
-    Written,
-}
-
-impl From<Response<'_>> for Reply {
-    fn from(response: Response<'_>) -> Self {
-        match response {
-            Response::Read { words, .. } => Self::Words(words.iter().collect()),
-            Response::Write { .. } => Self::Written,
-        }
-    }
-}
-
-impl<S: AsyncRead + AsyncWrite + Unpin + Send> Transport for RtuClient<S> {
-    async fn read(
-        &mut self,
-        slave: u8,
-        function: ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> Result<Vec<u16>, Error> {
-        if slave == 0 {
+impl<S: AsyncRead + AsyncWrite + Unpin + Send> Transact for RtuClient<S> {
+    async fn transact(&mut self, slave: u8, request: Request) -> Result<Option<Reply>, Error> {
+        if slave == BROADCAST && matches!(request, Request::Read { .. }) {
             return Err(Error::Unsupported("a broadcast read gets no reply"));
         }
-        let request = Request::Read {
-            function,
-            address,
-            count,
-        };
-        let mut attempts_left = self.config.read_retries;
-        loop {
-            match self.transact(slave, request).await {
-                Ok(Some(Reply::Words(words))) => return Ok(words),
-                Ok(_) => return Err(Error::Unsupported("a read got no words")),
-                Err(error) if error.is_transient() && attempts_left > 0 => attempts_left -= 1,
-                Err(error) => return Err(error),
-            }
-        }
+        RtuClient::transact(self, slave, request).await
     }
 
-    async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), Error> {
-        match self
-            .transact(slave, Request::Write { address, value })
-            .await?
-        {
-            Some(Reply::Written) | None => Ok(()),
-            Some(Reply::Words(_)) => Err(Error::Unsupported("a write got words back")),
-        }
+    fn read_retries(&self) -> u8 {
+        self.config.read_retries
     }
 }

@@ -45,6 +45,20 @@ impl<T: Transport> Transport for Shared<T> {
             .await
     }
 
+    async fn read_once(
+        &mut self,
+        slave: u8,
+        function: ReadFunction,
+        address: u16,
+        count: u16,
+    ) -> Result<Vec<u16>, Error> {
+        self.inner
+            .lock()
+            .await
+            .read_once(slave, function, address, count)
+            .await
+    }
+
     async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), Error> {
         self.inner.lock().await.write(slave, address, value).await
     }

@@ -5,7 +5,9 @@ use std::time::Duration;
 use optobus_codec::{
     rtu, Decoded, ExceptionCode, ExceptionShape, FrameShape, Request, Response, Words,
 };
-use optobus_transport::{Error, ReadFunction, RtuClient, RtuConfig, Shared, Transport, WriteValue};
+use optobus_transport::{
+    Error, LineFormat, Parity, ReadFunction, RtuClient, RtuConfig, Shared, Transport, WriteValue,
+};
 use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream};
 use tokio::sync::mpsc;
 
@@ -357,17 +359,43 @@ async fn two_slaves_on_one_port_from_two_tasks() {
 }
 
 #[test]
-fn frame_gap_follows_the_baud_rate() {
-    let at = |baud| {
+fn frame_gap_is_t3_5_of_the_actual_character_format() {
+    let at = |line| {
         RtuConfig {
-            baud,
+            line,
             ..RtuConfig::default()
         }
         .frame_gap()
     };
-    assert_eq!(at(115_200), Duration::from_micros(1_750));
-    assert_eq!(at(9_600), Duration::from_micros(4_010));
-    assert_eq!(at(19_200), Duration::from_micros(2_005));
+    // 8N1: 10-bit characters, 35 bit times.
+    assert_eq!(
+        at(Some(LineFormat::new(115_200))),
+        Duration::from_nanos(303_820)
+    );
+    assert_eq!(
+        at(Some(LineFormat::new(19_200))),
+        Duration::from_nanos(1_822_917)
+    );
+    // 8E1: 11-bit characters, 38.5 bit times.
+    let even = LineFormat {
+        parity: Parity::Even,
+        ..LineFormat::new(9_600)
+    };
+    assert_eq!(at(Some(even)), Duration::from_nanos(4_010_417));
+    // No line (memory, TCP tunnel): no gap; or a fixed one for a device that needs it.
+    assert_eq!(at(None), Duration::ZERO);
+    let fixed = RtuConfig {
+        frame_gap: Some(Duration::from_micros(1_750)),
+        ..RtuConfig::default()
+    };
+    assert_eq!(fixed.frame_gap(), Duration::from_micros(1_750));
+    // Recovery defaults to the timeout, capped, and never undercuts the gap.
+    assert_eq!(RtuConfig::default().recovery(), Duration::from_secs(1));
+    let forever = RtuConfig {
+        timeout: Duration::MAX,
+        ..RtuConfig::default()
+    };
+    assert_eq!(forever.recovery(), Duration::from_secs(10));
 }
 
 #[tokio::test]
