@@ -68,6 +68,7 @@
 pub mod buffer;
 pub mod defaults;
 pub mod effects;
+pub mod faults;
 mod layout;
 mod model;
 mod names;
@@ -81,6 +82,7 @@ mod value;
 #[cfg(unix)]
 mod pty;
 
+pub use faults::{FaultKind, FaultStats, Faults, FaultsError};
 pub use model::Reply;
 #[cfg(unix)]
 pub use pty::Pty;
