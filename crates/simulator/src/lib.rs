@@ -70,6 +70,7 @@ pub mod defaults;
 pub mod effects;
 pub mod faults;
 mod layout;
+pub mod line;
 mod model;
 mod names;
 mod quirks;
@@ -83,6 +84,7 @@ mod value;
 mod pty;
 
 pub use faults::{FaultKind, FaultStats, Faults, FaultsError};
+pub use line::{Line, LineStats};
 pub use model::Reply;
 #[cfg(unix)]
 pub use pty::Pty;
