@@ -141,6 +141,10 @@ async fn wait_until(deadline: Instant) {
     while std::time::Instant::now() < end {
         tokio::task::yield_now().await;
     }
+    // A paused clock does not move while we spin: let it advance to the deadline.
+    if Instant::now() < deadline {
+        tokio::time::sleep_until(deadline).await;
+    }
 }
 
 /// The wire's timeline.

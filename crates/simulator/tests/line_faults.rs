@@ -555,3 +555,25 @@ async fn faults_compose_with_the_line() {
     let theory = cycle_time(format, Duration::ZERO) + pause;
     assert!((elapsed + format.frame_gap()) / 3 >= theory);
 }
+
+#[tokio::test(start_paused = true)]
+async fn a_late_reply_on_a_line_under_paused_time() {
+    let late = Duration::from_secs(2);
+    let format = LineFormat::new(9_600);
+    let sim = Simulator::new(&DEVICE).faults(only(FaultKind::Delay).late(late));
+    let line = Line::new(format).turnaround(Duration::from_millis(1));
+    let (mut stream, _server) = sim.duplex_line(line);
+    let start = Instant::now();
+    stream
+        .write_all(&rtu_request(sim.address(), &MEASUREMENTS))
+        .await
+        .unwrap();
+    let reply = read_exact(&mut stream, 25).await;
+    assert!(is_valid_frame(&reply));
+    let least = cycle_time(format, Duration::from_millis(1)) - format.frame_gap() + late;
+    assert!(
+        start.elapsed() >= least,
+        "{:?} < {least:?}",
+        start.elapsed()
+    );
+}
