@@ -577,3 +577,40 @@ async fn a_late_reply_on_a_line_under_paused_time() {
         start.elapsed()
     );
 }
+
+// ---------------------------------------------------------------------------------------
+// A real client on the line
+
+#[tokio::test]
+async fn the_p_series_driver_keeps_the_gap_and_accepts_split_replies() {
+    use optobus_p_series::transport::RtuClient;
+    use optobus_p_series::{rtu_config, PSeries};
+
+    for baud in [9_600, 115_200] {
+        let format = LineFormat::new(baud);
+        let sim = Simulator::new(&DEVICE)
+            .faults(only(FaultKind::Split).pause(Duration::from_micros(300)));
+        let line = Line::new(format);
+        let (stream, _server) = sim.duplex_line(line.clone());
+        let config = optobus_p_series::transport::RtuConfig {
+            baud,
+            ..rtu_config(&DEVICE)
+        };
+        let mut sensor = PSeries::with_default_slave(RtuClient::with_config(stream, config));
+        let start = std::time::Instant::now();
+        for _ in 0..4 {
+            sensor.read_measurements().await.unwrap();
+        }
+        let elapsed = start.elapsed();
+        let stats = line.stats();
+        assert_eq!(
+            stats.gap_violations(),
+            0,
+            "the driver waits t3.5 between frames"
+        );
+        assert_eq!(stats.frames(), 4);
+        assert_eq!(sim.fault_stats().unwrap().count(FaultKind::Split), 4);
+        let least = (cycle_time(format, Duration::ZERO) * 4).saturating_sub(format.frame_gap());
+        assert!(elapsed >= least, "{baud}: {elapsed:?} < {least:?}");
+    }
+}
