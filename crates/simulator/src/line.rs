@@ -15,7 +15,8 @@
 //!
 //! Bytes are scheduled on a computed timeline, not on the sum of sleeps, and each wait ends
 //! with a short spin on the system clock, so bytes arrive within tens of microseconds of
-//! their times although tokio's timer counts milliseconds.
+//! their times although tokio's timer counts milliseconds. A busy machine can make a byte
+//! late, never early, and lateness does not add up: the next byte keeps its own time.
 
 use std::collections::VecDeque;
 use std::io;
@@ -61,7 +62,8 @@ pub struct Line {
 }
 
 impl Line {
-    /// A line of `format`, with a device that answers at once (turnaround 0).
+    /// A line of `format`, with a device that answers at once (turnaround 0). A format that
+    /// fails `LineFormat::check` is timed as the codec times it (baud 0 as 1 baud).
     pub fn new(format: LineFormat) -> Self {
         Self {
             format,
