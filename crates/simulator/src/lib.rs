@@ -17,6 +17,47 @@
 //! # Ok(()) }
 //! ```
 //!
+//! # A serial line's timing
+//!
+//! [`Line`] makes an in-memory RTU connection take as long as an RS-485 line of a
+//! `LineFormat`: one character time per byte on one half-duplex wire, the device answering
+//! t3.5 after a request's last byte plus its turnaround, reply bytes reaching the client as
+//! their characters complete, and a request that starts less than t3.5 after a reply held
+//! until then (and counted). Bytes keep to their times within tens of microseconds on an
+//! idle machine, so timing benchmarks of clients mean something. See [`mod@line`].
+//!
+//! ```no_run
+//! # async fn demo(device: &'static optobus_device::DeviceInfo) {
+//! use optobus_codec::LineFormat;
+//! use optobus_simulator::{Line, Simulator};
+//! let line = Line::new(LineFormat::new(19_200)).turnaround(std::time::Duration::from_millis(2));
+//! let stats = line.stats();
+//! let (stream, _server) = Simulator::new(device).duplex_line(line); // the client's end
+//! // ... after the exchanges:
+//! assert_eq!(stats.gap_violations(), 0, "the client waited t3.5 between frames");
+//! # }
+//! ```
+//!
+//! # Faults
+//!
+//! [`Faults`] injects seeded, reproducible faults into the device's replies, over RTU (with
+//! or without a [`Line`], which then times the faulty bytes) and Modbus TCP: a flipped bit,
+//! a truncated frame, garbage in front, a valid reply from another slave, a frame in pieces,
+//! no reply, a late reply, a closed connection. [`FaultStats`] counts them and says which
+//! reply got which. The bytes of each kind are in [`faults`].
+//!
+//! ```no_run
+//! # async fn demo(device: &'static optobus_device::DeviceInfo) -> Result<(), Box<dyn std::error::Error>> {
+//! use optobus_simulator::{FaultKind, Faults, Simulator};
+//! let faults: Faults = "corrupt=0.05,split=0.05,delay=0.01,seed=7".parse()?;
+//! let sim = Simulator::new(device).faults(faults.client_timeout(std::time::Duration::from_millis(200)));
+//! let (stream, _server) = sim.duplex(); // or sim.serve_tcp(..), sim.duplex_line(..)
+//! // ... after the exchanges:
+//! let stats = sim.fault_stats().ok_or("no faults")?;
+//! println!("{} of {} replies corrupted", stats.count(FaultKind::Corrupt), stats.replies());
+//! # Ok(()) }
+//! ```
+//!
 //! # Behaviour on the wire
 //!
 //! - **Framing**: RTU with CRC (requests split across reads, back-to-back frames, garbage
@@ -58,7 +99,7 @@
 //! - **Defaults**: see [`defaults`].
 //!
 //! Not modelled: LC-RS continuous-send mode (its stream format is not described), baud rate
-//! and parity changes (a stream has no line speed), enable flags of statistics and encoder
+//! and parity changes (a stream has no line speed; a [`Line`] has one fixed format), enable flags of statistics and encoder
 //! counters (they always run), the time code and sample number the P series attaches to its
 //! measurements (no register shows them), the P series' down-sampling (mode and ratio do not
 //! change the sampled readings or the buffering rate, 4.1.2 note 1, appendix 3 (5)), and
@@ -68,7 +109,9 @@
 pub mod buffer;
 pub mod defaults;
 pub mod effects;
+pub mod faults;
 mod layout;
+pub mod line;
 mod model;
 mod names;
 mod quirks;
@@ -81,6 +124,8 @@ mod value;
 #[cfg(unix)]
 mod pty;
 
+pub use faults::{FaultKind, FaultStats, Faults, FaultsError};
+pub use line::{Line, LineStats};
 pub use model::Reply;
 #[cfg(unix)]
 pub use pty::Pty;

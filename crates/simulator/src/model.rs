@@ -10,6 +10,7 @@ use tokio::time::Instant;
 
 use crate::buffer::{Buffer, BufferLayout, Role};
 use crate::defaults::default_words;
+use crate::faults::Injector;
 use crate::layout::{Cell, Layout};
 use crate::names;
 use crate::quirks::{Quirks, UnreadableReads};
@@ -82,6 +83,8 @@ pub(crate) struct Device {
     pub(crate) address: u8,
     pub(crate) silent: bool,
     pub(crate) busy_until: Option<Instant>,
+    /// Faults injected into replies, shared by every server of the device.
+    pub(crate) faults: Option<Injector>,
 }
 
 fn function_table(function: ReadFunction) -> Table {
@@ -122,6 +125,7 @@ impl Device {
             address,
             silent: false,
             busy_until: None,
+            faults: None,
         }
     }
 

@@ -11,10 +11,11 @@ use std::time::Duration;
 
 use optobus_codec::crc::is_valid_frame;
 use optobus_codec::{rtu, DecodeError, Decoded, Request, Response, Words};
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, DuplexStream};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, DuplexStream};
 use tokio::task::JoinHandle;
 use tokio::time::timeout;
 
+use crate::faults::{self, FaultStats, Faults, Framing, Injector, Plan};
 use crate::model::{Pdu, Reply};
 use crate::sim::Simulator;
 
@@ -33,7 +34,11 @@ const MAX_PENDING: usize = 4 * rtu::MAX_FRAME_LEN;
 pub struct Bus {
     members: Vec<Simulator>,
     frame_gap: Duration,
+    faults: Option<Injector>,
 }
+
+/// A reply's bytes and the faults of the member that sent it.
+pub(crate) type Answer = (Vec<u8>, Option<Injector>);
 
 impl Bus {
     /// A line with `members` on it.
@@ -41,6 +46,27 @@ impl Bus {
         Self {
             members: members.into_iter().collect(),
             frame_gap: DEFAULT_FRAME_GAP,
+            faults: None,
+        }
+    }
+
+    /// Injects `faults` into every reply on the line, instead of the members' own
+    /// ([`Simulator::faults`]). See [`crate::faults`].
+    pub fn faults(mut self, faults: Faults) -> Self {
+        self.faults = Some(Injector::new(faults));
+        self
+    }
+
+    /// Counts and log of the faults given with [`Bus::faults`].
+    pub fn fault_stats(&self) -> Option<FaultStats> {
+        self.faults.as_ref().map(Injector::stats)
+    }
+
+    /// How `answer` goes out: the line's faults, else its sender's, else as it is.
+    pub(crate) fn plan(&self, (bytes, member): Answer) -> Plan {
+        match self.faults.as_ref().or(member.as_ref()) {
+            Some(injector) => injector.plan(bytes, Framing::Rtu),
+            None => Plan::clean(bytes),
         }
     }
 
@@ -75,9 +101,8 @@ impl Bus {
             while let Some(step) = self.step(&pending) {
                 let (used, reply) = step;
                 pending.drain(..used.min(pending.len()));
-                if let Some(reply) = reply {
-                    io.write_all(&reply).await?;
-                    io.flush().await?;
+                if let Some(answer) = reply {
+                    faults::send(&mut io, &self.plan(answer)).await?;
                 }
             }
             let read = if pending.is_empty() {
@@ -104,7 +129,7 @@ impl Bus {
 
     /// What the bytes at the front of `buf` are: `Some((bytes used, reply))`, or `None` when
     /// more bytes are needed.
-    fn step(&self, buf: &[u8]) -> Option<(usize, Option<Vec<u8>>)> {
+    pub(crate) fn step(&self, buf: &[u8]) -> Option<(usize, Option<Answer>)> {
         if buf.is_empty() {
             return None;
         }
@@ -128,7 +153,7 @@ impl Bus {
                 let answer = member.respond(Some(frame.slave), Pdu::Request(&frame.pdu));
                 // One slave answers; a broadcast reaches every member.
                 if reply.is_none() {
-                    reply = encode(member, frame.slave, &answer);
+                    reply = encode(member, frame.slave, &answer).map(|b| (b, member.injector()));
                 }
             }
             return Some((consumed, reply));
@@ -162,13 +187,13 @@ impl Bus {
     }
 
     /// The reply to a valid frame with a function code the codec does not implement.
-    fn unsupported(&self, frame: &[u8], function: u8) -> Option<Vec<u8>> {
+    fn unsupported(&self, frame: &[u8], function: u8) -> Option<Answer> {
         let slave = *frame.first()?;
         let mut reply = None;
         for member in &self.members {
             let answer = member.respond(Some(slave), Pdu::Unsupported(function));
             if reply.is_none() {
-                reply = encode(member, slave, &answer);
+                reply = encode(member, slave, &answer).map(|b| (b, member.injector()));
             }
         }
         reply

@@ -7,6 +7,7 @@ use optobus_codec::Request;
 use optobus_device::{DeviceInfo, RegisterInfo, Table};
 use tokio::time::Instant;
 
+use crate::faults::{FaultStats, Faults, Injector};
 use crate::model::{Device, Pdu, Reply};
 use crate::quirks::Quirks;
 
@@ -136,6 +137,27 @@ impl Simulator {
     pub fn quirks(self, quirks: Quirks) -> Self {
         self.lock().quirks = quirks;
         self
+    }
+
+    /// Injects `faults` into the replies of every server of this device (RTU and TCP; all
+    /// clones share them). See [`crate::faults`].
+    pub fn faults(self, faults: Faults) -> Self {
+        self.set_faults(Some(faults));
+        self
+    }
+
+    /// Starts injecting `faults` with fresh [`FaultStats`], or stops with `None`.
+    pub fn set_faults(&self, faults: Option<Faults>) {
+        self.lock().faults = faults.map(Injector::new);
+    }
+
+    /// Counts and log of the faults in force, if any.
+    pub fn fault_stats(&self) -> Option<FaultStats> {
+        self.lock().faults.as_ref().map(Injector::stats)
+    }
+
+    pub(crate) fn injector(&self) -> Option<Injector> {
+        self.lock().faults.clone()
     }
 
     /// The device description.

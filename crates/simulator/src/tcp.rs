@@ -14,6 +14,7 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, ToSocketAddrs};
 use tokio::task::{JoinHandle, JoinSet};
 
+use crate::faults::{self, Framing, Plan};
 use crate::model::{Pdu, Reply};
 use crate::names;
 use crate::sim::Simulator;
@@ -99,7 +100,9 @@ impl Simulator {
                         pending.drain(..consumed.min(pending.len()));
                         let reply = self.respond(None, Pdu::Request(&frame.pdu));
                         if let Some(bytes) = encode(self, frame.header, &reply) {
-                            stream.write_all(&bytes).await?;
+                            if !self.send_tcp(&mut stream, bytes).await? {
+                                return Ok(());
+                            }
                         }
                     }
                     Err(DecodeError::UnsupportedFunction { function }) => {
@@ -113,7 +116,9 @@ impl Simulator {
                         pending.drain(..len);
                         let reply = self.respond(None, Pdu::Unsupported(function));
                         if let Some(bytes) = encode(self, header, &reply) {
-                            stream.write_all(&bytes).await?;
+                            if !self.send_tcp(&mut stream, bytes).await? {
+                                return Ok(());
+                            }
                         }
                     }
                     Err(DecodeError::BadProtocolId { .. }) => {
@@ -135,6 +140,26 @@ impl Simulator {
             }
             pending.extend_from_slice(chunk.get(..read).unwrap_or_default());
         }
+    }
+}
+
+impl Simulator {
+    /// Sends a reply through the device's faults; `false` when a fault closes the connection.
+    async fn send_tcp<IO>(&self, stream: &mut IO, bytes: Vec<u8>) -> io::Result<bool>
+    where
+        IO: AsyncWrite + Unpin,
+    {
+        let plan = match self.injector() {
+            Some(injector) => injector.plan(bytes, Framing::Tcp),
+            None => Plan::clean(bytes),
+        };
+        faults::send(stream, &plan).await?;
+        if plan.close {
+            // The peer sees end of file; an error here changes nothing.
+            let _ = stream.shutdown().await;
+            return Ok(false);
+        }
+        Ok(true)
     }
 }
 
