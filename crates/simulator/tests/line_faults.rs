@@ -593,7 +593,7 @@ async fn the_p_series_driver_keeps_the_gap_and_accepts_split_replies() {
         let line = Line::new(format);
         let (stream, _server) = sim.duplex_line(line.clone());
         let config = optobus_p_series::transport::RtuConfig {
-            baud,
+            line: Some(format),
             ..rtu_config(&DEVICE)
         };
         let mut sensor = PSeries::with_default_slave(RtuClient::with_config(stream, config));
