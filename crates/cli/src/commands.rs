@@ -61,10 +61,11 @@ pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError
                 ))
                 .hint("use --model p-series"));
             }
+            let source = serve::buffer_input(count, &source)?;
             let slave = answering_slave(device, &global, "buffer")?;
             check_line(device, &global)?;
             let link = link::open(device, slave, &target(&global)).await?;
-            serve::buffer(link, slave, &global, count, &source, wait, out.as_deref()).await
+            serve::buffer(link, slave, &global, count, source, wait, out.as_deref()).await
         }
         command => {
             let device = models::find(&global.model)?;

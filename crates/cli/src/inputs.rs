@@ -69,9 +69,9 @@ pub(crate) fn parse_run_for(text: &str) -> Result<Duration, CliError> {
 /// `1 h`, `1.5 s` for messages.
 fn show(duration: Duration) -> String {
     let ms = duration.as_millis();
-    if ms >= 3_600_000 && ms % 3_600_000 == 0 {
+    if ms >= 3_600_000 && ms.is_multiple_of(3_600_000) {
         format!("{} h", ms / 3_600_000)
-    } else if ms >= 1000 && ms % 1000 == 0 {
+    } else if ms >= 1000 && ms.is_multiple_of(1000) {
         format!("{} s", ms / 1000)
     } else {
         format!("{ms} ms")

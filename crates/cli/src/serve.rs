@@ -231,22 +231,41 @@ pub(crate) async fn scan(
     Ok(())
 }
 
+/// The measurement `source` names, with `count` checked against the values the P series lets
+/// be read out (appendix 3): both refused before anything is opened or sent.
+pub(crate) fn buffer_input(
+    count: u16,
+    source: &str,
+) -> Result<optobus_p_series::MeasurementSource, CliError> {
+    use optobus_p_series::{MeasurementSource, DEVICE};
+    let register = |name: &str| {
+        DEVICE
+            .register(name)
+            .ok_or_else(|| CliError::new(format!("the P-series spec has no {name}")))
+    };
+    let most = optobus_p_series::download::MAX_DOWNLOAD;
+    if !(1..=most).contains(&count) {
+        return Err(CliError::new(format!(
+            "--count {count}: the P series buffers 1 to {most} values for reading out"
+        )));
+    }
+    let words = values::parse(register("buffer_data_type")?, source)?;
+    Ok(MeasurementSource::from_raw(u32::from(
+        words.first().copied().unwrap_or(0),
+    )))
+}
+
 /// `optobus buffer` (P series): buffer `count` values of `source`, download, write CSV.
 pub(crate) async fn buffer(
     link: Link,
     slave: u8,
     global: &Global,
     count: u16,
-    source: &str,
+    source: optobus_p_series::MeasurementSource,
     wait: Duration,
     out: Option<&Path>,
 ) -> Result<(), CliError> {
-    use optobus_p_series::{MeasurementSource, PSeries, DEVICE};
-    let register = DEVICE
-        .register("buffer_data_type")
-        .ok_or_else(|| CliError::new("the P-series spec has no buffer_data_type"))?;
-    let words = values::parse(register, source)?;
-    let source = MeasurementSource::from_raw(u32::from(words.first().copied().unwrap_or(0)));
+    use optobus_p_series::PSeries;
     let mut sensor = PSeries::new(link, slave);
     sensor
         .start_buffering(source, count)

@@ -501,3 +501,24 @@ fn scan_lists_are_strict() {
     assert_eq!(code, Some(FAILURE));
     assert!(stderr.contains("cannot open"), "{stderr}");
 }
+
+#[test]
+fn buffer_counts_and_sources_are_checked_before_connecting() {
+    for count in ["0", "2501", "65535"] {
+        refused(
+            &["buffer", "--count", count],
+            FAILURE,
+            "the P series buffers 1 to 2500 values",
+        );
+    }
+    refused(
+        &["buffer", "--count", "10", "--source", "nothing"],
+        FAILURE,
+        "`buffer_data_type` does not take `nothing`",
+    );
+    refused(
+        &["buffer", "--count", "65536"],
+        USAGE,
+        "invalid value '65536'",
+    );
+}
