@@ -3,15 +3,16 @@
 use std::io::{IsTerminal, Write};
 use std::time::Duration;
 
-use optobus_device::{DeviceInfo, Effect, RegisterInfo};
-use optobus_driver::{plan_reads, Core};
+use optobus_device::{CommandInfo, DeviceInfo, Effect, RegisterInfo};
+use optobus_driver::{plan_reads, raw_bits, Core};
 use serde_json::{json, Map, Value as Json};
 
 use crate::error::{driver_error, CliError};
 use crate::link::{self, Link, Target};
+use crate::log::note;
 use crate::models::{self, MODELS};
 use crate::values::{self, Validated};
-use crate::{serve, Command, Global};
+use crate::{inputs, serve, Command, Global};
 
 /// Runs one command line.
 pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError> {
@@ -31,6 +32,7 @@ pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError
             duration,
         } => {
             let device = models::find(model.as_deref().unwrap_or(&global.model))?;
+            check_line(device, &global)?;
             serve::simulate(device, &global, pty, duration).await
         }
         Command::Frame(frame) => {
@@ -42,7 +44,9 @@ pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError
             )?);
             Ok(())
         }
-        Command::Scan { bauds, slaves } => serve::scan(&global, &bauds, slaves.as_deref()).await,
+        Command::Scan { bauds, slaves } => {
+            serve::scan(&global, bauds.as_deref(), slaves.as_deref()).await
+        }
         Command::Buffer {
             count,
             source,
@@ -57,9 +61,11 @@ pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError
                 ))
                 .hint("use --model p-series"));
             }
-            let slave = global.slave.unwrap_or(device.default_slave);
+            let source = serve::buffer_input(count, &source)?;
+            let slave = answering_slave(device, &global, "buffer")?;
+            check_line(device, &global)?;
             let link = link::open(device, slave, &target(&global)).await?;
-            serve::buffer(link, &global, count, &source, wait, out.as_deref()).await
+            serve::buffer(link, slave, &global, count, source, wait, out.as_deref()).await
         }
         command => {
             let device = models::find(&global.model)?;
@@ -72,14 +78,15 @@ pub(crate) fn target(global: &Global) -> Target {
     Target {
         serial: global.serial.clone(),
         baud: global.baud,
-        parity: global.parity.clone(),
+        parity: global.parity.map(|p| p.name().to_owned()),
         tcp: global.tcp.clone(),
         timeout: global.timeout,
         verbose: global.verbose,
     }
 }
 
-fn print(text: &str) {
+/// Prints `text` on stdout with a final newline, ignoring a closed stdout.
+pub(crate) fn print(text: &str) {
     let mut out = std::io::stdout().lock();
     // A closed pipe (`| head`) is not an error worth a message.
     let _ = out.write_all(text.as_bytes());
@@ -240,11 +247,124 @@ fn values_json(values: &[(&'static RegisterInfo, values::Value)]) -> Json {
     )
 }
 
-/// Connects to the device `global` names (or the built-in simulator).
-async fn connect(device: &'static DeviceInfo, global: &Global) -> Result<Core<Link>, CliError> {
-    let slave = global.slave.unwrap_or(device.default_slave);
+/// Connects to the device `global` names (or the built-in simulator), at `slave`.
+async fn connect(
+    device: &'static DeviceInfo,
+    global: &Global,
+    slave: u8,
+) -> Result<Core<Link>, CliError> {
     let link = link::open(device, slave, &target(global)).await?;
     Core::new(link, slave, device).map_err(CliError::from)
+}
+
+/// The serial line settings of `global` that can be checked without a port: `--baud` is one
+/// the model's manual lists (any rate a port can run at with `--any-baud`).
+pub(crate) fn check_line(device: &DeviceInfo, global: &Global) -> Result<(), CliError> {
+    match global.baud {
+        Some(baud) => inputs::check_baud(device, "--baud", baud, global.any_baud),
+        None => Ok(()),
+    }
+}
+
+/// The slave address of a command that needs replies: never 0, the broadcast address.
+pub(crate) fn answering_slave(
+    device: &DeviceInfo,
+    global: &Global,
+    command: &str,
+) -> Result<u8, CliError> {
+    let slave = global.slave.unwrap_or(device.default_slave);
+    if slave == 0 {
+        return Err(CliError::new(format!(
+            "`{command}` needs replies, and no device answers slave 0, the broadcast address"
+        ))
+        .hint(if command == "scan" {
+            "scan tries the addresses --slaves lists; leave out --slave"
+        } else {
+            "give the device's address, 1 to 247, with --slave; `optobus scan` finds it"
+        }));
+    }
+    Ok(slave)
+}
+
+/// The slave address of a write: 0 broadcasts it, on a serial line only.
+fn writing_slave(device: &DeviceInfo, global: &Global) -> Result<u8, CliError> {
+    let slave = global.slave.unwrap_or(device.default_slave);
+    if slave == 0 && global.tcp.is_some() {
+        return Err(CliError::new(
+            "--slave 0 broadcasts on a serial line; Modbus TCP has no broadcast",
+        )
+        .hint("give the device's unit id, 1 to 247, with --slave"));
+    }
+    Ok(slave)
+}
+
+/// What a command does, in words for a sentence (`stores the current parameters…`).
+fn effect_text(command: &CommandInfo) -> String {
+    command.doc.trim_end_matches('.').to_lowercase()
+}
+
+/// `set` of a register that a drastic command writes (save, reboot, resets) needs `--yes`,
+/// as `do` of the command does.
+fn confirm_set(
+    device: &DeviceInfo,
+    register: &'static RegisterInfo,
+    words: &[u16],
+    yes: bool,
+) -> Result<(), CliError> {
+    if yes {
+        return Ok(());
+    }
+    let drastic: Vec<&CommandInfo> = device
+        .commands
+        .iter()
+        .filter(|c| inputs::drastic(c))
+        .filter(|c| c.register == register.name || register.member_name() == Some(c.register))
+        .collect();
+    let raw = raw_bits(register, words);
+    match (drastic.iter().find(|c| c.value == raw), drastic.as_slice()) {
+        (_, []) => Ok(()),
+        (Some(command), _) => Err(CliError::new(format!(
+            "writing {raw} to `{}` runs `{}`: it {}; add --yes to go ahead",
+            register.name,
+            command.name,
+            effect_text(command)
+        ))
+        .hint(format!("or run it as `optobus do {} --yes`", command.name))),
+        (None, commands) => {
+            let names: Vec<String> = commands.iter().map(|c| format!("`{}`", c.name)).collect();
+            Err(CliError::new(format!(
+                "`{}` is the register of {}, which store, restart or reset the device; add --yes \
+                 to go ahead",
+                register.name,
+                names.join(" and ")
+            )))
+        }
+    }
+}
+
+/// For a write to the device's own slave-address register, the new address (1 to 247).
+fn new_slave_address(
+    device: &DeviceInfo,
+    register: &'static RegisterInfo,
+    words: &[u16],
+) -> Result<Option<u8>, CliError> {
+    match device.slave_address_register() {
+        Some(own) if own.name == register.name => {}
+        _ => return Ok(None),
+    }
+    let raw = raw_bits(register, words);
+    let (first, last) = inputs::SLAVES;
+    match u8::try_from(raw)
+        .ok()
+        .filter(|a| (first..=last).contains(a))
+    {
+        Some(address) => Ok(Some(address)),
+        None => Err(CliError::new(format!(
+            "`{}` does not take {raw}: a device's address is {first} to {last}",
+            register.name
+        ))
+        .hint("0 is the broadcast address; Modbus reserves 248 to 255")),
+    }
 }
 
 /// A command that talks to the device: names and values are checked first, so bad input is
@@ -254,10 +374,12 @@ async fn device_command(
     global: &Global,
     command: Command,
 ) -> Result<(), CliError> {
+    check_line(device, global)?;
     match command {
         Command::Read { names, channel } => {
             let registers = registers_of(device, &names, channel)?;
-            let mut core = connect(device, global).await?;
+            let slave = answering_slave(device, global, "read")?;
+            let mut core = connect(device, global, slave).await?;
             let values = read_values(&mut core, &registers).await?;
             if global.json {
                 print(&pretty(&values_json(&values)));
@@ -273,7 +395,8 @@ async fn device_command(
                 .filter(|r| r.access.readable())
                 .collect();
             let requests = plan_reads(device, &registers).len();
-            let mut core = connect(device, global).await?;
+            let slave = answering_slave(device, global, "dump")?;
+            let mut core = connect(device, global, slave).await?;
             let values = read_values(&mut core, &registers).await?;
             if global.json {
                 print(&pretty(&json!({
@@ -284,7 +407,7 @@ async fn device_command(
                 })));
             } else {
                 print(&values_text(&values));
-                eprintln!(
+                note!(
                     "optobus: {} registers in {requests} requests",
                     registers.len()
                 );
@@ -298,20 +421,60 @@ async fn device_command(
             count,
         } => {
             let registers = registers_of(device, &names, channel)?;
-            let mut core = connect(device, global).await?;
+            let slave = answering_slave(device, global, "watch")?;
+            let mut core = connect(device, global, slave).await?;
             watch(&mut core, &registers, interval, count, global.json).await
         }
         Command::Set {
             name,
             value,
             channel,
+            yes,
         } => {
             let register = single(device, &name, channel)?;
             let words = values::parse(register, &value)?;
-            let mut core = connect(device, global).await?;
-            core.write(register, &Validated(words))
+            let new_address = new_slave_address(device, register, &words)?;
+            confirm_set(device, register, &words, yes)?;
+            let slave = writing_slave(device, global)?;
+            let mut core = connect(device, global, slave).await?;
+            core.write(register, &Validated(words.clone()))
                 .await
                 .map_err(|e| driver_error(e, Some(register.name)))?;
+            if slave == 0 {
+                let value = values::decode(register, &words);
+                if global.json {
+                    print(
+                        &json!({ register.name: value.to_json(), "broadcast": true }).to_string(),
+                    );
+                } else {
+                    print(&format!(
+                        "{}  {value}: broadcast sent, no reply expected",
+                        register.name
+                    ));
+                }
+                return Ok(());
+            }
+            let mut afterwards = None;
+            if let Some(address) = new_address {
+                if device.needs_save_and_power_cycle {
+                    let save = device
+                        .commands
+                        .iter()
+                        .find(|c| c.effect == Effect::Save)
+                        .map(|c| format!(" (`optobus do {} --yes`)", c.name))
+                        .unwrap_or_default();
+                    afterwards = Some(format!(
+                        "optobus: the new address {address} applies after save{save} and a power \
+                         cycle; until then the device answers at slave {slave}"
+                    ));
+                } else {
+                    // The device answers at its new address from the next request on.
+                    core.set_slave(address)?;
+                    afterwards = Some(format!(
+                        "optobus: the device now answers at slave {address}"
+                    ));
+                }
+            }
             if register.access.readable() {
                 let back = core
                     .read_words(register)
@@ -326,6 +489,9 @@ async fn device_command(
             } else if !global.json {
                 print(&format!("{} written", register.name));
             }
+            if let Some(afterwards) = afterwards {
+                note!("{afterwards}");
+            }
             Ok(())
         }
         Command::Do {
@@ -338,28 +504,31 @@ async fn device_command(
                 CliError::new(format!("`{command}` is no command of {}", device.family))
                     .hint(format!("commands: {}", names.join(", ")))
             })?;
-            let drastic = matches!(
-                info.effect,
-                Effect::Save | Effect::Reboot | Effect::FactoryReset | Effect::NetworkReset
-            );
-            if drastic && !yes {
+            if inputs::drastic(info) && !yes {
                 return Err(CliError::new(format!(
                     "`{command}` {}; add --yes to go ahead",
-                    info.doc.trim_end_matches('.').to_lowercase()
+                    effect_text(info)
                 )));
             }
             let register = single(device, info.register, channel)?;
+            let slave = writing_slave(device, global)?;
             if info.busy_ms > 0 && !global.json {
-                eprintln!(
+                note!(
                     "optobus: the device is busy for {} ms afterwards",
                     info.busy_ms
                 );
             }
-            let mut core = connect(device, global).await?;
+            let mut core = connect(device, global, slave).await?;
             core.run(info, register)
                 .await
                 .map_err(|e| driver_error(e, Some(register.name)))?;
-            if global.json {
+            if slave == 0 {
+                if global.json {
+                    print(&json!({"command": info.name, "broadcast": true}).to_string());
+                } else {
+                    print(&format!("{}: broadcast sent, no reply expected", info.name));
+                }
+            } else if global.json {
                 print(&json!({"command": info.name, "done": true}).to_string());
             } else {
                 print(&format!("{} done", info.name));

@@ -35,6 +35,8 @@ impl fmt::Display for CliError {
     }
 }
 
+impl std::error::Error for CliError {}
+
 /// Explains a driver error; `register` names the register involved, if any.
 pub(crate) fn driver_error(error: optobus_driver::Error, register: Option<&str>) -> CliError {
     use optobus_driver::transport::Error as Wire;

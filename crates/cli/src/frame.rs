@@ -102,6 +102,12 @@ pub(crate) fn run(
             let device = models::find(family)?;
             let slave = slave.unwrap_or(device.default_slave);
             let (planned, options) = match request {
+                EncodeRequest::Read { .. } if slave == 0 => {
+                    return Err(CliError::new(
+                        "a read sent to slave 0, the broadcast address, gets no reply",
+                    )
+                    .hint("give the device's address, 1 to 247, with --slave"))
+                }
                 EncodeRequest::Read { name, options } => {
                     (plan_read(device, name, options.channel)?, options)
                 }

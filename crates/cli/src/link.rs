@@ -62,7 +62,7 @@ impl<S: AsyncRead + Unpin> AsyncRead for Tap<S> {
         let before = buf.filled().len();
         let polled = Pin::new(&mut self.inner).poll_read(cx, buf);
         if self.verbose && buf.filled().len() > before {
-            eprintln!("{} <- {}", timestamp(), hex(&buf.filled()[before..]));
+            crate::log::note!("{} <- {}", timestamp(), hex(&buf.filled()[before..]));
         }
         polled
     }
@@ -77,7 +77,7 @@ impl<S: AsyncWrite + Unpin> AsyncWrite for Tap<S> {
         let polled = Pin::new(&mut self.inner).poll_write(cx, bytes);
         if let Poll::Ready(Ok(written)) = &polled {
             if self.verbose && *written > 0 {
-                eprintln!("{} -> {}", timestamp(), hex(&bytes[..*written]));
+                crate::log::note!("{} -> {}", timestamp(), hex(&bytes[..*written]));
             }
         }
         polled
@@ -235,7 +235,7 @@ pub(crate) async fn open(
         })?;
         return Ok(Link::Tcp(client));
     }
-    eprintln!(
+    crate::log::note!(
         "optobus: no --serial or --tcp given: using the built-in {} simulator (slave {slave})",
         device.family
     );

@@ -7,7 +7,9 @@
 mod commands;
 mod error;
 mod frame;
+mod inputs;
 mod link;
+mod log;
 mod models;
 mod serve;
 mod values;
@@ -38,20 +40,24 @@ struct Global {
     /// Serial port of the device (e.g. /dev/ttyUSB0); default settings from the manual.
     #[arg(long, global = true, conflicts_with = "tcp")]
     serial: Option<String>,
-    /// Baud rate, when the device is not at its factory setting.
+    /// Baud rate, when the device is not at its factory setting: one its manual lists.
     #[arg(long, global = true)]
     baud: Option<u32>,
-    /// Parity: none, odd or even.
+    /// Allow a --baud (or scan --bauds) rate the model's manual does not list.
     #[arg(long, global = true)]
-    parity: Option<String>,
+    any_baud: bool,
+    /// Parity: none, odd or even (n, o, e).
+    #[arg(long, global = true, ignore_case = true)]
+    parity: Option<inputs::ParityArg>,
     /// Modbus TCP address of the device: HOST or HOST:PORT.
     #[arg(long, global = true)]
     tcp: Option<String>,
-    /// Slave address (default: the model's factory setting).
-    #[arg(long, global = true)]
+    /// Slave address, 1 to 247 (default: the model's factory setting); 0 broadcasts a write
+    /// (`set`, `do`), which no device answers.
+    #[arg(long, global = true, value_parser = inputs::parse_slave, allow_hyphen_values = true)]
     slave: Option<u8>,
-    /// Reply timeout, e.g. 500ms or 2s.
-    #[arg(long, global = true, default_value = "1s", value_parser = parse_duration)]
+    /// Reply timeout, e.g. 500ms or 2s (1 ms to 24 h).
+    #[arg(long, global = true, default_value = "1s", value_parser = inputs::parse_timeout, allow_hyphen_values = true)]
     timeout: Duration,
     /// Print data as JSON.
     #[arg(long, global = true)]
@@ -84,8 +90,8 @@ enum Command {
         /// Register or group names.
         #[arg(required = true)]
         names: Vec<String>,
-        /// Time between refreshes.
-        #[arg(long, default_value = "200ms", value_parser = parse_duration)]
+        /// Time between refreshes (1 ms to 24 h).
+        #[arg(long, default_value = "200ms", value_parser = inputs::parse_interval, allow_hyphen_values = true)]
         interval: Duration,
         /// Copy of a per-channel register.
         #[arg(long)]
@@ -105,6 +111,10 @@ enum Command {
         /// Copy of a per-channel register.
         #[arg(long)]
         channel: Option<u8>,
+        /// Confirm a write to a register that a command storing, restarting or resetting the
+        /// device also writes.
+        #[arg(long)]
+        yes: bool,
     },
     /// Run a command of the device (zero, reset, save, reboot…).
     Do {
@@ -125,8 +135,8 @@ enum Command {
         /// Measurement to buffer: distance_1, distance_2 or thickness.
         #[arg(long, default_value = "distance_1")]
         source: String,
-        /// How long to let the sensor buffer before reading out.
-        #[arg(long, default_value = "1s", value_parser = parse_duration)]
+        /// How long to let the sensor buffer before reading out (at most 24 h).
+        #[arg(long, default_value = "1s", value_parser = inputs::parse_wait, allow_hyphen_values = true)]
         wait: Duration,
         /// Write `index,value_mm` CSV here instead of stdout.
         #[arg(long)]
@@ -134,9 +144,9 @@ enum Command {
     },
     /// Find the slave address and baud rate a device answers on.
     Scan {
-        /// Baud rates to try (default: the model's).
-        #[arg(long, value_delimiter = ',')]
-        bauds: Vec<u32>,
+        /// Baud rates to try, e.g. 9600,115200 (default: --baud, or the model's).
+        #[arg(long)]
+        bauds: Option<String>,
         /// Slave addresses to try, e.g. 1-10,247 (default: the model's range).
         #[arg(long)]
         slaves: Option<String>,
@@ -149,33 +159,13 @@ enum Command {
         /// Serve RTU on a new pseudo-terminal and print its path.
         #[arg(long)]
         pty: bool,
-        /// Stop after this long (default: until Ctrl-C).
-        #[arg(long, value_parser = parse_duration)]
+        /// Stop after this long, at most 24 h (default: until Ctrl-C).
+        #[arg(long, value_parser = inputs::parse_run_for, allow_hyphen_values = true)]
         duration: Option<Duration>,
     },
     /// Encode request bytes, or explain captured frames.
     #[command(subcommand)]
     Frame(frame::FrameCommand),
-}
-
-/// `200ms`, `1s`, `1.5s`, `2m`, or a bare number of milliseconds.
-fn parse_duration(text: &str) -> Result<Duration, String> {
-    let text = text.trim();
-    let split = text
-        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
-        .unwrap_or(text.len());
-    let (number, unit) = text.split_at(split);
-    let number: f64 = number
-        .parse()
-        .map_err(|_| format!("`{text}` is not a duration (e.g. 200ms, 1s)"))?;
-    let seconds = match unit.trim() {
-        "" | "ms" => number / 1000.0,
-        "s" => number,
-        "m" | "min" => number * 60.0,
-        "us" | "µs" => number / 1e6,
-        other => return Err(format!("unknown time unit `{other}` (use ms, s or m)")),
-    };
-    Duration::try_from_secs_f64(seconds).map_err(|_| format!("`{text}` is out of range"))
 }
 
 fn main() -> ExitCode {
@@ -186,14 +176,14 @@ fn main() -> ExitCode {
     {
         Ok(runtime) => runtime,
         Err(error) => {
-            eprintln!("optobus: cannot start: {error}");
+            log::note!("optobus: cannot start: {error}");
             return ExitCode::FAILURE;
         }
     };
     match runtime.block_on(commands::run(cli.global, cli.command)) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("optobus: {error}");
+            log::note!("optobus: {error}");
             ExitCode::FAILURE
         }
     }

@@ -391,6 +391,10 @@ pub enum LongWrites {
     Wide,
 }
 
+/// The name of the register that holds a device's own slave address, in every spec that has
+/// one (see [`DeviceInfo::slave_address_register`]).
+pub const SLAVE_ADDRESS_REGISTER: &str = "slave_address";
+
 /// Everything the spec says about a device.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DeviceInfo {
@@ -452,6 +456,13 @@ impl DeviceInfo {
     /// The group called `name`.
     pub fn group(&self, name: &str) -> Option<&'static GroupInfo> {
         self.groups.iter().find(|g| g.name == name)
+    }
+
+    /// The register holding the device's own Modbus slave address: by convention of the
+    /// specs, the register named `slave_address` (P series, rangefinder, LC-RS). `None` for
+    /// devices whose address is not a register (or not one a spec names so).
+    pub fn slave_address_register(&self) -> Option<&'static RegisterInfo> {
+        self.register(SLAVE_ADDRESS_REGISTER)
     }
 
     /// How many registers `table` has.

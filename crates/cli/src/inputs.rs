@@ -1,0 +1,375 @@
+//! Command-line values checked before anything is sent: durations with a bound per option,
+//! slave addresses, baud rates, parity, scan lists, and which commands are drastic.
+
+use std::time::Duration;
+
+use clap::ValueEnum;
+use optobus_device::{CommandInfo, DeviceInfo, Effect};
+
+use crate::error::CliError;
+
+/// The first and last address a Modbus device can have; 0 is the broadcast address and 248 to
+/// 255 are reserved.
+pub(crate) const SLAVES: (u8, u8) = (1, 247);
+
+/// The bounds of a duration option.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct DurationBound {
+    /// The option, for messages.
+    option: &'static str,
+    /// Shortest allowed (zero allowed when zero).
+    min: Duration,
+    /// Longest allowed.
+    max: Duration,
+}
+
+const DAY: Duration = Duration::from_secs(24 * 3600);
+
+/// `--timeout`: a reply takes at least a millisecond; a day is no timeout any more.
+pub(crate) const TIMEOUT: DurationBound = DurationBound {
+    option: "--timeout",
+    min: Duration::from_millis(1),
+    max: DAY,
+};
+/// `watch --interval`.
+pub(crate) const INTERVAL: DurationBound = DurationBound {
+    option: "--interval",
+    min: Duration::from_millis(1),
+    max: DAY,
+};
+/// `buffer --wait`.
+pub(crate) const WAIT: DurationBound = DurationBound {
+    option: "--wait",
+    min: Duration::ZERO,
+    max: DAY,
+};
+/// `simulate --duration`.
+pub(crate) const RUN_FOR: DurationBound = DurationBound {
+    option: "--duration",
+    min: Duration::ZERO,
+    max: DAY,
+};
+
+pub(crate) fn parse_timeout(text: &str) -> Result<Duration, CliError> {
+    parse_duration(text, TIMEOUT)
+}
+
+pub(crate) fn parse_interval(text: &str) -> Result<Duration, CliError> {
+    parse_duration(text, INTERVAL)
+}
+
+pub(crate) fn parse_wait(text: &str) -> Result<Duration, CliError> {
+    parse_duration(text, WAIT)
+}
+
+pub(crate) fn parse_run_for(text: &str) -> Result<Duration, CliError> {
+    parse_duration(text, RUN_FOR)
+}
+
+/// `1 h`, `1.5 s` for messages.
+fn show(duration: Duration) -> String {
+    let ms = duration.as_millis();
+    if ms >= 3_600_000 && ms.is_multiple_of(3_600_000) {
+        format!("{} h", ms / 3_600_000)
+    } else if ms >= 1000 && ms.is_multiple_of(1000) {
+        format!("{} s", ms / 1000)
+    } else {
+        format!("{ms} ms")
+    }
+}
+
+/// `200ms`, `1s`, `1.5s`, `2m`, `1h`, `100us`, or a bare number of milliseconds: digits with
+/// at most one decimal point, exact to the nanosecond, within `bound`.
+pub(crate) fn parse_duration(text: &str, bound: DurationBound) -> Result<Duration, CliError> {
+    let option = bound.option;
+    let text = text.trim();
+    let example = "e.g. 200ms, 1.5s, 2m";
+    if text.starts_with('-') {
+        return Err(CliError::new(format!("{option} cannot be negative")).hint(example));
+    }
+    let split = text
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(text.len());
+    let (number, unit) = text.split_at(split);
+    let (whole, fraction) = number.split_once('.').unwrap_or((number, ""));
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    if !digits(whole) || (number.contains('.') && !digits(fraction)) {
+        return Err(CliError::new(format!("`{text}` is not a duration")).hint(example));
+    }
+    let unit_ns: u128 = match unit.trim() {
+        "" | "ms" => 1_000_000,
+        "us" | "µs" | "μs" => 1_000,
+        "s" => 1_000_000_000,
+        "m" | "min" => 60_000_000_000,
+        "h" => 3_600_000_000_000,
+        other => {
+            return Err(
+                CliError::new(format!("unknown time unit `{other}` in `{text}`"))
+                    .hint("use us, ms, s, m or h"),
+            )
+        }
+    };
+    let too_long = || {
+        CliError::new(format!(
+            "{option} {text} is too long: at most {}",
+            show(bound.max)
+        ))
+    };
+    // Leading zeros do not count; more digits than a u128 holds are far beyond any bound.
+    let whole = whole.trim_start_matches('0');
+    let whole: u128 = if whole.is_empty() {
+        0
+    } else {
+        whole.parse().map_err(|_| too_long())?
+    };
+    // Nanoseconds of the fraction: 12 digits resolve below a nanosecond for every unit.
+    let fraction = &fraction[..fraction.len().min(12)];
+    let fraction_ns = if fraction.is_empty() {
+        0
+    } else {
+        let scale = 10u128.pow(u32::try_from(fraction.len()).unwrap_or(12));
+        fraction.parse::<u128>().unwrap_or(0) * unit_ns / scale
+    };
+    let nanos = whole
+        .checked_mul(unit_ns)
+        .and_then(|n| n.checked_add(fraction_ns))
+        .ok_or_else(too_long)?;
+    if nanos > bound.max.as_nanos() {
+        return Err(too_long());
+    }
+    let seconds = u64::try_from(nanos / 1_000_000_000).map_err(|_| too_long())?;
+    let duration = Duration::new(seconds, u32::try_from(nanos % 1_000_000_000).unwrap_or(0));
+    if duration < bound.min {
+        return Err(CliError::new(format!(
+            "{option} {text} is too short: at least {}",
+            show(bound.min)
+        )));
+    }
+    Ok(duration)
+}
+
+/// `--slave`: 0 (broadcast, writes only) to 247; Modbus reserves 248 to 255.
+pub(crate) fn parse_slave(text: &str) -> Result<u8, CliError> {
+    let text = text.trim();
+    let number: u32 = text.parse().map_err(|_| {
+        CliError::new(format!("`{text}` is not a slave address"))
+            .hint("use 1 to 247, or 0 to broadcast a write")
+    })?;
+    match number {
+        0..=247 => Ok(u8::try_from(number).unwrap_or(0)),
+        248..=255 => Err(CliError::new(format!(
+            "slave address {number} is reserved: Modbus reserves 248 to 255"
+        ))
+        .hint("use 1 to 247, or 0 to broadcast a write")),
+        _ => Err(CliError::new(format!(
+            "slave address {number} does not exist: addresses are 0 to 247"
+        ))
+        .hint("use 1 to 247, or 0 to broadcast a write")),
+    }
+}
+
+/// `--parity`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub(crate) enum ParityArg {
+    /// No parity bit.
+    #[value(alias = "n")]
+    None,
+    /// Odd parity.
+    #[value(alias = "o")]
+    Odd,
+    /// Even parity.
+    #[value(alias = "e")]
+    Even,
+}
+
+impl ParityArg {
+    /// `none`, `odd` or `even`, as the specs and `Target::parity` name it.
+    pub(crate) const fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Odd => "odd",
+            Self::Even => "even",
+        }
+    }
+}
+
+/// Baud rates any serial port can be asked for, with `--any-baud`.
+pub(crate) const BAUDS: (u32, u32) = (50, 4_000_000);
+
+/// `baud` (given as `option`) is one the model's manual lists, or with `any` at least a rate a
+/// serial port can run at.
+pub(crate) fn check_baud(
+    device: &DeviceInfo,
+    option: &str,
+    baud: u32,
+    any: bool,
+) -> Result<(), CliError> {
+    let (min, max) = BAUDS;
+    if !(min..=max).contains(&baud) {
+        return Err(CliError::new(format!(
+            "{option} {baud} is no baud rate a serial line can use: {min} to {max}"
+        )));
+    }
+    if any {
+        return Ok(());
+    }
+    let listed = device.rtu.map(|r| r.bauds).unwrap_or_default();
+    if listed.contains(&baud) {
+        return Ok(());
+    }
+    let names: Vec<String> = listed.iter().map(u32::to_string).collect();
+    Err(CliError::new(format!(
+        "{option} {baud}: {} does not list {baud} baud",
+        device.family
+    ))
+    .hint(if names.is_empty() {
+        "its spec lists no serial line; --any-baud uses the rate anyway".to_owned()
+    } else {
+        format!(
+            "its manual lists {}; --any-baud uses another rate anyway",
+            names.join(", ")
+        )
+    }))
+}
+
+/// `scan --bauds 9600,115200`: every rate checked, no empty item, no repeats.
+pub(crate) fn parse_bauds(
+    device: &DeviceInfo,
+    text: &str,
+    any: bool,
+) -> Result<Vec<u32>, CliError> {
+    let mut bauds = Vec::new();
+    for item in text.split(',').map(str::trim) {
+        if item.is_empty() {
+            return Err(CliError::new(format!("--bauds `{text}` has an empty item"))
+                .hint("e.g. --bauds 9600,115200"));
+        }
+        let baud: u32 = item
+            .parse()
+            .map_err(|_| CliError::new(format!("--bauds: `{item}` is not a baud rate")))?;
+        check_baud(device, "--bauds", baud, any)?;
+        if bauds.contains(&baud) {
+            return Err(CliError::new(format!("--bauds lists {baud} twice")));
+        }
+        bauds.push(baud);
+    }
+    Ok(bauds)
+}
+
+/// `scan --slaves 1-10,247`: addresses 1 to 247, ranges ascending, no address twice, not
+/// empty.
+pub(crate) fn parse_slaves(text: &str) -> Result<Vec<u8>, CliError> {
+    let example = "e.g. --slaves 1-10,247";
+    let (first, last) = SLAVES;
+    let mut slaves: Vec<u8> = Vec::new();
+    if text.trim().is_empty() {
+        return Err(CliError::new("--slaves is empty").hint(example));
+    }
+    for item in text.split(',').map(str::trim) {
+        if item.is_empty() {
+            return Err(
+                CliError::new(format!("--slaves `{text}` has an empty item")).hint(example),
+            );
+        }
+        let address = |part: &str| -> Result<u8, CliError> {
+            let part = part.trim();
+            let number: u32 = part.parse().map_err(|_| {
+                CliError::new(format!("--slaves: `{item}` is not an address or a range"))
+                    .hint(example)
+            })?;
+            u8::try_from(number)
+                .ok()
+                .filter(|n| (first..=last).contains(n))
+                .ok_or_else(|| {
+                    CliError::new(format!(
+                        "--slaves: {number} is no device address: scan {first} to {last}"
+                    ))
+                    .hint("0 is the broadcast address, 248 to 255 are reserved")
+                })
+        };
+        let range = match item.split_once('-') {
+            Some((from, to)) => {
+                let (from, to) = (address(from)?, address(to)?);
+                if from > to {
+                    return Err(CliError::new(format!(
+                        "--slaves: the range `{item}` runs backwards"
+                    ))
+                    .hint(format!("write {to}-{from}")));
+                }
+                from..=to
+            }
+            None => {
+                let one = address(item)?;
+                one..=one
+            }
+        };
+        for slave in range {
+            if slaves.contains(&slave) {
+                return Err(CliError::new(format!(
+                    "--slaves lists address {slave} twice (in `{item}`)"
+                )));
+            }
+            slaves.push(slave);
+        }
+    }
+    Ok(slaves)
+}
+
+/// Commands that store, restart or reset the device: `do` and `set` ask for `--yes`.
+pub(crate) fn drastic(command: &CommandInfo) -> bool {
+    matches!(
+        command.effect,
+        Effect::Save | Effect::Reboot | Effect::FactoryReset | Effect::NetworkReset
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn durations_are_exact_and_bounded() {
+        let ok = |text| parse_duration(text, TIMEOUT).map_err(|e| e.to_string());
+        assert_eq!(ok("200ms"), Ok(Duration::from_millis(200)));
+        assert_eq!(ok("1.5s"), Ok(Duration::from_millis(1500)));
+        assert_eq!(ok("250"), Ok(Duration::from_millis(250)));
+        assert_eq!(ok("2m"), Ok(Duration::from_secs(120)));
+        assert_eq!(ok("24h"), Ok(DAY));
+        assert_eq!(ok("0.1s"), Ok(Duration::from_millis(100)));
+        assert_eq!(ok("1000us"), Ok(Duration::from_millis(1)));
+        for bad in [
+            "0",
+            "0s",
+            "999us",
+            "-1s",
+            "NaN",
+            "nan s",
+            "inf",
+            "1e400s",
+            "1e3",
+            "",
+            ".5s",
+            "1.s",
+            "1..2s",
+            "24.000001h",
+            "9999999999999999999s",
+            "340282366920938463463374607431768211456s",
+            "99999999999999999999999999999999999999999999",
+            "1 fortnight",
+        ] {
+            assert!(ok(bad).is_err(), "{bad:?} was accepted: {:?}", ok(bad));
+        }
+        assert_eq!(parse_duration("0", WAIT).ok(), Some(Duration::ZERO));
+    }
+
+    #[test]
+    fn slave_lists_are_strict() {
+        assert_eq!(parse_slaves("1-3,247").ok(), Some(vec![1, 2, 3, 247]));
+        assert_eq!(parse_slaves("5-5").ok(), Some(vec![5]));
+        for bad in [
+            "", " ", "1,", ",1", "10-1", "1,1", "1-5,3", "0", "248", "1-300", "a", "1-",
+        ] {
+            assert!(parse_slaves(bad).is_err(), "{bad:?}");
+        }
+    }
+}

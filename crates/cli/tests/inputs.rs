@@ -1,0 +1,524 @@
+//! Inputs that never panic and never reach the wire wrong: durations, slave addresses
+//! (broadcast writes only), the device's own address, drastic registers, baud rates, parity
+//! and scan lists. Every refusal is checked to come before anything is sent: with --verbose,
+//! a frame sent would show as ` -> `, and a connection as the built-in simulator's line or a
+//! "cannot open" / "cannot connect" error.
+
+mod common;
+
+use common::{ok, run, Served};
+
+/// Exit code of clap's usage errors (a value its parser refused).
+const USAGE: i32 = 2;
+/// Exit code of the tool's own refusals and failures.
+const FAILURE: i32 = 1;
+
+/// Runs `args --verbose`: it must fail with `code` and a stderr containing `message`, without
+/// a panic, without sending a frame and without opening a connection.
+fn refused(args: &[&str], code: i32, message: &str) -> String {
+    let mut verbose = args.to_vec();
+    verbose.push("--verbose");
+    let output = run(&verbose);
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert_eq!(output.status.code(), Some(code), "{args:?}: {stderr}");
+    assert!(stderr.contains(message), "{args:?}: {stderr}");
+    assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    for sign in [" -> ", "built-in", "cannot open", "cannot connect"] {
+        assert!(
+            !stderr.contains(sign),
+            "{args:?} went as far as `{sign}`: {stderr}"
+        );
+    }
+    if code == FAILURE {
+        assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
+    }
+    stderr
+}
+
+/// Runs `args`; gives (exit code, stdout, stderr).
+fn outcome(args: &[&str]) -> (Option<i32>, String, String) {
+    let output = run(args);
+    (
+        output.status.code(),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn durations_are_bounded_and_strict() {
+    for (args, message) in [
+        (
+            vec!["--timeout", "9999999999999999999s", "read", "distance_1"],
+            "--timeout 9999999999999999999s is too long: at most 24 h",
+        ),
+        (
+            vec!["watch", "distance_1", "--interval", "9223372036854775807s"],
+            "--interval 9223372036854775807s is too long: at most 24 h",
+        ),
+        (
+            vec!["--timeout", "0", "read", "distance_1"],
+            "--timeout 0 is too short: at least 1 ms",
+        ),
+        (
+            vec!["watch", "distance_1", "--interval", "0"],
+            "--interval 0 is too short: at least 1 ms",
+        ),
+        (
+            vec!["--timeout", "25h", "read", "distance_1"],
+            "at most 24 h",
+        ),
+        (
+            vec!["--timeout", "-1s", "read", "distance_1"],
+            "--timeout cannot be negative",
+        ),
+        (
+            vec!["--timeout", "NaN", "read", "distance_1"],
+            "`NaN` is not a duration",
+        ),
+        (
+            vec!["--timeout", "1e400s", "read", "distance_1"],
+            "unknown time unit `e400s`",
+        ),
+        (
+            vec!["--timeout", "1.5.2s", "read", "distance_1"],
+            "is not a duration",
+        ),
+        (
+            vec!["buffer", "--count", "10", "--wait", "100000s"],
+            "--wait 100000s is too long: at most 24 h",
+        ),
+        (
+            vec!["simulate", "--duration", "2000m"],
+            "--duration 2000m is too long: at most 24 h",
+        ),
+        (vec!["simulate", "--duration", "-1s"], "cannot be negative"),
+    ] {
+        refused(&args, USAGE, message);
+    }
+    // The bounds themselves are fine.
+    ok(&["--timeout", "24h", "read", "distance_1"]);
+    ok(&[
+        "--timeout",
+        "1ms",
+        "frame",
+        "encode",
+        "p",
+        "read",
+        "distance_1",
+    ]);
+    ok(&["watch", "distance_1", "--count", "1", "--interval", "0.5s"]);
+}
+
+#[test]
+fn slaves_248_to_255_are_refused() {
+    for slave in 248..=255u16 {
+        let slave = slave.to_string();
+        refused(
+            &["--slave", &slave, "read", "distance_1"],
+            USAGE,
+            "Modbus reserves 248 to 255",
+        );
+        refused(
+            &["--slave", &slave, "set", "light_power", "42"],
+            USAGE,
+            "Modbus reserves 248 to 255",
+        );
+    }
+    refused(
+        &[
+            "--slave",
+            "248",
+            "frame",
+            "encode",
+            "p-series",
+            "set",
+            "light_power",
+            "42",
+        ],
+        USAGE,
+        "Modbus reserves 248 to 255",
+    );
+    refused(
+        &["--slave", "256", "read", "distance_1"],
+        USAGE,
+        "addresses are 0 to 247",
+    );
+    refused(
+        &["--slave", "-1", "read", "distance_1"],
+        USAGE,
+        "`-1` is not a slave address",
+    );
+}
+
+#[test]
+fn slave_0_is_for_writes_only() {
+    // Reads need a reply: refused before connecting (a missing port would say so first).
+    for args in [
+        vec!["read", "distance_1"],
+        vec!["watch", "distance_1", "--count", "1"],
+        vec!["dump"],
+        vec!["buffer", "--count", "10"],
+        vec!["--serial", "/dev/nonexistent-port", "read", "distance_1"],
+        vec!["--tcp", "127.0.0.1:1", "dump"],
+    ] {
+        let mut args = args.clone();
+        args.extend(["--slave", "0"]);
+        refused(
+            &args,
+            FAILURE,
+            "no device answers slave 0, the broadcast address",
+        );
+    }
+    refused(
+        &["--slave", "0", "scan", "--serial", "/dev/nonexistent-port"],
+        FAILURE,
+        "no device answers slave 0",
+    );
+    refused(
+        &["--slave", "0", "simulate", "--tcp", "127.0.0.1:0"],
+        FAILURE,
+        "a device never has slave address 0",
+    );
+    refused(
+        &[
+            "--slave",
+            "0",
+            "frame",
+            "encode",
+            "p-series",
+            "read",
+            "distance_1",
+        ],
+        FAILURE,
+        "a read sent to slave 0, the broadcast address, gets no reply",
+    );
+    // A broadcast write is encoded like any write.
+    let text = ok(&[
+        "--slave",
+        "0",
+        "frame",
+        "encode",
+        "p-series",
+        "set",
+        "light_power",
+        "42.5",
+    ]);
+    assert!(text.contains("\n00 06 00 02 01 A9 E8 35"), "{text}");
+    // Modbus TCP has no broadcast: refused before connecting.
+    refused(
+        &[
+            "--tcp",
+            "127.0.0.1:1",
+            "--slave",
+            "0",
+            "set",
+            "light_power",
+            "42",
+        ],
+        FAILURE,
+        "Modbus TCP has no broadcast",
+    );
+}
+
+#[test]
+fn broadcast_writes_are_sent_once_and_not_waited_for() {
+    let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
+    let (code, stdout, stderr) = outcome(&[
+        "--serial",
+        &served.at,
+        "--slave",
+        "0",
+        "set",
+        "light_power",
+        "42.5",
+        "--verbose",
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(
+        stdout.trim(),
+        "light_power  42.5 %: broadcast sent, no reply expected"
+    );
+    assert_eq!(stderr.matches(" -> ").count(), 1, "one frame: {stderr}");
+    assert!(stderr.contains(" -> 00 06 00 02 01 A9 E8 35"), "{stderr}");
+    assert!(!stderr.contains(" <- "), "no reply read: {stderr}");
+    // The device at slave 3 carried it out.
+    let values = common::json(&[
+        "--serial",
+        &served.at,
+        "--slave",
+        "3",
+        "read",
+        "light_power",
+    ]);
+    assert_eq!(values["light_power"]["exact"], "42.5");
+    let (code, stdout, stderr) = outcome(&[
+        "--serial",
+        &served.at,
+        "--slave",
+        "0",
+        "do",
+        "zero_position_1",
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(
+        stdout.trim(),
+        "zero_position_1: broadcast sent, no reply expected"
+    );
+    let json = common::json(&["--slave", "0", "do", "zero_position_1"]);
+    assert_eq!(json["broadcast"], true);
+    // Drastic commands still need --yes when broadcast.
+    refused(&["--slave", "0", "do", "reboot"], FAILURE, "--yes");
+}
+
+#[test]
+fn a_new_slave_address_is_read_back_where_the_device_answers() {
+    // P series: the address applies at once; the read-back goes to the new address.
+    let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
+    let (code, stdout, stderr) = outcome(&[
+        "--serial",
+        &served.at,
+        "--slave",
+        "3",
+        "set",
+        "slave_address",
+        "7",
+        "--verbose",
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(stdout.trim(), "slave_address  7");
+    assert!(stderr.contains(" -> 03 06 00 1F 00 07"), "{stderr}");
+    assert!(stderr.contains(" -> 07 03 00 1F 00 01"), "{stderr}");
+    assert!(stderr.contains("now answers at slave 7"), "{stderr}");
+    let values = common::json(&[
+        "--serial",
+        &served.at,
+        "--slave",
+        "7",
+        "read",
+        "slave_address",
+    ]);
+    assert_eq!(values["slave_address"], 7);
+    // LC-RS: only after save and a power cycle; the read-back goes to the old address.
+    let served = Served::start(&["lc-rs", "--pty", "--slave", "3"]);
+    let (code, stdout, stderr) = outcome(&[
+        "--model",
+        "lc-rs",
+        "--serial",
+        &served.at,
+        "--slave",
+        "3",
+        "set",
+        "slave_address",
+        "7",
+        "--verbose",
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(stdout.trim(), "slave_address  7");
+    assert!(stderr.contains(" -> 03 03 00 85 00 01"), "{stderr}");
+    assert!(
+        stderr.contains("the new address 7 applies after save") && stderr.contains("power cycle"),
+        "{stderr}"
+    );
+    // Addresses a device cannot have.
+    for value in ["0", "248", "255", "256"] {
+        refused(
+            &["set", "slave_address", value],
+            FAILURE,
+            "`slave_address` does not take",
+        );
+    }
+}
+
+#[test]
+fn set_of_a_drastic_register_needs_yes() {
+    refused(
+        &["set", "save_parameters", "1"],
+        FAILURE,
+        "writing 1 to `save_parameters` runs `save_parameters`",
+    );
+    refused(
+        &["set", "network_reset_or_reboot", "170"],
+        FAILURE,
+        "runs `reboot`",
+    );
+    refused(
+        &["set", "network_reset_or_reboot", "1"],
+        FAILURE,
+        "runs `reset_network`",
+    );
+    let error = refused(
+        &["--model", "lc-rs", "set", "factory_reset", "5"],
+        FAILURE,
+        "`factory_reset` is the register of `factory_reset`",
+    );
+    assert!(error.contains("--yes"), "{error}");
+    assert_eq!(
+        ok(&["set", "save_parameters", "1", "--yes"]).trim(),
+        "save_parameters  idle (0)"
+    );
+    // Other registers need no confirmation.
+    ok(&["set", "light_power", "42.5"]);
+}
+
+#[test]
+fn baud_rates_come_from_the_manual_unless_any_baud() {
+    // A port that does not exist: a refusal must come before trying to open it.
+    let port = "/dev/nonexistent-port";
+    for (args, message) in [
+        (
+            vec!["--baud", "1", "read", "distance_1"],
+            "--baud 1 is no baud rate a serial line can use: 50 to 4000000",
+        ),
+        (
+            vec!["--baud", "0", "--any-baud", "read", "distance_1"],
+            "--baud 0 is no baud rate",
+        ),
+        (
+            vec!["--baud", "5000000", "--any-baud", "read", "distance_1"],
+            "--baud 5000000 is no baud rate",
+        ),
+        (
+            vec!["--baud", "14400", "read", "distance_1"],
+            "its manual lists 9600, 19200, 38400, 57600, 115200; --any-baud",
+        ),
+        (
+            vec!["--model", "ccf", "--baud", "9600", "dump"],
+            "ccf does not list 9600 baud",
+        ),
+        (
+            vec!["--baud", "1", "set", "light_power", "42"],
+            "--baud 1 is no baud rate",
+        ),
+        (
+            vec!["--baud", "1", "buffer", "--count", "10"],
+            "--baud 1 is no baud rate",
+        ),
+        (
+            vec!["scan", "--bauds", "9600,1"],
+            "--bauds 1 is no baud rate",
+        ),
+        (
+            vec!["scan", "--bauds", "14400"],
+            "p_series does not list 14400 baud",
+        ),
+        (vec!["--baud", "1", "scan"], "--baud 1 is no baud rate"),
+    ] {
+        let mut args = args.clone();
+        args.extend(["--serial", port]);
+        refused(&args, FAILURE, message);
+    }
+    refused(
+        &["simulate", "--pty", "--baud", "0"],
+        FAILURE,
+        "--baud 0 is no baud rate",
+    );
+    refused(
+        &["simulate", "--pty", "--baud", "14400"],
+        FAILURE,
+        "does not list 14400 baud",
+    );
+    refused(
+        &["--baud", "nine", "read", "distance_1"],
+        USAGE,
+        "invalid value 'nine'",
+    );
+    // Accepted rates get as far as the port.
+    for args in [
+        vec!["--baud", "14400", "--any-baud", "read", "distance_1"],
+        vec![
+            "--model",
+            "rangefinder",
+            "--baud",
+            "14400",
+            "read",
+            "distance",
+        ],
+        vec!["--baud", "9600", "read", "distance_1"],
+    ] {
+        let mut args = args.clone();
+        args.extend(["--serial", port]);
+        let (code, _, stderr) = outcome(&args);
+        assert_eq!(code, Some(FAILURE), "{args:?}");
+        assert!(stderr.contains("cannot open"), "{args:?}: {stderr}");
+    }
+}
+
+#[test]
+fn parity_is_checked_without_serial_too() {
+    refused(
+        &["--parity", "x", "read", "distance_1"],
+        USAGE,
+        "invalid value 'x' for '--parity <PARITY>'",
+    );
+    for parity in ["none", "n", "Even", "e", "ODD", "o"] {
+        ok(&["--parity", parity, "read", "distance_1"]);
+    }
+}
+
+#[test]
+fn scan_lists_are_strict() {
+    let port = "/dev/nonexistent-port";
+    for (list, message) in [
+        ("", "--slaves is empty"),
+        ("1,", "has an empty item"),
+        ("1,,3", "has an empty item"),
+        ("10-1", "the range `10-1` runs backwards"),
+        ("1,1", "lists address 1 twice"),
+        ("1-5,3", "lists address 3 twice"),
+        ("0-3", "0 is no device address"),
+        ("240-250", "250 is no device address"),
+        ("x", "`x` is not an address or a range"),
+    ] {
+        refused(
+            &["scan", "--serial", port, "--slaves", list],
+            FAILURE,
+            message,
+        );
+    }
+    for (list, message) in [
+        ("9600,", "has an empty item"),
+        ("", "has an empty item"),
+        ("9600,9600", "lists 9600 twice"),
+        ("fast", "`fast` is not a baud rate"),
+    ] {
+        refused(
+            &["scan", "--serial", port, "--bauds", list],
+            FAILURE,
+            message,
+        );
+    }
+    // A good list gets as far as the port.
+    let (code, _, stderr) = outcome(&[
+        "scan",
+        "--serial",
+        port,
+        "--bauds",
+        "9600,115200",
+        "--slaves",
+        "1-3,7",
+    ]);
+    assert_eq!(code, Some(FAILURE));
+    assert!(stderr.contains("cannot open"), "{stderr}");
+}
+
+#[test]
+fn buffer_counts_and_sources_are_checked_before_connecting() {
+    for count in ["0", "2501", "65535"] {
+        refused(
+            &["buffer", "--count", count],
+            FAILURE,
+            "the P series buffers 1 to 2500 values",
+        );
+    }
+    refused(
+        &["buffer", "--count", "10", "--source", "nothing"],
+        FAILURE,
+        "`buffer_data_type` does not take `nothing`",
+    );
+    refused(
+        &["buffer", "--count", "65536"],
+        USAGE,
+        "invalid value '65536'",
+    );
+}
