@@ -5,6 +5,7 @@
 #![forbid(unsafe_code)]
 
 pub mod e2e;
+pub mod fault_run;
 pub mod golden;
 
 /// The code generated from every spec: the five driver crates, and the `mini` test spec

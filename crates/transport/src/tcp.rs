@@ -81,8 +81,8 @@ struct Backoff {
 ///   A reply to an earlier request (one that timed out, or whose future was dropped) is
 ///   skipped and the client keeps waiting for its own until the deadline.
 /// - A stream that can no longer be framed (an impossible MBAP header, bytes that are no
-///   frame), that ends or fails, or that a dropped future left with half a request in it, is
-///   closed; the next request opens a new connection. After a failed attempt the next one
+///   frame, half a frame left when the reply timed out), that ends or fails, or that a
+///   dropped future left with half a request in it, is closed; the next request opens a new connection. After a failed attempt the next one
 ///   waits [`TcpConfig::reconnect_delay`], doubling up to
 ///   [`TcpConfig::max_reconnect_delay`]; a request whose deadline comes first fails with
 ///   [`Error::Connect`] at once instead of hammering the server.
@@ -260,9 +260,14 @@ impl<C: Connect> TcpClient<C> {
             let mut chunk = [0u8; tcp::MAX_FRAME_LEN];
             match timeout_at(deadline, stream.read(&mut chunk)).await {
                 Err(_) => {
-                    return Err(Error::Timeout {
+                    let error = Error::Timeout {
                         after: self.config.timeout,
-                    })
+                    };
+                    // Half a frame waiting means the stream lost a part: out of step.
+                    if !self.pending.is_empty() {
+                        return Err(self.broken(error));
+                    }
+                    return Err(error);
                 }
                 Ok(Ok(0)) => return Err(self.broken(Error::Closed)),
                 Ok(Ok(n)) => self.pending.extend_from_slice(&chunk[..n]),
