@@ -104,3 +104,34 @@ async fn a_silent_device_times_out_over_tcp() {
     sim.set_silent(false);
     assert!(sensor.laser_enabled().await.is_ok());
 }
+
+#[tokio::test]
+async fn tcp_reconnects_after_the_server_restarts() {
+    let sim = Simulator::new(&optobus_p_series::DEVICE);
+    let (mut client, server) = e2e::tcp(&sim).await;
+    client.config_mut().timeout = Duration::from_millis(500);
+    client.config_mut().reconnect_delay = Duration::from_millis(20);
+    let address = server.local_addr();
+    let mut sensor = PSeries::with_default_slave(client);
+    assert!(sensor.laser_enabled().await.is_ok());
+    drop(server);
+    // The server is gone: a typed error (closed, or no connection), never an errno dump.
+    let error = sensor.laser_enabled().await.unwrap_err();
+    assert!(
+        matches!(
+            error,
+            Error::Transport(WireError::Closed | WireError::Connect { .. })
+        ),
+        "{error:?}"
+    );
+    let error = sensor.laser_enabled().await.unwrap_err();
+    assert!(
+        matches!(error, Error::Transport(WireError::Connect { .. })),
+        "{error:?}"
+    );
+    // Back on the same port: the next request reconnects (after the backoff).
+    let _server = sim.serve_tcp(address).await.expect("serve again");
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    assert!(sensor.laser_enabled().await.is_ok());
+    assert!(sensor.core().transport_mut().is_connected());
+}

@@ -6,7 +6,7 @@
 //! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
 //!
 //! A driver wraps any [`Transport`]: our RTU client on a serial port (settings from the
-//! manual's defaults), tokio-modbus over TCP or an existing `tokio_modbus` context, or, as
+//! manual's defaults), our Modbus TCP client, an existing `tokio_modbus` context, or, as
 //! here, an in-memory line to the simulator generated from the same spec:
 //!
 //! ```

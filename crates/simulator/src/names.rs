@@ -5,7 +5,7 @@
 //! no field that says "this is the slave address" yet.
 
 /// The register holding the Modbus slave address (P series, rangefinder, LC-RS).
-pub(crate) const SLAVE_ADDRESS: &str = "slave_address";
+pub(crate) const SLAVE_ADDRESS: &str = optobus_device::SLAVE_ADDRESS_REGISTER;
 /// A register, or a packed field, holding the baud rate (plain number or enum of rates).
 pub(crate) const BAUD_RATE: &str = "baud_rate";
 /// A register, or a packed field, holding the parity (codes named like `RtuInfo::parity`).
