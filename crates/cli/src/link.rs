@@ -235,11 +235,13 @@ pub(crate) async fn open(
         })?;
         return Ok(Link::Tcp(client));
     }
+    // A broadcast reaches the simulator at its own address.
+    let address = if slave == 0 { device.default_slave } else { slave };
     crate::log::note!(
-        "optobus: no --serial or --tcp given: using the built-in {} simulator (slave {slave})",
+        "optobus: no --serial or --tcp given: using the built-in {} simulator (slave {address})",
         device.family
     );
-    let (line, _server) = Simulator::new(device).slave(slave).duplex();
+    let (line, _server) = Simulator::new(device).slave(address).duplex();
     // The line is memory: no serial timing.
     config.line = None;
     Ok(Link::Simulator(RtuClient::with_config(
