@@ -26,14 +26,10 @@ pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError
             print(&registers_text(device, global.json));
             Ok(())
         }
-        Command::Simulate {
-            model,
-            pty,
-            duration,
-        } => {
-            let device = models::find(model.as_deref().unwrap_or(&global.model))?;
+        Command::Simulate(args) => {
+            let device = models::find(args.model.as_deref().unwrap_or(&global.model))?;
             check_line(device, &global)?;
-            serve::simulate(device, &global, pty, duration).await
+            serve::simulate(device, &global, &args).await
         }
         Command::Frame(frame) => {
             print(&crate::frame::run(

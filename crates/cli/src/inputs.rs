@@ -50,6 +50,13 @@ pub(crate) const RUN_FOR: DurationBound = DurationBound {
     max: DAY,
 };
 
+/// `simulate --turnaround`: the emulated device's reaction time; zero answers at once.
+pub(crate) const TURNAROUND: DurationBound = DurationBound {
+    option: "--turnaround",
+    min: Duration::ZERO,
+    max: DAY,
+};
+
 pub(crate) fn parse_timeout(text: &str) -> Result<Duration, CliError> {
     parse_duration(text, TIMEOUT)
 }
@@ -64,6 +71,10 @@ pub(crate) fn parse_wait(text: &str) -> Result<Duration, CliError> {
 
 pub(crate) fn parse_run_for(text: &str) -> Result<Duration, CliError> {
     parse_duration(text, RUN_FOR)
+}
+
+pub(crate) fn parse_turnaround(text: &str) -> Result<Duration, CliError> {
+    parse_duration(text, TURNAROUND)
 }
 
 /// `1 h`, `1.5 s` for messages.

@@ -153,16 +153,7 @@ enum Command {
     },
     /// Serve a virtual device for other Modbus tools: Modbus TCP on --tcp (default
     /// 127.0.0.1:5020), RTU on a new pty (--pty) or on an existing port (--serial).
-    Simulate {
-        /// The model (default: --model).
-        model: Option<String>,
-        /// Serve RTU on a new pseudo-terminal and print its path.
-        #[arg(long)]
-        pty: bool,
-        /// Stop after this long, at most 24 h (default: until Ctrl-C).
-        #[arg(long, value_parser = inputs::parse_run_for, allow_hyphen_values = true)]
-        duration: Option<Duration>,
-    },
+    Simulate(serve::SimulateArgs),
     /// Encode request bytes, or explain captured frames.
     #[command(subcommand)]
     Frame(frame::FrameCommand),

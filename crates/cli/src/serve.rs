@@ -5,11 +5,14 @@ use std::io::IsTerminal;
 use std::path::Path;
 use std::time::Duration;
 
-use optobus_codec::{ReadFunction, Request, WriteValue};
+use clap::Args;
+use optobus_codec::{LineFormat, ReadFunction, Request, WriteValue};
 use optobus_device::DeviceInfo;
 use optobus_driver::transport::Parity;
-use optobus_driver::{serial_settings, Core};
-use optobus_simulator::{Exchange, Reply, Simulator};
+use optobus_driver::{line_format, serial_settings, Core};
+use optobus_simulator::{
+    Exchange, FaultKind, FaultStats, Faults, FaultsError, Line, Reply, Simulator,
+};
 
 use crate::commands::{answering_slave, print, target};
 use crate::error::{driver_error, CliError};
@@ -50,14 +53,109 @@ fn describe(exchange: &Exchange<'_>) -> String {
     format!("{} {slave}{request} -> {reply}", link::timestamp())
 }
 
-/// `optobus simulate`: serves a virtual device until Ctrl-C or `duration`. Every exchange is
-/// logged on stderr by a thread of its own ([`Log`]), so a slow or closed stderr never holds
-/// up a reply.
+/// `optobus simulate`'s arguments.
+#[derive(Debug, Args)]
+pub(crate) struct SimulateArgs {
+    /// The model (default: --model).
+    pub(crate) model: Option<String>,
+    /// Serve RTU on a new pseudo-terminal and print its path.
+    #[arg(long)]
+    pub(crate) pty: bool,
+    /// Stop after this long, at most 24 h (default: until Ctrl-C).
+    #[arg(long, value_parser = inputs::parse_run_for, allow_hyphen_values = true)]
+    pub(crate) duration: Option<Duration>,
+    /// Inject seeded faults into the replies, e.g. `delay=0.1,corrupt=0.05` (kinds: corrupt,
+    /// truncate, garbage, wrong_slave, split, drop, delay, disconnect; also late=, pause=,
+    /// timeout=, seed=).
+    #[arg(long, value_name = "SPEC")]
+    pub(crate) faults: Option<String>,
+    /// Seed of --faults (overrides its seed=; default 0): same seed, same faults.
+    #[arg(long, requires = "faults")]
+    pub(crate) seed: Option<u64>,
+    /// Time RTU serving (--pty, --serial) like an RS-485 line of the model's factory format
+    /// (or --baud, --parity): a character time per byte, t3.5 gaps, --turnaround.
+    #[arg(long)]
+    pub(crate) line_timing: bool,
+    /// With --line-timing, the device's reaction time after a request's t3.5 (at most 24 h).
+    #[arg(long, requires = "line_timing", default_value = "0", value_parser = inputs::parse_turnaround, allow_hyphen_values = true)]
+    pub(crate) turnaround: Duration,
+}
+
+/// The faults `--faults` and `--seed` give; a bad spec is refused in one line.
+fn faults(args: &SimulateArgs) -> Result<Option<Faults>, CliError> {
+    let Some(spec) = &args.faults else {
+        return Ok(None);
+    };
+    let mut faults: Faults = spec
+        .parse()
+        .map_err(|e: FaultsError| CliError::new(format!("--faults `{spec}`: {e}")))?;
+    if let Some(seed) = args.seed {
+        faults = faults.seed(seed);
+    }
+    Ok(Some(faults))
+}
+
+/// The emulated line of `--line-timing`: the model's factory format with `--baud` and
+/// `--parity` applied, and `--turnaround`.
+fn line(device: &DeviceInfo, global: &Global, args: &SimulateArgs) -> Result<Line, CliError> {
+    let format = serial_format(device, global);
+    format
+        .check()
+        .map_err(|e| CliError::new(format!("--line-timing cannot time this line: {e}")))?;
+    Ok(Line::new(format).turnaround(args.turnaround))
+}
+
+/// The model's factory line format with `--baud` and `--parity` applied.
+fn serial_format(device: &DeviceInfo, global: &Global) -> LineFormat {
+    let mut format = line_format(device);
+    if let Some(baud) = global.baud {
+        format.baud = baud;
+    }
+    if let Some(parity) = global.parity.and_then(|p| Parity::from_name(p.name())) {
+        format.parity = parity;
+    }
+    format
+}
+
+/// `9600 baud 8E1`.
+fn format_text(format: LineFormat) -> String {
+    let parity = match format.parity {
+        Parity::None => 'N',
+        Parity::Odd => 'O',
+        Parity::Even => 'E',
+    };
+    format!(
+        "{} baud {}{parity}{}",
+        format.baud, format.data_bits, format.stop_bits
+    )
+}
+
+/// One line of the faults injected per kind, for the end of a run.
+fn fault_summary(faults: &Faults, stats: &FaultStats) -> String {
+    let kinds: Vec<String> = FaultKind::ALL
+        .into_iter()
+        .filter(|&kind| faults.probability(kind) > 0.0 || stats.count(kind) > 0)
+        .map(|kind| format!("{kind} {}", stats.count(kind)))
+        .collect();
+    let kinds = if kinds.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", kinds.join(", "))
+    };
+    format!(
+        "optobus: faults injected: {} of {} replies{kinds}",
+        stats.injected(),
+        stats.replies()
+    )
+}
+
+/// `optobus simulate`: serves a virtual device until Ctrl-C or `--duration`, with `--faults`
+/// in its replies and, on RTU, `--line-timing`. Every exchange is logged on stderr by a
+/// thread of its own ([`Log`]), so a slow or closed stderr never holds up a reply.
 pub(crate) async fn simulate(
     device: &'static DeviceInfo,
     global: &Global,
-    pty: bool,
-    duration: Option<Duration>,
+    args: &SimulateArgs,
 ) -> Result<(), CliError> {
     let slave = global.slave.unwrap_or(device.default_slave);
     if slave == 0 {
@@ -66,15 +164,51 @@ pub(crate) async fn simulate(
         )
         .hint("serve at 1 to 247 with --slave"));
     }
+    let faults = faults(args)?;
+    let rtu = args.pty || global.serial.is_some();
+    let line = if args.line_timing {
+        if !rtu {
+            return Err(CliError::new(
+                "--line-timing times an RTU serial line; Modbus TCP has no line to time",
+            )
+            .hint("serve RTU with --pty or --serial PORT"));
+        }
+        Some(line(device, global, args)?)
+    } else {
+        None
+    };
+    let mut extras = String::new();
+    if let Some(faults) = &faults {
+        extras.push_str(&format!(", faults {faults}"));
+    }
+    if let Some(line) = &line {
+        extras.push_str(&format!(
+            ", line timed at {}, turnaround {:?}",
+            format_text(line.format()),
+            args.turnaround
+        ));
+    }
     let log = Log::start();
-    let sim = Simulator::new(device).slave(slave).observe({
+    let mut sim = Simulator::new(device).slave(slave).observe({
         let log = log.clone();
         move |exchange| log.line(describe(exchange))
     });
-    let served = match serve(device, global, pty, slave, &sim, &log).await {
+    if let Some(faults) = &faults {
+        sim = sim.faults(faults.clone());
+    }
+    let line_stats = line.as_ref().map(Line::stats);
+    let serving = Serving {
+        device,
+        global,
+        pty: args.pty,
+        slave,
+        line,
+        extras: &extras,
+    };
+    let served = match serve(serving, &sim, &log).await {
         Ok(server) => {
             let _ = std::io::Write::flush(&mut std::io::stdout());
-            match duration {
+            match args.duration {
                 Some(duration) => tokio::select! {
                     () = tokio::time::sleep(duration) => {}
                     _ = tokio::signal::ctrl_c() => {}
@@ -84,53 +218,83 @@ pub(crate) async fn simulate(
                 }
             }
             drop(server);
+            if let (Some(faults), Some(stats)) = (&faults, sim.fault_stats()) {
+                log.line(fault_summary(faults, &stats));
+            }
+            if let Some(stats) = line_stats {
+                log.line(format!(
+                    "optobus: line: {} requests, {} replies, {} requests sent within t3.5 of a reply",
+                    stats.frames(),
+                    stats.replies(),
+                    stats.gap_violations()
+                ));
+            }
             Ok(())
         }
         Err(error) => Err(error),
     };
-    // Whether lines were dropped, if stderr takes it.
+    // The summary and whether lines were dropped, if stderr takes them.
     log.finish(Duration::from_millis(200));
     served
 }
 
-/// Starts serving `sim` as `global` and `pty` say; gives what must be kept alive.
-async fn serve(
+/// Where and how [`serve`] serves.
+struct Serving<'a> {
     device: &'static DeviceInfo,
-    global: &Global,
+    global: &'a Global,
     pty: bool,
     slave: u8,
+    /// `--line-timing` (RTU only).
+    line: Option<Line>,
+    /// Said after the place in the startup line: faults and line timing in force.
+    extras: &'a str,
+}
+
+/// Starts serving `sim` as `serving` says; gives what must be kept alive.
+async fn serve(
+    serving: Serving<'_>,
     sim: &Simulator,
     log: &Log,
 ) -> Result<Box<dyn std::any::Any>, CliError> {
+    let Serving {
+        device,
+        global,
+        pty,
+        slave,
+        line,
+        extras,
+    } = serving;
     Ok(if pty {
-        let pty = sim
-            .serve_pty()
-            .map_err(|e| CliError::new(format!("cannot open a pty: {e}")))?;
+        let pty = match line {
+            Some(line) => sim.serve_pty_line(line),
+            None => sim.serve_pty(),
+        }
+        .map_err(|e| CliError::new(format!("cannot open a pty: {e}")))?;
         print(&pty.path().display().to_string());
         log.line(format!(
-            "optobus: simulating {} (slave {slave}) on RTU at {}",
+            "optobus: simulating {} (slave {slave}) on RTU at {}{extras}",
             device.family,
             pty.path().display()
         ));
         Box::new(pty)
     } else if let Some(path) = &global.serial {
         let mut settings = serial_settings(device, path.as_str());
-        if let Some(baud) = global.baud {
-            settings.line.baud = baud;
-        }
-        if let Some(parity) = global.parity.and_then(|p| Parity::from_name(p.name())) {
-            settings.line.parity = parity;
-        }
+        settings.line = serial_format(device, global);
         let port = settings
             .open()
             .map_err(|e| CliError::new(format!("cannot open {path}: {e}")))?;
         print(path);
         log.line(format!(
-            "optobus: simulating {} (slave {slave}) on RTU at {path}",
+            "optobus: simulating {} (slave {slave}) on RTU at {path}{extras}",
             device.family
         ));
         let sim = sim.clone();
-        Box::new(tokio::spawn(async move { sim.serve_rtu(port).await }))
+        Box::new(tokio::spawn(async move {
+            match line {
+                Some(line) => sim.serve_line(port, &line).await,
+                None => sim.serve_rtu(port).await,
+            }
+        }))
     } else {
         let address = global.tcp.as_deref().unwrap_or("127.0.0.1:5020");
         let address = link::resolve_tcp(address, 5020).await?;
@@ -140,7 +304,7 @@ async fn serve(
         })?;
         print(&server.local_addr().to_string());
         log.line(format!(
-            "optobus: simulating {} (slave {slave}) on Modbus TCP at {}",
+            "optobus: simulating {} (slave {slave}) on Modbus TCP at {}{extras}",
             device.family,
             server.local_addr()
         ));

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use rustix::termios::{tcgetattr, tcsetattr, ttyname, OptionalActions};
 use tokio::task::JoinHandle;
 
+use crate::line::Line;
 use crate::rtu::Bus;
 use crate::sim::Simulator;
 
@@ -42,6 +43,17 @@ impl Drop for Pty {
 impl Bus {
     /// Serves the line on a new pseudo-terminal in raw mode; needs a tokio runtime.
     pub fn serve_pty(&self) -> io::Result<Pty> {
+        self.open_pty(None)
+    }
+
+    /// Serves the line on a new pseudo-terminal in raw mode, timed as `line` (see
+    /// [`Bus::serve_line`]); needs a tokio runtime. The pty itself adds no timing of its own
+    /// beyond the kernel's latency, so bytes reach the client no earlier than `line` says.
+    pub fn serve_pty_line(&self, line: Line) -> io::Result<Pty> {
+        self.open_pty(Some(line))
+    }
+
+    fn open_pty(&self, line: Option<Line>) -> io::Result<Pty> {
         let (master, terminal) = pty_process::open().map_err(io::Error::other)?;
         // Raw mode: no echo, no line editing, no CR/LF translation of binary frames.
         let mut termios = tcgetattr(&terminal)?;
@@ -50,7 +62,12 @@ impl Bus {
         let name = ttyname(&terminal, Vec::new())?;
         let path = PathBuf::from(OsStr::from_bytes(name.as_bytes()));
         let bus = self.clone();
-        let task = tokio::spawn(async move { bus.serve(master).await });
+        let task = tokio::spawn(async move {
+            match line {
+                Some(line) => bus.serve_line(master, &line).await,
+                None => bus.serve(master).await,
+            }
+        });
         Ok(Pty {
             path,
             task,
@@ -63,5 +80,11 @@ impl Simulator {
     /// Serves this device on a new pseudo-terminal; see [`Bus::serve_pty`].
     pub fn serve_pty(&self) -> io::Result<Pty> {
         Bus::new([self.clone()]).serve_pty()
+    }
+
+    /// Serves this device on a new pseudo-terminal timed as `line`; see
+    /// [`Bus::serve_pty_line`].
+    pub fn serve_pty_line(&self, line: Line) -> io::Result<Pty> {
+        Bus::new([self.clone()]).serve_pty_line(line)
     }
 }
