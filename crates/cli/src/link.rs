@@ -236,7 +236,11 @@ pub(crate) async fn open(
         return Ok(Link::Tcp(client));
     }
     // A broadcast reaches the simulator at its own address.
-    let address = if slave == 0 { device.default_slave } else { slave };
+    let address = if slave == 0 {
+        device.default_slave
+    } else {
+        slave
+    };
     crate::log::note!(
         "optobus: no --serial or --tcp given: using the built-in {} simulator (slave {address})",
         device.family
