@@ -3,15 +3,22 @@
 //! line and over Modbus TCP on 127.0.0.1. Both sides use tokio-modbus underneath, so the
 //! ratio is the cost of the typed layer (plan, decode, sentinels, exact units).
 //!
-//! Rounds alternate typed and raw batches; the median round of each is compared. Prints the
-//! time ratio over the duplex (target ≤ 1.10) and the transactions-per-second ratio over TCP
-//! (target ≥ 0.97). Run with `cargo bench -p optobus-tests --bench read_measurements`.
+//! Over the duplex a third contender runs the same typed read through our own `RtuClient`
+//! (no line timing: `line: None`), compared with raw tokio-modbus: our client's cost per
+//! transaction.
+//!
+//! Rounds alternate typed, (ours,) raw batches; the median round of each is compared. Prints
+//! the typed/raw time ratio over the duplex (target ≤ 1.10), our RtuClient's time per
+//! transaction as a ratio to raw tokio-modbus RTU on the duplex (target ≤ 1.5), and the
+//! transactions-per-second ratio over TCP (target ≥ 0.97). Run with
+//! `cargo bench -p optobus-tests --bench read_measurements`.
 
 use std::time::{Duration, Instant};
 
-use optobus_driver::transport::ModbusContext;
-use optobus_p_series::{PSeries, DEVICE};
+use optobus_driver::transport::{ModbusContext, RtuClient, RtuConfig};
+use optobus_p_series::{rtu_config, PSeries, DEVICE};
 use optobus_simulator::Simulator;
+use tokio::io::DuplexStream;
 use tokio_modbus::client::{Context, Reader};
 use tokio_modbus::Slave;
 
@@ -23,34 +30,61 @@ fn median(mut samples: Vec<Duration>) -> Duration {
     samples[samples.len() / 2]
 }
 
-/// Median time of a round of `PER_ROUND` transactions: (typed, raw).
-async fn measure(typed_context: Context, mut raw: Context) -> (Duration, Duration) {
-    let mut sensor = PSeries::new(ModbusContext::new(typed_context), 1).expect("slave 1");
-    let (mut typed_rounds, mut raw_rounds) = (Vec::new(), Vec::new());
+/// One side of the comparison.
+enum Contender {
+    /// Typed reads through tokio-modbus.
+    Typed(PSeries<ModbusContext>),
+    /// Typed reads through our own RTU client.
+    Ours(PSeries<RtuClient<DuplexStream>>),
+    /// Raw tokio-modbus reads of the same registers.
+    Raw(Context),
+}
+
+impl Contender {
+    /// Time of a round of `PER_ROUND` transactions.
+    async fn round(&mut self) -> Duration {
+        let started = Instant::now();
+        for _ in 0..PER_ROUND {
+            match self {
+                Self::Typed(sensor) => {
+                    let m = sensor.read_measurements().await.expect("typed read");
+                    std::hint::black_box(m);
+                }
+                Self::Ours(sensor) => {
+                    let m = sensor.read_measurements().await.expect("our read");
+                    std::hint::black_box(m);
+                }
+                Self::Raw(raw) => {
+                    let words = raw
+                        .read_input_registers(0, 10)
+                        .await
+                        .expect("transport")
+                        .expect("no exception");
+                    std::hint::black_box(words);
+                }
+            }
+        }
+        started.elapsed()
+    }
+}
+
+/// Median time of a round of `PER_ROUND` transactions of each contender, rounds interleaved.
+async fn measure<const N: usize>(mut contenders: [Contender; N]) -> [Duration; N] {
+    let mut rounds: [Vec<Duration>; N] = std::array::from_fn(|_| Vec::new());
     for round in 0..=ROUNDS {
-        let started = Instant::now();
-        for _ in 0..PER_ROUND {
-            let m = sensor.read_measurements().await.expect("typed read");
-            std::hint::black_box(m);
-        }
-        let typed = started.elapsed();
-        let started = Instant::now();
-        for _ in 0..PER_ROUND {
-            let words = raw
-                .read_input_registers(0, 10)
-                .await
-                .expect("transport")
-                .expect("no exception");
-            std::hint::black_box(words);
-        }
-        let raw_time = started.elapsed();
-        // The first round warms up both sides.
-        if round > 0 {
-            typed_rounds.push(typed);
-            raw_rounds.push(raw_time);
+        for (contender, times) in contenders.iter_mut().zip(&mut rounds) {
+            let time = contender.round().await;
+            // The first round warms up every side.
+            if round > 0 {
+                times.push(time);
+            }
         }
     }
-    (median(typed_rounds), median(raw_rounds))
+    rounds.map(median)
+}
+
+fn typed_contender(context: Context) -> Contender {
+    Contender::Typed(PSeries::new(ModbusContext::new(context), 1).expect("slave 1"))
 }
 
 fn per_transaction(round: Duration) -> f64 {
@@ -66,17 +100,31 @@ fn main() {
         let sim = Simulator::new(&DEVICE).sentinel_every(0);
 
         let (typed_stream, _a) = sim.duplex();
-        let (raw_stream, _b) = sim.duplex();
-        let (typed, raw) = measure(
-            tokio_modbus::client::rtu::attach_slave(typed_stream, Slave(1)),
-            tokio_modbus::client::rtu::attach_slave(raw_stream, Slave(1)),
-        )
+        let (ours_stream, _b) = sim.duplex();
+        let (raw_stream, _c) = sim.duplex();
+        let no_line = RtuConfig {
+            line: None,
+            ..rtu_config(&DEVICE)
+        };
+        let [typed_time, ours, raw] = measure([
+            typed_contender(tokio_modbus::client::rtu::attach_slave(typed_stream, Slave(1))),
+            Contender::Ours(PSeries::with_default_slave(RtuClient::with_config(
+                ours_stream,
+                no_line,
+            ))),
+            Contender::Raw(tokio_modbus::client::rtu::attach_slave(raw_stream, Slave(1))),
+        ])
         .await;
-        let duplex_ratio = typed.as_secs_f64() / raw.as_secs_f64();
+        let duplex_ratio = typed_time.as_secs_f64() / raw.as_secs_f64();
         println!(
             "duplex RTU: typed {:.2} us/tx, raw {:.2} us/tx, typed/raw time {duplex_ratio:.3} (target <= 1.10)",
-            per_transaction(typed),
+            per_transaction(typed_time),
             per_transaction(raw)
+        );
+        let ours_ratio = ours.as_secs_f64() / raw.as_secs_f64();
+        println!(
+            "duplex RTU: ours (RtuClient, typed) {:.2} us/tx, ours/raw tokio-modbus time {ours_ratio:.3} (target <= 1.5)",
+            per_transaction(ours)
         );
 
         let server = sim.serve_tcp("127.0.0.1:0").await.expect("serve");
@@ -85,7 +133,8 @@ fn main() {
                 .await
                 .expect("connect")
         };
-        let (typed, raw) = measure(connect().await, connect().await).await;
+        let [typed, raw] =
+            measure([typed_contender(connect().await), Contender::Raw(connect().await)]).await;
         let tcp_ratio = raw.as_secs_f64() / typed.as_secs_f64();
         println!(
             "TCP loopback: typed {:.0} tx/s, raw {:.0} tx/s, typed/raw tx/s {tcp_ratio:.3} (target >= 0.97)",
