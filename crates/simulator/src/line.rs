@@ -25,6 +25,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use optobus_codec::{rtu, LineFormat};
+use optobus_transport::timing::sleep_until_precise;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, DuplexStream};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
@@ -35,10 +36,6 @@ use crate::sim::Simulator;
 
 /// Most request bytes kept while a client sends without a pause.
 const MAX_REQUEST: usize = 4 * rtu::MAX_FRAME_LEN;
-
-/// How long before a deadline the timer hands over to spinning: tokio's timer fires up to
-/// about a millisecond late.
-const SPIN: Duration = Duration::from_millis(2);
 
 /// The settings of an emulated serial line; see the [module](self) for the timing model.
 ///
@@ -126,27 +123,6 @@ fn later(at: Instant, duration: Duration) -> Instant {
     at.checked_add(duration)
         .or_else(|| at.checked_add(Duration::from_secs(1 << 30)))
         .unwrap_or(at)
-}
-
-/// Waits until `deadline` to within tens of microseconds: tokio's timer for all but the
-/// last [`SPIN`], then yielding turns on the system clock (tokio's clock may be paused).
-async fn wait_until(deadline: Instant) {
-    if let Some(coarse) = deadline.checked_sub(SPIN) {
-        if coarse > Instant::now() {
-            tokio::time::sleep_until(coarse).await;
-        }
-    }
-    let rest = deadline.saturating_duration_since(Instant::now());
-    let Some(end) = std::time::Instant::now().checked_add(rest) else {
-        return;
-    };
-    while std::time::Instant::now() < end {
-        tokio::task::yield_now().await;
-    }
-    // A paused clock does not move while we spin: let it advance to the deadline.
-    if Instant::now() < deadline {
-        tokio::time::sleep_until(deadline).await;
-    }
 }
 
 /// The wire's timeline.
@@ -269,7 +245,7 @@ impl Bus {
             let next = wire.next_event();
             tokio::select! {
                 biased;
-                () = wait_until(next.unwrap_or_else(Instant::now)), if next.is_some() => {
+                () = sleep_until_precise(next.unwrap_or_else(Instant::now)), if next.is_some() => {
                     let now = Instant::now();
                     self.end_request(&mut wire, now, &line.stats);
                     let due = wire.take_due(now);

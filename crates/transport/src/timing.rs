@@ -45,6 +45,10 @@ pub async fn sleep_until_precise(deadline: Instant) {
     while std::time::Instant::now() < until {
         tokio::task::yield_now().await;
     }
+    // A paused clock did not move while we spun: let it advance to the deadline.
+    if Instant::now() < deadline {
+        sleep_until(deadline).await;
+    }
 }
 
 #[cfg(test)]
