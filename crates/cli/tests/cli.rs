@@ -321,3 +321,41 @@ fn ctrl_c_ends_watch_cleanly() {
     let text = String::from_utf8_lossy(&output.stdout);
     assert!(text.lines().any(|l| l.starts_with("distance_1")), "{text}");
 }
+
+#[test]
+fn watch_over_tcp_carries_on_after_the_server_restarts() {
+    let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
+    let address = served.at.clone();
+    let watch = common::optobus()
+        .args(["--tcp", &address, "--json", "--timeout", "200ms"])
+        .args(["watch", "laser", "--interval", "100ms", "--count", "40"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start watch");
+    std::thread::sleep(std::time::Duration::from_millis(800));
+    drop(served);
+    std::thread::sleep(std::time::Duration::from_millis(800));
+    let _again = Served::start(&["p-series", "--tcp", &address]);
+    let output = watch.wait_with_output().expect("watch ends");
+    assert!(output.status.success());
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&output.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect();
+    let first_error = lines
+        .iter()
+        .position(|l| l.get("error").is_some())
+        .expect("the outage shows");
+    let error = lines[first_error]["error"].as_str().unwrap_or_default();
+    assert!(
+        error.contains("closed") || error.contains("cannot connect"),
+        "a clear reason: {error}"
+    );
+    assert!(
+        lines[first_error..]
+            .iter()
+            .any(|l| l["values"]["laser_enabled"].is_boolean()),
+        "values again after the restart: {lines:?}"
+    );
+}
