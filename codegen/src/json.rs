@@ -66,6 +66,7 @@ pub fn dump(model: &Model) -> Value {
     json!({
         "family": model.family,
         "title": model.title,
+        "aliases": model.aliases,
         "manual": {"file": model.manual.file, "version": model.manual.version},
         "device": {
             "rtu": device.rtu.as_ref().map(|rtu| json!({
@@ -88,6 +89,7 @@ pub fn dump(model: &Model) -> Value {
             "long_writes": match model.protocol.long_writes { LongWrites::Split => "split", LongWrites::Wide => "wide" },
             "exception": match model.protocol.exception { ExceptionStyle::Standard => "standard", ExceptionStyle::CountedWord => "counted_word" },
             "apply": match model.protocol.apply { Apply::Immediately => "immediately", Apply::AfterSaveAndPowerCycle => "after_save_and_power_cycle" },
+            "exception_codes": model.protocol.exception_codes.as_ref().map(|r| r.name.clone()),
         },
         "registers": model.registers.iter().map(|r| register_json(model, r)).collect::<Vec<_>>(),
         "commands": model.commands.iter().map(|c| json!({

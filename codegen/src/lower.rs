@@ -147,6 +147,14 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
         long_writes: spec.protocol.long_writes,
         exception: spec.protocol.exception,
         apply: spec.protocol.apply,
+        exception_codes: spec.protocol.exception_codes.as_ref().map(|name| EnumRef {
+            name: name.clone(),
+            index: lowering
+                .enums
+                .iter()
+                .position(|e| e.shared && &e.name == name),
+            path: root.key("protocol").key("exception_codes"),
+        }),
         continuous_send: spec.protocol.continuous_send.as_ref().map(|c| {
             (
                 c.register.clone(),
@@ -159,6 +167,7 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
     let model = Model {
         family: spec.family,
         title: spec.title,
+        aliases: spec.aliases,
         manual: Manual {
             file: spec.manual.file,
             version: spec.manual.version,

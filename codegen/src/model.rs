@@ -429,6 +429,8 @@ pub struct Protocol {
     pub exception: ExceptionStyle,
     /// When changes take effect.
     pub apply: Apply,
+    /// The enum of the device's exception codes, if the manual lists them.
+    pub exception_codes: Option<EnumRef>,
     /// Register and code that switch on unsolicited sending.
     pub continuous_send: Option<(String, i64, Path)>,
 }
@@ -451,6 +453,8 @@ pub struct Model {
     pub family: String,
     /// Title.
     pub title: String,
+    /// Other names the model answers to in tools.
+    pub aliases: Vec<String>,
     /// Source manual.
     pub manual: Manual,
     /// Device facts.

@@ -19,6 +19,9 @@ pub(crate) use crate::model::{
 pub(crate) struct SpecFile {
     pub(crate) family: String,
     pub(crate) title: String,
+    /// Other names the model answers to in tools.
+    #[serde(default)]
+    pub(crate) aliases: Vec<String>,
     pub(crate) manual: Manual,
     pub(crate) device: Device,
     pub(crate) protocol: Protocol,
@@ -103,6 +106,8 @@ pub(crate) struct Protocol {
     pub(crate) long_writes: LongWrites,
     pub(crate) exception: ExceptionStyle,
     pub(crate) apply: Apply,
+    /// The enum naming the codes the device sends in exception replies.
+    pub(crate) exception_codes: Option<String>,
     pub(crate) continuous_send: Option<ContinuousSend>,
     pub(crate) section: Option<String>,
     pub(crate) note: Option<String>,

@@ -782,6 +782,15 @@ fn device_info(model: &Model, names: &TypeNames) -> TokenStream {
         }
         None => quote!(None),
     };
+    let exception_codes = codes_tokens(
+        model
+            .protocol
+            .exception_codes
+            .as_ref()
+            .and_then(|r| r.index),
+        names,
+    );
+    let aliases = &model.aliases;
     let registers = model
         .registers
         .iter()
@@ -825,6 +834,7 @@ fn device_info(model: &Model, names: &TypeNames) -> TokenStream {
         pub static DEVICE: ::optobus_device::DeviceInfo = ::optobus_device::DeviceInfo {
             family: #family,
             title: #title,
+            aliases: &[#(#aliases),*],
             manual: #manual,
             rtu: #rtu,
             tcp: #tcp,
@@ -842,6 +852,7 @@ fn device_info(model: &Model, names: &TypeNames) -> TokenStream {
                 four_byte_writes: &[#(#wide),*],
             },
             needs_save_and_power_cycle: #needs_save,
+            exception_codes: #exception_codes,
             continuous_send: #continuous,
             registers: &[#(#registers),*],
             reserved: &[#(#reserved),*],

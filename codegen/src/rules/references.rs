@@ -55,6 +55,18 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             }
         }
     }
+    if let Some(reference) = &model.protocol.exception_codes {
+        if reference.index.is_none() {
+            out.push(
+                Diagnostic::at(
+                    RULE,
+                    &reference.path,
+                    format!("exception codes name unknown enum `{}`", reference.name),
+                )
+                .label("unknown enum"),
+            );
+        }
+    }
     if let Some((name, _, path)) = &model.protocol.continuous_send {
         if model.register(name).is_none() {
             out.push(

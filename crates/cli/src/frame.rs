@@ -11,7 +11,7 @@ use optobus_codec::crc::crc16;
 use optobus_codec::value::{join_u32, split_u32, u32_writes, WordOrder};
 use optobus_codec::{rtu, tcp, ExceptionShape, ReadFunction, Request, WriteValue};
 use optobus_device::{
-    Addressing, CodeInfo, CommandInfo, DeviceInfo, LongWrites, RegisterInfo, Table, ValueKind,
+    Addressing, CommandInfo, DeviceInfo, LongWrites, RegisterInfo, Table, ValueKind,
 };
 use serde_json::{json, Value as Json};
 
@@ -1112,17 +1112,10 @@ fn table_of(function: u8) -> Option<Table> {
 }
 
 /// The codes a family's manual gives for its exception replies, where the spec lists them.
-fn exception_codes(device: &DeviceInfo) -> &'static [CodeInfo] {
-    match device.family {
-        "p_series" => optobus_p_series::ExceptionCode::CODES,
-        "lc_rs" => optobus_lc_rs::ErrorCode::CODES,
-        _ => &[],
-    }
-}
-
 /// What exception code `code` means on `device`.
 fn exception_meaning(device: &DeviceInfo, code: u16) -> String {
-    if let Some(info) = exception_codes(device)
+    if let Some(info) = device
+        .exception_codes
         .iter()
         .find(|c| c.code == u32::from(code))
     {

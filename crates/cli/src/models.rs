@@ -1,4 +1,4 @@
-//! The sensor families the tool knows, by family id or a friendly alias.
+//! The sensor families the tool knows, by family id or an alias the spec declares.
 
 use optobus_device::DeviceInfo;
 
@@ -21,33 +21,22 @@ fn normalise(name: &str) -> String {
         .collect()
 }
 
-/// Extra names a family answers to.
-fn aliases(family: &str) -> &'static [&'static str] {
-    match family {
-        "p_series" => &["p", "tsltp", "tsltpe", "laser-displacement"],
-        "rangefinder" => &["laser-rangefinder", "ranger"],
-        "ccs" => &["confocal", "spectral-confocal"],
-        "lc_rs" => &["lc", "lcrs"],
-        "ccf" => &["confocal-4", "four-channel"],
-        _ => &[],
-    }
-}
-
-/// The family called `name`.
+/// The family called `name` (its id or one of its aliases).
 pub(crate) fn find(name: &str) -> Result<&'static DeviceInfo, CliError> {
     let wanted = normalise(name);
     MODELS
         .iter()
         .copied()
-        .find(|d| {
-            normalise(d.family) == wanted
-                || aliases(d.family).iter().any(|a| normalise(a) == wanted)
-        })
+        .find(|d| normalise(d.family) == wanted || d.aliases.iter().any(|a| normalise(a) == wanted))
         .ok_or_else(|| {
-            let known: Vec<&str> = MODELS.iter().map(|d| d.family).collect();
             CliError::new(format!("unknown model `{name}`")).hint(format!(
                 "known models: {}; see `optobus models`",
-                known.join(", ")
+                names().join(", ")
             ))
         })
+}
+
+/// The models' names as users type them (`p-series`).
+pub(crate) fn names() -> Vec<String> {
+    MODELS.iter().map(|d| d.family.replace('_', "-")).collect()
 }

@@ -402,6 +402,8 @@ pub struct DeviceInfo {
     pub family: &'static str,
     /// Title.
     pub title: &'static str,
+    /// Other names tools accept for the model (`lc` for `lc_rs`).
+    pub aliases: &'static [&'static str],
     /// Source manual file.
     pub manual: &'static str,
     /// Serial settings, if the device speaks RTU.
@@ -430,6 +432,9 @@ pub struct DeviceInfo {
     pub frame_shape: FrameShape<'static>,
     /// Settings take effect only after the save command and a power cycle.
     pub needs_save_and_power_cycle: bool,
+    /// The codes the device sends in exception replies, with their meanings; empty when the
+    /// manual lists none (the standard Modbus codes apply).
+    pub exception_codes: &'static [CodeInfo],
     /// Register and code that make the device stream readings unasked.
     pub continuous_send: Option<(&'static str, u32)>,
     /// Every register, repeats expanded.
