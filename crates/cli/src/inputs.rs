@@ -334,6 +334,11 @@ pub(crate) fn drastic(command: &CommandInfo) -> bool {
     )
 }
 
+/// What a command does, in words for a sentence (`stores the current parameters…`).
+pub(crate) fn effect_text(command: &CommandInfo) -> String {
+    command.doc.trim_end_matches('.').to_lowercase()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,24 +1,22 @@
-//! Commands that are more than a read or a write: serving a simulator, scanning a line, and
-//! the P-series buffer download.
+//! `optobus simulate`: a virtual device served over Modbus TCP, a pty or a serial port, with
+//! seeded faults and RS-485 line timing on request; every exchange logged on stderr.
 
-use std::io::IsTerminal;
-use std::path::Path;
 use std::time::Duration;
 
 use clap::Args;
 use optobus_codec::{LineFormat, ReadFunction, Request, WriteValue};
 use optobus_device::DeviceInfo;
 use optobus_driver::transport::Parity;
-use optobus_driver::{line_format, serial_settings, Core};
+use optobus_driver::{line_format, serial_settings};
 use optobus_simulator::{
     Exchange, FaultKind, FaultStats, Faults, FaultsError, Line, Reply, Simulator,
 };
 
-use crate::commands::{answering_slave, print, target};
-use crate::error::{driver_error, CliError};
-use crate::link::{self, Link};
-use crate::log::{self, note, Log};
-use crate::{inputs, models, values, Global};
+use crate::connect::Global;
+use crate::error::CliError;
+use crate::log::Log;
+use crate::render::print;
+use crate::{inputs, link, models};
 
 /// One log line for a request the simulator answered.
 fn describe(exchange: &Exchange<'_>) -> String {
@@ -57,28 +55,28 @@ fn describe(exchange: &Exchange<'_>) -> String {
 #[derive(Debug, Args)]
 pub(crate) struct SimulateArgs {
     /// The model (default: --model).
-    pub(crate) model: Option<String>,
+    model: Option<String>,
     /// Serve RTU on a new pseudo-terminal and print its path.
     #[arg(long)]
-    pub(crate) pty: bool,
+    pty: bool,
     /// Stop after this long, at most 24 h (default: until Ctrl-C).
     #[arg(long, value_parser = inputs::parse_run_for, allow_hyphen_values = true)]
-    pub(crate) duration: Option<Duration>,
+    duration: Option<Duration>,
     /// Inject seeded faults into the replies, e.g. `delay=0.1,corrupt=0.05` (kinds: corrupt,
     /// truncate, garbage, wrong_slave, split, drop, delay, disconnect; also late=, pause=,
     /// timeout=, seed=).
     #[arg(long, value_name = "SPEC")]
-    pub(crate) faults: Option<String>,
+    faults: Option<String>,
     /// Seed of --faults (overrides its seed=; default 0): same seed, same faults.
     #[arg(long, requires = "faults")]
-    pub(crate) seed: Option<u64>,
+    seed: Option<u64>,
     /// Time RTU serving (--pty, --serial) like an RS-485 line of the model's factory format
     /// (or --baud, --parity): a character time per byte, t3.5 gaps, --turnaround.
     #[arg(long)]
-    pub(crate) line_timing: bool,
+    line_timing: bool,
     /// With --line-timing, the device's reaction time after a request's t3.5 (at most 24 h).
     #[arg(long, requires = "line_timing", default_value = "0", value_parser = inputs::parse_turnaround, allow_hyphen_values = true)]
-    pub(crate) turnaround: Duration,
+    turnaround: Duration,
 }
 
 /// The faults `--faults` and `--seed` give; a bad spec is refused in one line.
@@ -152,11 +150,9 @@ fn fault_summary(faults: &Faults, stats: &FaultStats) -> String {
 /// `optobus simulate`: serves a virtual device until Ctrl-C or `--duration`, with `--faults`
 /// in its replies and, on RTU, `--line-timing`. Every exchange is logged on stderr by a
 /// thread of its own ([`Log`]), so a slow or closed stderr never holds up a reply.
-pub(crate) async fn simulate(
-    device: &'static DeviceInfo,
-    global: &Global,
-    args: &SimulateArgs,
-) -> Result<(), CliError> {
+pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliError> {
+    let device = models::find(args.model.as_deref().unwrap_or(&global.model))?;
+    global.check_line(device)?;
     let slave = global.slave.unwrap_or(device.default_slave);
     if slave == 0 {
         return Err(CliError::new(
@@ -310,191 +306,4 @@ async fn serve(
         ));
         Box::new(server)
     })
-}
-
-/// `optobus scan`: which baud rate and slave address a device answers on.
-pub(crate) async fn scan(
-    global: &Global,
-    bauds: Option<&str>,
-    slaves: Option<&str>,
-) -> Result<(), CliError> {
-    let device = models::find(&global.model)?;
-    answering_slave(device, global, "scan")?;
-    let bauds: Vec<u32> = match (bauds, global.baud) {
-        (Some(text), _) => inputs::parse_bauds(device, text, global.any_baud)?,
-        (None, Some(baud)) => {
-            inputs::check_baud(device, "--baud", baud, global.any_baud)?;
-            vec![baud]
-        }
-        (None, None) => device
-            .rtu
-            .map(|r| r.bauds.to_vec())
-            .unwrap_or_else(|| vec![9600]),
-    };
-    let slaves = match slaves {
-        Some(text) => inputs::parse_slaves(text)?,
-        None => {
-            let (first, last) = inputs::SLAVES;
-            (device.slaves.0.max(first)..=device.slaves.1.min(last)).collect()
-        }
-    };
-    let Some(path) = &global.serial else {
-        return Err(CliError::new("scan needs a serial port").hint("give --serial PORT"));
-    };
-    let probe = device
-        .registers
-        .iter()
-        .find(|r| r.access.readable())
-        .ok_or_else(|| CliError::new("the model has no readable register"))?;
-    let progress = std::io::stderr().is_terminal();
-    let mut found = Vec::new();
-    for &baud in &bauds {
-        let mut target = target(global);
-        target.baud = Some(baud);
-        // A silent address costs the whole timeout: keep it short unless asked otherwise.
-        target.timeout = global.timeout.min(Duration::from_millis(200));
-        let link = link::open(device, 0, &target).await?;
-        let mut core = Core::with_default_slave(link, device);
-        for (i, &slave) in slaves.iter().enumerate() {
-            if progress {
-                log::stderr(format_args!(
-                    "\rscanning {baud} baud: slave {slave} ({}/{})   ",
-                    i + 1,
-                    slaves.len()
-                ));
-            }
-            core.set_slave(slave)?;
-            let answered = match core.read_words(probe).await {
-                Ok(_) => true,
-                // An exception is an answer too: something lives at this address.
-                Err(e) => e.exception().is_some(),
-            };
-            if answered {
-                if progress {
-                    note!();
-                }
-                print(&format!("found: slave {slave} at {baud} baud"));
-                found.push((baud, slave));
-            }
-        }
-    }
-    if progress {
-        note!();
-    }
-    if global.json {
-        let list: Vec<serde_json::Value> = found
-            .iter()
-            .map(|(baud, slave)| serde_json::json!({"baud": baud, "slave": slave}))
-            .collect();
-        print(&serde_json::Value::Array(list).to_string());
-    }
-    if found.is_empty() {
-        return Err(CliError::new(format!("no device answered on {path}"))
-            .hint("check wiring and parity, or widen --bauds and --slaves"));
-    }
-    Ok(())
-}
-
-/// The measurement `source` names, with `count` checked against the values the P series lets
-/// be read out (appendix 3): both refused before anything is opened or sent.
-pub(crate) fn buffer_input(
-    count: u16,
-    source: &str,
-) -> Result<optobus_p_series::MeasurementSource, CliError> {
-    use optobus_p_series::{MeasurementSource, DEVICE};
-    let register = |name: &str| {
-        DEVICE
-            .register(name)
-            .ok_or_else(|| CliError::new(format!("the P-series spec has no {name}")))
-    };
-    let most = optobus_p_series::download::MAX_DOWNLOAD;
-    if !(1..=most).contains(&count) {
-        return Err(CliError::new(format!(
-            "--count {count}: the P series buffers 1 to {most} values for reading out"
-        )));
-    }
-    let words = values::parse(register("buffer_data_type")?, source)?;
-    Ok(MeasurementSource::from_raw(u32::from(
-        words.first().copied().unwrap_or(0),
-    )))
-}
-
-/// `optobus buffer` (P series): buffer `count` values of `source`, download, write CSV.
-pub(crate) async fn buffer(
-    link: Link,
-    slave: u8,
-    global: &Global,
-    count: u16,
-    source: optobus_p_series::MeasurementSource,
-    wait: Duration,
-    out: Option<&Path>,
-) -> Result<(), CliError> {
-    use optobus_p_series::PSeries;
-    let mut sensor = PSeries::new(link, slave)?;
-    sensor
-        .start_buffering(source, count)
-        .await
-        .map_err(|e| driver_error(e, Some("buffer_report_count")))?;
-    note!(
-        "optobus: buffering {count} values of {source}; reading out in {} ms",
-        wait.as_millis()
-    );
-    tokio::time::sleep(wait).await;
-    let terminal = std::io::stderr().is_terminal();
-    let values = sensor
-        .download_buffer(|p| {
-            let width = 30;
-            let done = (p.received * width)
-                .checked_div(p.expected)
-                .unwrap_or(width);
-            let bar = format!(
-                "[{}{}] {}/{} values, {} pages",
-                "#".repeat(done),
-                "-".repeat(width - done.min(width)),
-                p.received,
-                p.expected,
-                p.pages
-            );
-            if terminal {
-                log::stderr(format_args!("\r{bar}"));
-            } else {
-                note!("{bar}");
-            }
-        })
-        .await
-        .map_err(|e| driver_error(e, Some("buffer")))?;
-    if terminal {
-        note!();
-    }
-    let mut csv = String::from("index,value_mm\n");
-    for (index, value) in values.iter().enumerate() {
-        match value {
-            Some(value) => csv.push_str(&format!("{index},{}\n", value.millimetres())),
-            None => csv.push_str(&format!("{index},\n")),
-        }
-    }
-    if global.json && out.is_none() {
-        let list: Vec<serde_json::Value> = values
-            .iter()
-            .map(|v| match v {
-                Some(v) => serde_json::json!(v.to_f64()),
-                None => serde_json::Value::Null,
-            })
-            .collect();
-        print(&serde_json::json!({"unit": "mm", "values": list}).to_string());
-        return Ok(());
-    }
-    match out {
-        Some(path) => {
-            std::fs::write(path, csv)
-                .map_err(|e| CliError::new(format!("cannot write {}: {e}", path.display())))?;
-            note!(
-                "optobus: {} values written to {}",
-                values.len(),
-                path.display()
-            );
-        }
-        None => print(&csv),
-    }
-    Ok(())
 }

@@ -1,0 +1,129 @@
+//! `optobus buffer`: the P series' buffered download, with a progress bar, as CSV or JSON.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::Args;
+use optobus_p_series::{MeasurementSource, PSeries, DEVICE};
+
+use crate::connect::Global;
+use crate::error::{driver_error, CliError};
+use crate::log::{self, note};
+use crate::render::print;
+use crate::{inputs, link, values};
+
+#[derive(Debug, Args)]
+pub(crate) struct BufferArgs {
+    /// Values to buffer and download (at most 2500).
+    #[arg(long)]
+    count: u16,
+    /// Measurement to buffer: distance_1, distance_2 or thickness.
+    #[arg(long, default_value = "distance_1")]
+    source: String,
+    /// How long to let the sensor buffer before reading out (at most 24 h).
+    #[arg(long, default_value = "1s", value_parser = inputs::parse_wait, allow_hyphen_values = true)]
+    wait: Duration,
+    /// Write `index,value_mm` CSV here instead of stdout.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// Buffers `--count` values of `--source`, downloads them and writes CSV (or JSON).
+pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliError> {
+    let device = global.device()?;
+    if device.family != "p_series" {
+        return Err(CliError::new(format!(
+            "`buffer` is the P series' buffered download; {} has no data buffer",
+            device.family
+        ))
+        .hint("use --model p-series"));
+    }
+    let (count, wait) = (args.count, args.wait);
+    let source = input(count, &args.source)?;
+    let slave = global.answering_slave(device, "buffer")?;
+    global.check_line(device)?;
+    let link = link::open(device, slave, &global.target()).await?;
+    let mut sensor = PSeries::new(link, slave)?;
+    sensor
+        .start_buffering(source, count)
+        .await
+        .map_err(|e| driver_error(e, Some("buffer_report_count")))?;
+    note!(
+        "optobus: buffering {count} values of {source}; reading out in {} ms",
+        wait.as_millis()
+    );
+    tokio::time::sleep(wait).await;
+    let terminal = std::io::stderr().is_terminal();
+    let values = sensor
+        .download_buffer(|p| {
+            let width = 30;
+            let done = (p.received * width)
+                .checked_div(p.expected)
+                .unwrap_or(width);
+            let bar = format!(
+                "[{}{}] {}/{} values, {} pages",
+                "#".repeat(done),
+                "-".repeat(width - done.min(width)),
+                p.received,
+                p.expected,
+                p.pages
+            );
+            if terminal {
+                log::stderr(format_args!("\r{bar}"));
+            } else {
+                note!("{bar}");
+            }
+        })
+        .await
+        .map_err(|e| driver_error(e, Some("buffer")))?;
+    if terminal {
+        note!();
+    }
+    if global.json && args.out.is_none() {
+        let list: Vec<serde_json::Value> = values
+            .iter()
+            .map(|v| serde_json::json!(v.as_ref().map(|v| v.to_f64())))
+            .collect();
+        print(&serde_json::json!({"unit": "mm", "values": list}).to_string());
+        return Ok(());
+    }
+    let mut csv = String::from("index,value_mm\n");
+    for (index, value) in values.iter().enumerate() {
+        match value {
+            Some(value) => csv.push_str(&format!("{index},{}\n", value.millimetres())),
+            None => csv.push_str(&format!("{index},\n")),
+        }
+    }
+    match &args.out {
+        Some(path) => {
+            std::fs::write(path, csv)
+                .map_err(|e| CliError::new(format!("cannot write {}: {e}", path.display())))?;
+            note!(
+                "optobus: {} values written to {}",
+                values.len(),
+                path.display()
+            );
+        }
+        None => print(&csv),
+    }
+    Ok(())
+}
+
+/// The measurement `source` names, with `count` checked against the values the P series lets
+/// be read out (appendix 3): both refused before anything is opened or sent.
+fn input(count: u16, source: &str) -> Result<MeasurementSource, CliError> {
+    let most = optobus_p_series::download::MAX_DOWNLOAD;
+    if !(1..=most).contains(&count) {
+        return Err(CliError::new(format!(
+            "--count {count}: the P series buffers 1 to {most} values for reading out"
+        )));
+    }
+    let register = DEVICE
+        .register("buffer_data_type")
+        .ok_or_else(|| CliError::new("the P-series spec has no buffer_data_type"))?;
+    let words = values::parse(register, source)?;
+    Ok(MeasurementSource::from_raw(u32::from(
+        words.first().copied().unwrap_or(0),
+    )))
+}

@@ -1,0 +1,59 @@
+//! `optobus do`: a command of the device (zero, reset, save, reboot…); drastic ones ask for
+//! `--yes`.
+
+use clap::Args;
+use serde_json::json;
+
+use crate::connect::Global;
+use crate::error::{driver_error, CliError};
+use crate::log::note;
+use crate::render::print;
+use crate::{inputs, values};
+
+#[derive(Debug, Args)]
+pub(crate) struct DoArgs {
+    /// Command name (`optobus models` and `optobus registers` list them).
+    command: String,
+    /// Channel of a per-channel command.
+    #[arg(long)]
+    channel: Option<u8>,
+    /// Confirm commands that store, restart or reset the device.
+    #[arg(long)]
+    yes: bool,
+}
+
+pub(crate) async fn run(global: &Global, args: &DoArgs) -> Result<(), CliError> {
+    let device = global.device()?;
+    global.check_line(device)?;
+    let command = &args.command;
+    let info = device.command(command).ok_or_else(|| {
+        let names: Vec<&str> = device.commands.iter().map(|c| c.name).collect();
+        CliError::new(format!("`{command}` is no command of {}", device.family))
+            .hint(format!("commands: {}", names.join(", ")))
+    })?;
+    if inputs::drastic(info) && !args.yes {
+        return Err(CliError::new(format!(
+            "`{command}` {}; add --yes to go ahead",
+            inputs::effect_text(info)
+        )));
+    }
+    let register = values::single(device, info.register, args.channel)?;
+    let slave = global.writing_slave(device)?;
+    if info.busy_ms > 0 && !global.json {
+        note!(
+            "optobus: the device is busy for {} ms afterwards",
+            info.busy_ms
+        );
+    }
+    let mut core = global.connect(device, slave).await?;
+    core.run(info, register)
+        .await
+        .map_err(|e| driver_error(e, Some(register.name)))?;
+    print(&match (slave == 0, global.json) {
+        (true, true) => json!({"command": info.name, "broadcast": true}).to_string(),
+        (true, false) => format!("{}: broadcast sent, no reply expected", info.name),
+        (false, true) => json!({"command": info.name, "done": true}).to_string(),
+        (false, false) => format!("{} done", info.name),
+    });
+    Ok(())
+}

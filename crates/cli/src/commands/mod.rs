@@ -1,0 +1,73 @@
+//! The subcommands, one file each, and the dispatch of a command line to them. A command
+//! uses the shared modules below it (options and connection, values, inputs, output), never
+//! another command.
+
+mod buffer;
+mod do_command;
+mod models;
+mod read;
+mod registers;
+mod scan;
+mod set;
+mod simulate;
+mod watch;
+
+use clap::Subcommand;
+
+use crate::connect::Global;
+use crate::error::CliError;
+use crate::frame;
+use crate::render::print;
+
+#[derive(Debug, Subcommand)]
+pub(crate) enum Command {
+    /// The sensor families, their transports and defaults.
+    Models,
+    /// The register map of a model: name, table, address, access, type, unit, range or codes.
+    Registers(registers::RegistersArgs),
+    /// Read registers or groups and print typed values with units.
+    Read(read::ReadArgs),
+    /// Show registers or groups live, refreshed in place; Ctrl-C ends.
+    Watch(watch::WatchArgs),
+    /// Every readable register, decoded, read in the fewest transactions.
+    Dump,
+    /// Write a register: engineering units (`100us`, `42.5`) or code names.
+    Set(set::SetArgs),
+    /// Run a command of the device (zero, reset, save, reboot…).
+    Do(do_command::DoArgs),
+    /// P series: buffer and download measurements, with a progress bar.
+    Buffer(buffer::BufferArgs),
+    /// Find the slave address and baud rate a device answers on.
+    Scan(scan::ScanArgs),
+    /// Serve a virtual device for other Modbus tools: Modbus TCP on --tcp (default
+    /// 127.0.0.1:5020), RTU on a new pty (--pty) or on an existing port (--serial).
+    Simulate(simulate::SimulateArgs),
+    /// Encode request bytes, or explain captured frames.
+    #[command(subcommand)]
+    Frame(frame::FrameCommand),
+}
+
+/// Runs one command line.
+pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError> {
+    match command {
+        Command::Models => models::run(&global),
+        Command::Registers(args) => registers::run(&global, &args),
+        Command::Read(args) => read::read(&global, &args).await,
+        Command::Watch(args) => watch::run(&global, &args).await,
+        Command::Dump => read::dump(&global).await,
+        Command::Set(args) => set::run(&global, &args).await,
+        Command::Do(args) => do_command::run(&global, &args).await,
+        Command::Buffer(args) => buffer::run(&global, &args).await,
+        Command::Scan(args) => scan::run(&global, &args).await,
+        Command::Simulate(args) => simulate::run(&global, &args).await,
+        Command::Frame(frame) => {
+            print(&crate::frame::run(
+                &frame,
+                global.json,
+                global.slave,
+                global.tcp.is_some(),
+            )?);
+            Ok(())
+        }
+    }
+}

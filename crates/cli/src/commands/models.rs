@@ -1,0 +1,81 @@
+//! `optobus models`: the families the tool has, their transports and defaults.
+
+use std::net::Ipv4Addr;
+
+use optobus_device::{RtuInfo, TcpInfo};
+use serde_json::{json, Value as Json};
+
+use crate::connect::Global;
+use crate::error::CliError;
+use crate::models::MODELS;
+use crate::render::{pretty, print};
+
+pub(crate) fn run(global: &Global) -> Result<(), CliError> {
+    print(&if global.json { json() } else { text() });
+    Ok(())
+}
+
+/// `none`, `odd` or `even`.
+fn parity(rtu: &RtuInfo) -> &'static str {
+    rtu.parity
+}
+
+/// The factory IP address, if the manual gives one.
+fn factory_ip(tcp: &TcpInfo) -> Option<String> {
+    tcp.default_ip.map(|ip| Ipv4Addr::from(ip).to_string())
+}
+
+fn json() -> String {
+    let list: Vec<Json> = MODELS
+        .iter()
+        .map(|d| {
+            json!({
+                "model": d.family,
+                "title": d.title,
+                "rtu": d.rtu.map(|r| json!({"default_baud": r.default_baud, "bauds": r.bauds, "parity": parity(&r), "data_bits": r.data_bits, "stop_bits": r.stop_bits})),
+                "tcp": d.tcp.map(|t| json!({"port": t.port, "default_ip": factory_ip(&t)})),
+                "default_slave": d.default_slave,
+                "registers": d.registers.len(),
+                "groups": d.groups.iter().map(|g| g.name).collect::<Vec<_>>(),
+                "commands": d.commands.iter().map(|c| c.name).collect::<Vec<_>>(),
+            })
+        })
+        .collect();
+    pretty(&Json::Array(list))
+}
+
+fn text() -> String {
+    let mut out = String::new();
+    for d in MODELS {
+        out.push_str(&format!("{}  {}\n", d.family.replace('_', "-"), d.title));
+        if let Some(rtu) = d.rtu {
+            let bauds: Vec<String> = rtu.bauds.iter().map(u32::to_string).collect();
+            out.push_str(&format!(
+                "    RTU  {} baud {}{}{} (also {}), slave {}\n",
+                rtu.default_baud,
+                rtu.data_bits,
+                parity(&rtu)
+                    .chars()
+                    .next()
+                    .unwrap_or('n')
+                    .to_ascii_uppercase(),
+                rtu.stop_bits,
+                bauds.join("/"),
+                d.default_slave
+            ));
+        }
+        if let Some(tcp) = d.tcp {
+            let ip = factory_ip(&tcp).unwrap_or_else(|| "-".into());
+            out.push_str(&format!("    TCP  port {}, factory IP {ip}\n", tcp.port));
+        }
+        let groups: Vec<&str> = d.groups.iter().map(|g| g.name).collect();
+        let commands: Vec<&str> = d.commands.iter().map(|c| c.name).collect();
+        out.push_str(&format!(
+            "    {} registers; groups: {}\n    commands: {}\n",
+            d.registers.len(),
+            groups.join(", "),
+            commands.join(", ")
+        ));
+    }
+    out
+}

@@ -1,0 +1,67 @@
+//! `optobus read` (registers and groups by name) and `optobus dump` (every readable
+//! register), both in the fewest requests.
+
+use clap::Args;
+use optobus_device::RegisterInfo;
+use optobus_driver::plan_reads;
+use serde_json::json;
+
+use crate::connect::{read_values, Global};
+use crate::error::CliError;
+use crate::log::note;
+use crate::render::{pretty, print, values_json, values_text};
+use crate::values;
+
+#[derive(Debug, Args)]
+pub(crate) struct ReadArgs {
+    /// Register or group names (`optobus registers` lists them).
+    #[arg(required = true)]
+    names: Vec<String>,
+    /// Copy of a per-channel register (CCF channels 1 to 4).
+    #[arg(long)]
+    channel: Option<u8>,
+}
+
+pub(crate) async fn read(global: &Global, args: &ReadArgs) -> Result<(), CliError> {
+    let device = global.device()?;
+    global.check_line(device)?;
+    let registers = values::readable(device, &args.names, args.channel)?;
+    let slave = global.answering_slave(device, "read")?;
+    let mut core = global.connect(device, slave).await?;
+    let values = read_values(&mut core, &registers).await?;
+    if global.json {
+        print(&pretty(&values_json(&values)));
+    } else {
+        print(&values_text(&values));
+    }
+    Ok(())
+}
+
+pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
+    let device = global.device()?;
+    global.check_line(device)?;
+    let registers: Vec<&'static RegisterInfo> = device
+        .registers
+        .iter()
+        .filter(|r| r.access.readable())
+        .collect();
+    let requests = plan_reads(device, &registers).len();
+    let slave = global.answering_slave(device, "dump")?;
+    let mut core = global.connect(device, slave).await?;
+    let values = read_values(&mut core, &registers).await?;
+    if global.json {
+        print(&pretty(&json!({
+            "model": device.family,
+            "slave": core.slave(),
+            "requests": requests,
+            "values": values_json(&values),
+        })));
+    } else {
+        print(&values_text(&values));
+        note!(
+            "optobus: {} registers in {requests} requests",
+            registers.len()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,101 @@
+//! `optobus scan`: which baud rate and slave address a device answers on.
+
+use std::io::IsTerminal;
+use std::time::Duration;
+
+use clap::Args;
+use optobus_driver::Core;
+
+use crate::connect::Global;
+use crate::error::CliError;
+use crate::log::{self, note};
+use crate::render::print;
+use crate::{inputs, link};
+
+#[derive(Debug, Args)]
+pub(crate) struct ScanArgs {
+    /// Baud rates to try, e.g. 9600,115200 (default: --baud, or the model's).
+    #[arg(long)]
+    bauds: Option<String>,
+    /// Slave addresses to try, e.g. 1-10,247 (default: the model's range).
+    #[arg(long)]
+    slaves: Option<String>,
+}
+
+pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError> {
+    let device = global.device()?;
+    global.answering_slave(device, "scan")?;
+    let bauds: Vec<u32> = match (&args.bauds, global.baud) {
+        (Some(text), _) => inputs::parse_bauds(device, text, global.any_baud)?,
+        (None, Some(baud)) => {
+            inputs::check_baud(device, "--baud", baud, global.any_baud)?;
+            vec![baud]
+        }
+        (None, None) => device
+            .rtu
+            .map(|r| r.bauds.to_vec())
+            .unwrap_or_else(|| vec![9600]),
+    };
+    let slaves = match &args.slaves {
+        Some(text) => inputs::parse_slaves(text)?,
+        None => {
+            let (first, last) = inputs::SLAVES;
+            (device.slaves.0.max(first)..=device.slaves.1.min(last)).collect()
+        }
+    };
+    let Some(path) = &global.serial else {
+        return Err(CliError::new("scan needs a serial port").hint("give --serial PORT"));
+    };
+    let probe = device
+        .registers
+        .iter()
+        .find(|r| r.access.readable())
+        .ok_or_else(|| CliError::new("the model has no readable register"))?;
+    let progress = std::io::stderr().is_terminal();
+    let mut found = Vec::new();
+    for &baud in &bauds {
+        let mut target = global.target();
+        target.baud = Some(baud);
+        // A silent address costs the whole timeout: keep it short unless asked otherwise.
+        target.timeout = global.timeout.min(Duration::from_millis(200));
+        let link = link::open(device, 0, &target).await?;
+        let mut core = Core::with_default_slave(link, device);
+        for (i, &slave) in slaves.iter().enumerate() {
+            if progress {
+                log::stderr(format_args!(
+                    "\rscanning {baud} baud: slave {slave} ({}/{})   ",
+                    i + 1,
+                    slaves.len()
+                ));
+            }
+            core.set_slave(slave)?;
+            let answered = match core.read_words(probe).await {
+                Ok(_) => true,
+                // An exception is an answer too: something lives at this address.
+                Err(e) => e.exception().is_some(),
+            };
+            if answered {
+                if progress {
+                    note!();
+                }
+                print(&format!("found: slave {slave} at {baud} baud"));
+                found.push((baud, slave));
+            }
+        }
+    }
+    if progress {
+        note!();
+    }
+    if global.json {
+        let list: Vec<serde_json::Value> = found
+            .iter()
+            .map(|(baud, slave)| serde_json::json!({"baud": baud, "slave": slave}))
+            .collect();
+        print(&serde_json::Value::Array(list).to_string());
+    }
+    if found.is_empty() {
+        return Err(CliError::new(format!("no device answered on {path}"))
+            .hint("check wiring and parity, or widen --bauds and --slaves"));
+    }
+    Ok(())
+}

@@ -1,0 +1,158 @@
+//! `optobus set`: one register written from engineering units or code names, and read back.
+
+use clap::Args;
+use optobus_device::{CommandInfo, DeviceInfo, Effect, RegisterInfo};
+use optobus_driver::raw_bits;
+use serde_json::json;
+
+use crate::connect::Global;
+use crate::error::{driver_error, CliError};
+use crate::inputs;
+use crate::log::note;
+use crate::render::{pretty, print};
+use crate::values::{self, Validated};
+
+#[derive(Debug, Args)]
+pub(crate) struct SetArgs {
+    /// Register name.
+    name: String,
+    /// The value.
+    value: String,
+    /// Copy of a per-channel register.
+    #[arg(long)]
+    channel: Option<u8>,
+    /// Confirm a write to a register that a command storing, restarting or resetting the
+    /// device also writes.
+    #[arg(long)]
+    yes: bool,
+}
+
+/// Names and values are checked first, so bad input is refused before any connection.
+pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError> {
+    let device = global.device()?;
+    global.check_line(device)?;
+    let register = values::single(device, &args.name, args.channel)?;
+    let words = values::parse(register, &args.value)?;
+    let new_address = new_slave_address(device, register, &words)?;
+    confirm(device, register, &words, args.yes)?;
+    let slave = global.writing_slave(device)?;
+    let mut core = global.connect(device, slave).await?;
+    core.write(register, &Validated(words.clone()))
+        .await
+        .map_err(|e| driver_error(e, Some(register.name)))?;
+    if slave == 0 {
+        let value = values::decode(register, &words);
+        if global.json {
+            print(&json!({ register.name: value.to_json(), "broadcast": true }).to_string());
+        } else {
+            print(&format!(
+                "{}  {value}: broadcast sent, no reply expected",
+                register.name
+            ));
+        }
+        return Ok(());
+    }
+    let mut afterwards = None;
+    if let Some(address) = new_address {
+        if device.needs_save_and_power_cycle {
+            let save = device
+                .commands
+                .iter()
+                .find(|c| c.effect == Effect::Save)
+                .map(|c| format!(" (`optobus do {} --yes`)", c.name))
+                .unwrap_or_default();
+            afterwards = Some(format!(
+                "optobus: the new address {address} applies after save{save} and a power \
+                 cycle; until then the device answers at slave {slave}"
+            ));
+        } else {
+            // The device answers at its new address from the next request on.
+            core.set_slave(address)?;
+            afterwards = Some(format!(
+                "optobus: the device now answers at slave {address}"
+            ));
+        }
+    }
+    if register.access.readable() {
+        let back = core
+            .read_words(register)
+            .await
+            .map_err(|e| driver_error(e, Some(register.name)))?;
+        let value = values::decode(register, &back);
+        if global.json {
+            print(&pretty(&json!({ register.name: value.to_json() })));
+        } else {
+            print(&format!("{}  {value}", register.name));
+        }
+    } else if !global.json {
+        print(&format!("{} written", register.name));
+    }
+    if let Some(afterwards) = afterwards {
+        note!("{afterwards}");
+    }
+    Ok(())
+}
+
+/// `set` of a register that a drastic command writes (save, reboot, resets) needs `--yes`,
+/// as `do` of the command does.
+fn confirm(
+    device: &DeviceInfo,
+    register: &'static RegisterInfo,
+    words: &[u16],
+    yes: bool,
+) -> Result<(), CliError> {
+    if yes {
+        return Ok(());
+    }
+    let drastic: Vec<&CommandInfo> = device
+        .commands
+        .iter()
+        .filter(|c| inputs::drastic(c))
+        .filter(|c| c.register == register.name || register.member_name() == Some(c.register))
+        .collect();
+    let raw = raw_bits(register, words);
+    match (drastic.iter().find(|c| c.value == raw), drastic.as_slice()) {
+        (_, []) => Ok(()),
+        (Some(command), _) => Err(CliError::new(format!(
+            "writing {raw} to `{}` runs `{}`: it {}; add --yes to go ahead",
+            register.name,
+            command.name,
+            inputs::effect_text(command)
+        ))
+        .hint(format!("or run it as `optobus do {} --yes`", command.name))),
+        (None, commands) => {
+            let names: Vec<String> = commands.iter().map(|c| format!("`{}`", c.name)).collect();
+            Err(CliError::new(format!(
+                "`{}` is the register of {}, which store, restart or reset the device; add --yes \
+                 to go ahead",
+                register.name,
+                names.join(" and ")
+            )))
+        }
+    }
+}
+
+/// For a write to the device's own slave-address register, the new address (1 to 247).
+fn new_slave_address(
+    device: &DeviceInfo,
+    register: &'static RegisterInfo,
+    words: &[u16],
+) -> Result<Option<u8>, CliError> {
+    match device.slave_address_register() {
+        Some(own) if own.name == register.name => {}
+        _ => return Ok(None),
+    }
+    let raw = raw_bits(register, words);
+    let (first, last) = inputs::SLAVES;
+    match u8::try_from(raw)
+        .ok()
+        .filter(|a| (first..=last).contains(a))
+    {
+        Some(address) => Ok(Some(address)),
+        None => Err(CliError::new(format!(
+            "`{}` does not take {raw}: a device's address is {first} to {last}",
+            register.name
+        ))
+        .hint("0 is the broadcast address; Modbus reserves 248 to 255")),
+    }
+}

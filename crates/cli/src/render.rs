@@ -1,0 +1,43 @@
+//! Output on stdout: text that ignores a closed pipe, pretty JSON, and register values as
+//! aligned lines or a JSON object.
+
+use std::io::Write;
+
+use optobus_device::RegisterInfo;
+use serde_json::{Map, Value as Json};
+
+use crate::values::Value;
+
+/// Prints `text` on stdout with a final newline, ignoring a closed stdout.
+pub(crate) fn print(text: &str) {
+    let mut out = std::io::stdout().lock();
+    // A closed pipe (`| head`) is not an error worth a message.
+    let _ = out.write_all(text.as_bytes());
+    if !text.ends_with('\n') {
+        let _ = out.write_all(b"\n");
+    }
+    let _ = out.flush();
+}
+
+pub(crate) fn pretty(json: &Json) -> String {
+    serde_json::to_string_pretty(json).unwrap_or_default()
+}
+
+/// `name  value` lines, the values aligned.
+pub(crate) fn values_text(values: &[(&'static RegisterInfo, Value)]) -> String {
+    let width = values.iter().map(|(r, _)| r.name.len()).max().unwrap_or(0);
+    values
+        .iter()
+        .map(|(r, v)| format!("{:<width$}  {v}\n", r.name))
+        .collect()
+}
+
+/// `{"name": value, …}`.
+pub(crate) fn values_json(values: &[(&'static RegisterInfo, Value)]) -> Json {
+    Json::Object(
+        values
+            .iter()
+            .map(|(r, v)| (r.name.to_owned(), v.to_json()))
+            .collect::<Map<_, _>>(),
+    )
+}
