@@ -36,7 +36,12 @@ pub(crate) fn find(name: &str) -> Result<&'static DeviceInfo, CliError> {
         })
 }
 
-/// The models' names as users type them (`p-series`).
+/// The model's name as users type it (`p-series`).
+pub(crate) fn name(device: &DeviceInfo) -> String {
+    device.family.replace('_', "-")
+}
+
+/// The models' names as users type them.
 pub(crate) fn names() -> Vec<String> {
-    MODELS.iter().map(|d| d.family.replace('_', "-")).collect()
+    MODELS.iter().map(|d| name(d)).collect()
 }

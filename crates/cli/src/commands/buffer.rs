@@ -11,7 +11,7 @@ use crate::connect::Global;
 use crate::error::{driver_error, CliError};
 use crate::log::{self, note};
 use crate::render::print;
-use crate::{inputs, link, values};
+use crate::{inputs, link, models, values};
 
 #[derive(Debug, Args)]
 pub(crate) struct BufferArgs {
@@ -32,12 +32,13 @@ pub(crate) struct BufferArgs {
 /// Buffers `--count` values of `--source`, downloads them and writes CSV (or JSON).
 pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliError> {
     let device = global.device()?;
-    if device.family != "p_series" {
+    // The download is the P-series driver's own procedure: only its model has it.
+    if !std::ptr::eq(device, &DEVICE) {
         return Err(CliError::new(format!(
             "`buffer` is the P series' buffered download; {} has no data buffer",
             device.family
         ))
-        .hint("use --model p-series"));
+        .hint(format!("use --model {}", models::name(&DEVICE))));
     }
     let (count, wait) = (args.count, args.wait);
     let source = input(count, &args.source)?;

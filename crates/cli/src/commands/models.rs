@@ -7,7 +7,7 @@ use serde_json::{json, Value as Json};
 
 use crate::connect::Global;
 use crate::error::CliError;
-use crate::models::MODELS;
+use crate::models::{self, MODELS};
 use crate::render::{pretty, print};
 
 pub(crate) fn run(global: &Global) -> Result<(), CliError> {
@@ -47,7 +47,7 @@ fn json() -> String {
 fn text() -> String {
     let mut out = String::new();
     for d in MODELS {
-        out.push_str(&format!("{}  {}\n", d.family.replace('_', "-"), d.title));
+        out.push_str(&format!("{}  {}\n", models::name(d), d.title));
         if let Some(rtu) = d.rtu {
             let bauds: Vec<String> = rtu.bauds.iter().map(u32::to_string).collect();
             out.push_str(&format!(
