@@ -15,8 +15,8 @@ use crate::{inputs, models};
 /// Options every command takes.
 #[derive(Debug, Args)]
 pub(crate) struct Global {
-    /// Sensor family: p-series, rangefinder, ccs, lc-rs, ccf (see `optobus models`).
-    #[arg(long, short, global = true, default_value = "p-series")]
+    /// Sensor family (help and default from the models, at startup).
+    #[arg(long, short, global = true)]
     pub(crate) model: String,
     /// Serial port of the device (e.g. /dev/ttyUSB0); default settings from the manual.
     #[arg(long, global = true, conflicts_with = "tcp")]

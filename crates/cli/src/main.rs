@@ -17,7 +17,7 @@ mod values;
 
 use std::process::ExitCode;
 
-use clap::Parser;
+use clap::{Arg, CommandFactory, FromArgMatches, Parser};
 
 use crate::commands::Command;
 use crate::connect::Global;
@@ -34,8 +34,31 @@ struct Cli {
     command: Command,
 }
 
+/// Every argument that takes a model lists the models the tool has in its help, and
+/// `--model` defaults to the first of them.
+fn with_models(command: clap::Command) -> clap::Command {
+    let names = models::names();
+    let list = names.join(", ");
+    let takes_model = |arg: &Arg| {
+        arg.get_id() == "model" || arg.get_value_names().is_some_and(|v| v == ["MODEL"])
+    };
+    command
+        .mut_args(|arg| match arg {
+            arg if !takes_model(&arg) => arg,
+            arg if arg.is_global_set() => arg
+                .help(format!("Sensor family: {list} (see `optobus models`)"))
+                .default_value(names.first().cloned().unwrap_or_default())
+                .required(false),
+            arg if arg.is_required_set() => arg.help(format!("Sensor family: {list}")),
+            arg => arg.help(format!("Sensor family: {list} (default: --model)")),
+        })
+        .mut_subcommands(with_models)
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let mut command = with_models(Cli::command());
+    let cli = Cli::from_arg_matches(&command.get_matches_mut())
+        .unwrap_or_else(|error| error.format(&mut command).exit());
     let runtime = match tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
