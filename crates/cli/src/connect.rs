@@ -38,7 +38,7 @@ pub(crate) struct Global {
     #[arg(long, global = true, value_parser = inputs::parse_slave, allow_hyphen_values = true)]
     pub(crate) slave: Option<u8>,
     /// Reply timeout, e.g. 500ms or 2s (1 ms to 24 h).
-    #[arg(long, global = true, default_value = "1s", value_parser = inputs::parse_timeout, allow_hyphen_values = true)]
+    #[arg(long, global = true, default_value = "1s", value_parser = inputs::TIMEOUT.parser(), allow_hyphen_values = true)]
     pub(crate) timeout: Duration,
     /// Print data as JSON.
     #[arg(long, global = true)]
@@ -58,7 +58,7 @@ impl Global {
         Target {
             serial: self.serial.clone(),
             baud: self.baud,
-            parity: self.parity.map(|p| p.name().to_owned()),
+            parity: self.parity.map(inputs::ParityArg::parity),
             tcp: self.tcp.clone(),
             timeout: self.timeout,
             verbose: self.verbose,

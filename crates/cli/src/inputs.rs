@@ -5,6 +5,7 @@ use std::time::Duration;
 
 use clap::ValueEnum;
 use optobus_device::{CommandInfo, DeviceInfo, Effect};
+use optobus_driver::transport::Parity;
 
 use crate::error::CliError;
 
@@ -24,58 +25,37 @@ pub(crate) struct DurationBound {
 }
 
 const DAY: Duration = Duration::from_secs(24 * 3600);
+const MS: Duration = Duration::from_millis(1);
+
+impl DurationBound {
+    /// `option` takes at least `min` and at most a day.
+    const fn up_to_a_day(option: &'static str, min: Duration) -> Self {
+        Self {
+            option,
+            min,
+            max: DAY,
+        }
+    }
+
+    /// The option's value parser.
+    pub(crate) fn parser(
+        self,
+    ) -> impl Fn(&str) -> Result<Duration, CliError> + Clone + Send + Sync + 'static {
+        move |text| parse_duration(text, self)
+    }
+}
 
 /// `--timeout`: a reply takes at least a millisecond; a day is no timeout any more.
-pub(crate) const TIMEOUT: DurationBound = DurationBound {
-    option: "--timeout",
-    min: Duration::from_millis(1),
-    max: DAY,
-};
+pub(crate) const TIMEOUT: DurationBound = DurationBound::up_to_a_day("--timeout", MS);
 /// `watch --interval`.
-pub(crate) const INTERVAL: DurationBound = DurationBound {
-    option: "--interval",
-    min: Duration::from_millis(1),
-    max: DAY,
-};
+pub(crate) const INTERVAL: DurationBound = DurationBound::up_to_a_day("--interval", MS);
 /// `buffer --wait`.
-pub(crate) const WAIT: DurationBound = DurationBound {
-    option: "--wait",
-    min: Duration::ZERO,
-    max: DAY,
-};
+pub(crate) const WAIT: DurationBound = DurationBound::up_to_a_day("--wait", Duration::ZERO);
 /// `simulate --duration`.
-pub(crate) const RUN_FOR: DurationBound = DurationBound {
-    option: "--duration",
-    min: Duration::ZERO,
-    max: DAY,
-};
-
+pub(crate) const RUN_FOR: DurationBound = DurationBound::up_to_a_day("--duration", Duration::ZERO);
 /// `simulate --turnaround`: the emulated device's reaction time; zero answers at once.
-pub(crate) const TURNAROUND: DurationBound = DurationBound {
-    option: "--turnaround",
-    min: Duration::ZERO,
-    max: DAY,
-};
-
-pub(crate) fn parse_timeout(text: &str) -> Result<Duration, CliError> {
-    parse_duration(text, TIMEOUT)
-}
-
-pub(crate) fn parse_interval(text: &str) -> Result<Duration, CliError> {
-    parse_duration(text, INTERVAL)
-}
-
-pub(crate) fn parse_wait(text: &str) -> Result<Duration, CliError> {
-    parse_duration(text, WAIT)
-}
-
-pub(crate) fn parse_run_for(text: &str) -> Result<Duration, CliError> {
-    parse_duration(text, RUN_FOR)
-}
-
-pub(crate) fn parse_turnaround(text: &str) -> Result<Duration, CliError> {
-    parse_duration(text, TURNAROUND)
-}
+pub(crate) const TURNAROUND: DurationBound =
+    DurationBound::up_to_a_day("--turnaround", Duration::ZERO);
 
 /// `1 h`, `1.5 s` for messages.
 fn show(duration: Duration) -> String {
@@ -162,21 +142,15 @@ pub(crate) fn parse_duration(text: &str, bound: DurationBound) -> Result<Duratio
 /// `--slave`: 0 (broadcast, writes only) to 247; Modbus reserves 248 to 255.
 pub(crate) fn parse_slave(text: &str) -> Result<u8, CliError> {
     let text = text.trim();
-    let number: u32 = text.parse().map_err(|_| {
-        CliError::new(format!("`{text}` is not a slave address"))
-            .hint("use 1 to 247, or 0 to broadcast a write")
-    })?;
-    match number {
-        0..=247 => Ok(u8::try_from(number).unwrap_or(0)),
-        248..=255 => Err(CliError::new(format!(
-            "slave address {number} is reserved: Modbus reserves 248 to 255"
-        ))
-        .hint("use 1 to 247, or 0 to broadcast a write")),
-        _ => Err(CliError::new(format!(
-            "slave address {number} does not exist: addresses are 0 to 247"
-        ))
-        .hint("use 1 to 247, or 0 to broadcast a write")),
-    }
+    let why = match text.parse::<u32>() {
+        Ok(number @ 0..=247) => return Ok(u8::try_from(number).unwrap_or(0)),
+        Ok(number @ 248..=255) => {
+            format!("slave address {number} is reserved: Modbus reserves 248 to 255")
+        }
+        Ok(number) => format!("slave address {number} does not exist: addresses are 0 to 247"),
+        Err(_) => format!("`{text}` is not a slave address"),
+    };
+    Err(CliError::new(why).hint("use 1 to 247, or 0 to broadcast a write"))
 }
 
 /// `--parity`.
@@ -194,12 +168,11 @@ pub(crate) enum ParityArg {
 }
 
 impl ParityArg {
-    /// `none`, `odd` or `even`, as the specs and `Target::parity` name it.
-    pub(crate) const fn name(self) -> &'static str {
+    pub(crate) const fn parity(self) -> Parity {
         match self {
-            Self::None => "none",
-            Self::Odd => "odd",
-            Self::Even => "even",
+            Self::None => Parity::None,
+            Self::Odd => Parity::Odd,
+            Self::Even => Parity::Even,
         }
     }
 }

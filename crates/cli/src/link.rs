@@ -117,6 +117,17 @@ impl optobus_driver::transport::Connect for TapConnect {
     }
 }
 
+/// `$call` on the client of whichever link `$link` is.
+macro_rules! each_client {
+    ($link:expr, $client:ident => $call:expr) => {
+        match $link {
+            Link::Serial($client) => $call.await,
+            Link::Simulator($client) => $call.await,
+            Link::Tcp($client) => $call.await,
+        }
+    };
+}
+
 impl Transport for Link {
     async fn read(
         &mut self,
@@ -125,11 +136,7 @@ impl Transport for Link {
         address: u16,
         count: u16,
     ) -> Result<Vec<u16>, WireError> {
-        match self {
-            Self::Serial(client) => client.read(slave, function, address, count).await,
-            Self::Simulator(client) => client.read(slave, function, address, count).await,
-            Self::Tcp(client) => client.read(slave, function, address, count).await,
-        }
+        each_client!(self, c => c.read(slave, function, address, count))
     }
 
     async fn read_once(
@@ -139,19 +146,11 @@ impl Transport for Link {
         address: u16,
         count: u16,
     ) -> Result<Vec<u16>, WireError> {
-        match self {
-            Self::Serial(client) => client.read_once(slave, function, address, count).await,
-            Self::Simulator(client) => client.read_once(slave, function, address, count).await,
-            Self::Tcp(client) => client.read_once(slave, function, address, count).await,
-        }
+        each_client!(self, c => c.read_once(slave, function, address, count))
     }
 
     async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), WireError> {
-        match self {
-            Self::Serial(client) => client.write(slave, address, value).await,
-            Self::Simulator(client) => client.write(slave, address, value).await,
-            Self::Tcp(client) => client.write(slave, address, value).await,
-        }
+        each_client!(self, c => c.write(slave, address, value))
     }
 }
 
@@ -160,7 +159,7 @@ impl Transport for Link {
 pub(crate) struct Target {
     pub(crate) serial: Option<String>,
     pub(crate) baud: Option<u32>,
-    pub(crate) parity: Option<String>,
+    pub(crate) parity: Option<Parity>,
     pub(crate) tcp: Option<String>,
     pub(crate) timeout: Duration,
     pub(crate) verbose: bool,
@@ -202,10 +201,8 @@ pub(crate) async fn open(
         if let Some(baud) = target.baud {
             settings.line.baud = baud;
         }
-        if let Some(parity) = &target.parity {
-            settings.line.parity = Parity::from_name(parity).ok_or_else(|| {
-                CliError::new(format!("unknown parity `{parity}`")).hint("use none, odd or even")
-            })?;
+        if let Some(parity) = target.parity {
+            settings.line.parity = parity;
         }
         config.line = Some(settings.line);
         let port = settings.open().map_err(|e| {

@@ -328,16 +328,7 @@ fn code_list(codes: &[CodeInfo]) -> String {
 /// The allowed range of a register in its units, for error messages.
 pub(crate) fn range_text(register: &RegisterInfo) -> Option<String> {
     let (min, max) = register.range?;
-    let show = |raw: i64| match (register.scale, register.unit) {
-        (None, None) => raw.to_string(),
-        (scale, unit) => {
-            let value = Fixed::new(raw, scale.unwrap_or(Scale::ONE));
-            match unit {
-                Some(unit) => format!("{value} {unit}"),
-                None => value.to_string(),
-            }
-        }
-    };
+    let show = |raw: i64| number(raw, register.scale, register.unit);
     Some(format!("{} ..= {}", show(min), show(max)))
 }
 

@@ -22,7 +22,7 @@ pub(crate) struct BufferArgs {
     #[arg(long, default_value = "distance_1")]
     source: String,
     /// How long to let the sensor buffer before reading out (at most 24 h).
-    #[arg(long, default_value = "1s", value_parser = inputs::parse_wait, allow_hyphen_values = true)]
+    #[arg(long, default_value = "1s", value_parser = inputs::WAIT.parser(), allow_hyphen_values = true)]
     wait: Duration,
     /// Write `index,value_mm` CSV here instead of stdout.
     #[arg(long)]
@@ -91,10 +91,8 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
     }
     let mut csv = String::from("index,value_mm\n");
     for (index, value) in values.iter().enumerate() {
-        match value {
-            Some(value) => csv.push_str(&format!("{index},{}\n", value.millimetres())),
-            None => csv.push_str(&format!("{index},\n")),
-        }
+        let value = value.as_ref().map(|v| v.millimetres().to_string());
+        csv.push_str(&format!("{index},{}\n", value.unwrap_or_default()));
     }
     match &args.out {
         Some(path) => {

@@ -52,27 +52,28 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
         }
         return Ok(());
     }
-    let mut afterwards = None;
-    if let Some(address) = new_address {
-        if device.needs_save_and_power_cycle {
+    let afterwards = match new_address {
+        Some(address) if device.needs_save_and_power_cycle => {
             let save = device
                 .commands
                 .iter()
                 .find(|c| c.effect == Effect::Save)
                 .map(|c| format!(" (`optobus do {} --yes`)", c.name))
                 .unwrap_or_default();
-            afterwards = Some(format!(
+            Some(format!(
                 "optobus: the new address {address} applies after save{save} and a power \
                  cycle; until then the device answers at slave {slave}"
-            ));
-        } else {
+            ))
+        }
+        Some(address) => {
             // The device answers at its new address from the next request on.
             core.set_slave(address)?;
-            afterwards = Some(format!(
+            Some(format!(
                 "optobus: the device now answers at slave {address}"
-            ));
+            ))
         }
-    }
+        None => None,
+    };
     if register.access.readable() {
         let back = core
             .read_words(register)

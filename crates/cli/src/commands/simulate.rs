@@ -6,7 +6,6 @@ use std::time::Duration;
 use clap::Args;
 use optobus_codec::{LineFormat, ReadFunction, Request, WriteValue};
 use optobus_device::DeviceInfo;
-use optobus_driver::transport::Parity;
 use optobus_driver::{line_format, serial_settings};
 use optobus_simulator::{
     Exchange, FaultKind, FaultStats, Faults, FaultsError, Line, Reply, Simulator,
@@ -60,7 +59,7 @@ pub(crate) struct SimulateArgs {
     #[arg(long)]
     pty: bool,
     /// Stop after this long, at most 24 h (default: until Ctrl-C).
-    #[arg(long, value_parser = inputs::parse_run_for, allow_hyphen_values = true)]
+    #[arg(long, value_parser = inputs::RUN_FOR.parser(), allow_hyphen_values = true)]
     duration: Option<Duration>,
     /// Inject seeded faults into the replies, e.g. `delay=0.1,corrupt=0.05` (kinds: corrupt,
     /// truncate, garbage, wrong_slave, split, drop, delay, disconnect; also late=, pause=,
@@ -75,7 +74,7 @@ pub(crate) struct SimulateArgs {
     #[arg(long)]
     line_timing: bool,
     /// With --line-timing, the device's reaction time after a request's t3.5 (at most 24 h).
-    #[arg(long, requires = "line_timing", default_value = "0", value_parser = inputs::parse_turnaround, allow_hyphen_values = true)]
+    #[arg(long, requires = "line_timing", default_value = "0", value_parser = inputs::TURNAROUND.parser(), allow_hyphen_values = true)]
     turnaround: Duration,
 }
 
@@ -109,22 +108,21 @@ fn serial_format(device: &DeviceInfo, global: &Global) -> LineFormat {
     if let Some(baud) = global.baud {
         format.baud = baud;
     }
-    if let Some(parity) = global.parity.and_then(|p| Parity::from_name(p.name())) {
-        format.parity = parity;
+    if let Some(parity) = global.parity {
+        format.parity = parity.parity();
     }
     format
 }
 
 /// `9600 baud 8E1`.
 fn format_text(format: LineFormat) -> String {
-    let parity = match format.parity {
-        Parity::None => 'N',
-        Parity::Odd => 'O',
-        Parity::Even => 'E',
-    };
+    let parity = format.parity.name().chars().next().unwrap_or('n');
     format!(
-        "{} baud {}{parity}{}",
-        format.baud, format.data_bits, format.stop_bits
+        "{} baud {}{}{}",
+        format.baud,
+        format.data_bits,
+        parity.to_ascii_uppercase(),
+        format.stop_bits
     )
 }
 
@@ -193,86 +191,60 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
         sim = sim.faults(faults.clone());
     }
     let line_stats = line.as_ref().map(Line::stats);
-    let serving = Serving {
-        device,
-        global,
-        pty: args.pty,
-        slave,
-        line,
-        extras: &extras,
-    };
-    let served = match serve(serving, &sim, &log).await {
-        Ok(server) => {
-            let _ = std::io::Write::flush(&mut std::io::stdout());
-            match args.duration {
-                Some(duration) => tokio::select! {
-                    () = tokio::time::sleep(duration) => {}
-                    _ = tokio::signal::ctrl_c() => {}
-                },
-                None => {
-                    let _ = tokio::signal::ctrl_c().await;
-                }
+    let served = async {
+        let (server, place) = serve(device, global, args.pty, line, &sim).await?;
+        log.line(format!(
+            "optobus: simulating {} (slave {slave}) on {place}{extras}",
+            device.family
+        ));
+        let _ = std::io::Write::flush(&mut std::io::stdout());
+        match args.duration {
+            Some(duration) => tokio::select! {
+                () = tokio::time::sleep(duration) => {}
+                _ = tokio::signal::ctrl_c() => {}
+            },
+            None => {
+                let _ = tokio::signal::ctrl_c().await;
             }
-            drop(server);
-            if let (Some(faults), Some(stats)) = (&faults, sim.fault_stats()) {
-                log.line(fault_summary(faults, &stats));
-            }
-            if let Some(stats) = line_stats {
-                log.line(format!(
-                    "optobus: line: {} requests, {} replies, {} requests sent within t3.5 of a reply",
-                    stats.frames(),
-                    stats.replies(),
-                    stats.gap_violations()
-                ));
-            }
-            Ok(())
         }
-        Err(error) => Err(error),
-    };
+        drop(server);
+        if let (Some(faults), Some(stats)) = (&faults, sim.fault_stats()) {
+            log.line(fault_summary(faults, &stats));
+        }
+        if let Some(stats) = line_stats {
+            log.line(format!(
+                "optobus: line: {} requests, {} replies, {} requests sent within t3.5 of a reply",
+                stats.frames(),
+                stats.replies(),
+                stats.gap_violations()
+            ));
+        }
+        Ok(())
+    }
+    .await;
     // The summary and whether lines were dropped, if stderr takes them.
     log.finish(Duration::from_millis(200));
     served
 }
 
-/// Where and how [`serve`] serves.
-struct Serving<'a> {
-    device: &'static DeviceInfo,
-    global: &'a Global,
-    pty: bool,
-    slave: u8,
-    /// `--line-timing` (RTU only).
-    line: Option<Line>,
-    /// Said after the place in the startup line: faults and line timing in force.
-    extras: &'a str,
-}
-
-/// Starts serving `sim` as `serving` says; gives what must be kept alive.
+/// Starts serving `sim`: on a new pty, on `--serial` or on `--tcp`, RTU timed as `line` says;
+/// prints where on stdout and gives what must be kept alive, and where it serves for the log.
 async fn serve(
-    serving: Serving<'_>,
+    device: &'static DeviceInfo,
+    global: &Global,
+    pty: bool,
+    line: Option<Line>,
     sim: &Simulator,
-    log: &Log,
-) -> Result<Box<dyn std::any::Any>, CliError> {
-    let Serving {
-        device,
-        global,
-        pty,
-        slave,
-        line,
-        extras,
-    } = serving;
+) -> Result<(Box<dyn std::any::Any>, String), CliError> {
     Ok(if pty {
         let pty = match line {
             Some(line) => sim.serve_pty_line(line),
             None => sim.serve_pty(),
         }
         .map_err(|e| CliError::new(format!("cannot open a pty: {e}")))?;
-        print(&pty.path().display().to_string());
-        log.line(format!(
-            "optobus: simulating {} (slave {slave}) on RTU at {}{extras}",
-            device.family,
-            pty.path().display()
-        ));
-        Box::new(pty)
+        let path = pty.path().display().to_string();
+        print(&path);
+        (Box::new(pty), format!("RTU at {path}"))
     } else if let Some(path) = &global.serial {
         let mut settings = serial_settings(device, path.as_str());
         settings.line = serial_format(device, global);
@@ -280,17 +252,14 @@ async fn serve(
             .open()
             .map_err(|e| CliError::new(format!("cannot open {path}: {e}")))?;
         print(path);
-        log.line(format!(
-            "optobus: simulating {} (slave {slave}) on RTU at {path}{extras}",
-            device.family
-        ));
         let sim = sim.clone();
-        Box::new(tokio::spawn(async move {
+        let task = tokio::spawn(async move {
             match line {
                 Some(line) => sim.serve_line(port, &line).await,
                 None => sim.serve_rtu(port).await,
             }
-        }))
+        });
+        (Box::new(task), format!("RTU at {path}"))
     } else {
         let address = global.tcp.as_deref().unwrap_or("127.0.0.1:5020");
         let address = link::resolve_tcp(address, 5020).await?;
@@ -298,12 +267,8 @@ async fn serve(
             CliError::new(format!("cannot listen on {address}: {e}"))
                 .hint("is another server using the port? try --tcp 127.0.0.1:0")
         })?;
-        print(&server.local_addr().to_string());
-        log.line(format!(
-            "optobus: simulating {} (slave {slave}) on Modbus TCP at {}{extras}",
-            device.family,
-            server.local_addr()
-        ));
-        Box::new(server)
+        let address = server.local_addr();
+        print(&address.to_string());
+        (Box::new(server), format!("Modbus TCP at {address}"))
     })
 }

@@ -17,7 +17,7 @@ pub(crate) struct WatchArgs {
     #[arg(required = true)]
     names: Vec<String>,
     /// Time between refreshes (1 ms to 24 h).
-    #[arg(long, default_value = "200ms", value_parser = inputs::parse_interval, allow_hyphen_values = true)]
+    #[arg(long, default_value = "200ms", value_parser = inputs::INTERVAL.parser(), allow_hyphen_values = true)]
     interval: Duration,
     /// Copy of a per-channel register.
     #[arg(long)]
