@@ -100,7 +100,7 @@ fn models_text(json: bool) -> String {
                 json!({
                     "model": d.family,
                     "title": d.title,
-                    "rtu": d.rtu.map(|r| json!({"default_baud": r.default_baud, "bauds": r.bauds, "parity": r.parity, "data_bits": r.data_bits, "stop_bits": r.stop_bits})),
+                    "rtu": d.rtu.map(|r| json!({"default_baud": r.default_baud, "bauds": r.bauds, "parity": r.parity.name(), "data_bits": r.data_bits, "stop_bits": r.stop_bits})),
                     "tcp": d.tcp.map(|t| json!({"port": t.port, "default_ip": t.default_ip.map(|ip| std::net::Ipv4Addr::from(ip).to_string())})),
                     "default_slave": d.default_slave,
                     "registers": d.registers.len(),
@@ -120,6 +120,7 @@ fn models_text(json: bool) -> String {
                 rtu.default_baud,
                 rtu.data_bits,
                 rtu.parity
+                    .name()
                     .chars()
                     .next()
                     .unwrap_or('n')
@@ -549,7 +550,7 @@ fn single(
             registers.len()
         ))
         .hint(match first.copy {
-            Some((repeat, _)) => format!("choose one with --{repeat} N… try --channel N"),
+            Some(copy) => format!("choose one with --{} N… try --channel N", copy.repeat),
             None => "name one register".into(),
         })),
         [] => Err(CliError::new(format!("`{name}` names no register"))),
