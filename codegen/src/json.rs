@@ -6,7 +6,7 @@
 
 use serde_json::{json, Map, Value};
 
-use crate::model::{Addressing, Apply, ExceptionStyle, Kind, LongWrites, Model, Parity, Register};
+use crate::model::{Addressing, Apply, ExceptionStyle, Kind, LongWrites, Model, Register};
 
 /// The wire type: `u16`, `i16`, `u32`, `i32`, or `ipv4` / `version` / `record` for values
 /// spread over several words.
@@ -58,11 +58,6 @@ fn register_json(model: &Model, register: &Register) -> Value {
 /// The checked model as JSON.
 pub fn dump(model: &Model) -> Value {
     let device = &model.device;
-    let parity = |p: Parity| match p {
-        Parity::None => "none",
-        Parity::Odd => "odd",
-        Parity::Even => "even",
-    };
     json!({
         "family": model.family,
         "title": model.title,
@@ -72,7 +67,7 @@ pub fn dump(model: &Model) -> Value {
             "rtu": device.rtu.as_ref().map(|rtu| json!({
                 "default_baud": rtu.default_baud,
                 "bauds": rtu.bauds,
-                "parity": parity(rtu.parity),
+                "parity": rtu.parity.name(),
                 "data_bits": rtu.data_bits,
                 "stop_bits": rtu.stop_bits,
             })),

@@ -6,22 +6,11 @@
 use std::net::Ipv4Addr;
 
 use optobus_codec::value::{Scale, WordOrder, WriteOrder};
+pub use optobus_codec::Parity;
 
 use crate::source::Path;
-pub use optobus_device::{Access, Addressing, Effect, LongWrites, Table};
+pub use optobus_device::{Access, Addressing, Effect, LongWrites, Scalar, Table};
 use serde::Deserialize;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-/// Serial parity.
-pub enum Parity {
-    /// No parity bit.
-    None,
-    /// Odd parity.
-    Odd,
-    /// Even parity.
-    Even,
-}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -50,58 +39,6 @@ pub struct Address(pub u32);
 /// How many 16-bit words a read of a register transfers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct WordCount(pub u32);
-
-/// A scalar wire type.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Scalar {
-    /// Unsigned 16-bit.
-    U16,
-    /// Signed 16-bit.
-    I16,
-    /// Unsigned 32-bit, two words.
-    U32,
-    /// Signed 32-bit, two words.
-    I32,
-}
-
-impl Scalar {
-    /// Words on the wire.
-    pub fn words(self) -> u32 {
-        match self {
-            Self::U16 | Self::I16 => 1,
-            Self::U32 | Self::I32 => 2,
-        }
-    }
-
-    /// The smallest and largest value.
-    pub fn bounds(self) -> (i64, i64) {
-        match self {
-            Self::U16 => (0, u16::MAX.into()),
-            Self::I16 => (i16::MIN.into(), i16::MAX.into()),
-            Self::U32 => (0, u32::MAX.into()),
-            Self::I32 => (i32::MIN.into(), i32::MAX.into()),
-        }
-    }
-
-    /// `u16`, `i16`, `u32` or `i32`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::U16 => "u16",
-            Self::I16 => "i16",
-            Self::U32 => "u32",
-            Self::I32 => "i32",
-        }
-    }
-
-    /// The unsigned scalar of `words` words.
-    pub fn unsigned(words: u32) -> Self {
-        if words >= 2 {
-            Self::U32
-        } else {
-            Self::U16
-        }
-    }
-}
 
 /// An enum: shared, or declared inline by one register or field.
 #[derive(Clone, Debug)]

@@ -72,6 +72,7 @@ pub(crate) struct Transports {
 pub(crate) struct RtuDecl {
     pub(crate) default_baud: u32,
     pub(crate) bauds: Vec<u32>,
+    #[serde(deserialize_with = "parity")]
     pub(crate) parity: Parity,
     pub(crate) data_bits: u8,
     pub(crate) stop_bits: u8,
@@ -265,4 +266,13 @@ pub(crate) struct RepeatDecl {
 pub(crate) struct Stride {
     pub(crate) holding: Option<u32>,
     pub(crate) input: Option<u32>,
+}
+
+/// `none`, `odd` or `even`, exactly as the spec schema spells them.
+fn parity<'de, D: serde::Deserializer<'de>>(deserializer: D) -> Result<Parity, D::Error> {
+    const NAMES: &[&str] = &["none", "odd", "even"];
+    let name = String::deserialize(deserializer)?;
+    Parity::from_name(&name)
+        .filter(|parity| parity.name() == name)
+        .ok_or_else(|| serde::de::Error::unknown_variant(&name, NAMES))
 }

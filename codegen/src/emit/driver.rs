@@ -1,50 +1,43 @@
 //! The typed driver of a family: `PSeries<T>` with one async getter per readable register,
-//! one `set_…` per writable one, a method per command and per group, and the `Decode` /
-//! `Encode` impls that connect the generated value types to `optobus-driver`.
+//! one `set_…` per writable one, a method per command and per group, and the structs group
+//! reads return.
 //!
-//! Every method is a thin, documented wrapper naming its register's entry in `DEVICE` and the
-//! Rust type of its value; reading, validating and writing happen once, in `optobus-driver`.
+//! Every method is a thin, documented wrapper naming its register (`registers::DISTANCE_1`)
+//! and the Rust type of its value; reading, validating, planning group reads and writing
+//! happen once, in `optobus-driver`.
 
 use std::collections::HashSet;
 
-use proc_macro2::{Ident, Literal, Span, TokenStream};
+use proc_macro2::{Ident, Literal, TokenStream};
 use quote::{format_ident, quote};
 
-use super::{camel, doc_text, TypeNames};
-use crate::model::{Kind, Model, Register, Scalar, Table};
+use super::device::{address_text, command_path, copies_path, group_path, register_path};
+use super::names::{Imports, TypeNames};
+use super::{camel, doc_alias, doc_text, ident, type_ident};
+use crate::model::{Kind, Model, Register, Scalar};
 
 /// The driver runtime's unit type for a spec unit; other units read as plain `Fixed`.
 fn unit_type(unit: &str) -> Option<&'static str> {
     Some(match unit {
-        "mm" => "Millimetres",
-        "us" => "Microseconds",
-        "%" => "Percent",
-        "degC" => "DegreesCelsius",
-        "uV" => "Microvolts",
-        "Hz" => "Hertz",
+        "mm" => "optobus_driver::units::Millimetres",
+        "us" => "optobus_driver::units::Microseconds",
+        "%" => "optobus_driver::units::Percent",
+        "degC" => "optobus_driver::units::DegreesCelsius",
+        "uV" => "optobus_driver::units::Microvolts",
+        "Hz" => "optobus_driver::units::Hertz",
         _ => return None,
     })
 }
 
-/// An identifier for a spec name, raw if it is a Rust keyword.
-fn ident(name: &str) -> Ident {
-    if syn::parse_str::<Ident>(name).is_ok() {
-        Ident::new(name, Span::call_site())
-    } else {
-        Ident::new_raw(name, Span::call_site())
-    }
-}
-
 /// The Rust type a register's value has (before a sentinel makes it optional).
-fn value_type(register: &Register, names: &TypeNames) -> TokenStream {
+fn value_type(register: &Register, names: &TypeNames, imports: &Imports) -> TokenStream {
     match &register.kind {
         Kind::Bool => quote!(bool),
         Kind::Scalar(scalar) => {
             if let Some(unit) = register.unit.as_deref().and_then(unit_type) {
-                let unit = format_ident!("{unit}");
-                quote!(::optobus_driver::units::#unit)
+                imports.get(unit)
             } else if register.scale.is_some() {
-                quote!(::optobus_driver::Fixed)
+                imports.get("optobus_driver::Fixed")
             } else {
                 match scalar {
                     Scalar::U16 => quote!(u16),
@@ -65,15 +58,16 @@ fn value_type(register: &Register, names: &TypeNames) -> TokenStream {
             let ty = names.struct_name(register);
             quote!(#ty)
         }
-        Kind::Ipv4 => quote!(::std::net::Ipv4Addr),
+        Kind::Ipv4 => imports.get("std::net::Ipv4Addr"),
     }
 }
 
 /// The type a read gives: optional when the register has an "invalid" sentinel.
-fn read_type(register: &Register, names: &TypeNames) -> TokenStream {
-    let ty = value_type(register, names);
+fn read_type(register: &Register, names: &TypeNames, imports: &Imports) -> TokenStream {
+    let ty = value_type(register, names, imports);
     if register.sentinel.is_some() {
-        quote!(::core::option::Option<#ty>)
+        let option = imports.prelude("core::option::Option");
+        quote!(#option<#ty>)
     } else {
         ty
     }
@@ -82,21 +76,6 @@ fn read_type(register: &Register, names: &TypeNames) -> TokenStream {
 /// Version and record values are read-only views; every other kind can be written.
 fn encodable(register: &Register) -> bool {
     !matches!(register.kind, Kind::Version(_) | Kind::Record(_))
-}
-
-/// `0012` or `0012–0013`, as the manuals print addresses.
-fn address_text(model: &Model, register: &Register) -> String {
-    let first = register.address.0;
-    let last = first + model.extent(register).saturating_sub(1);
-    let table = match register.table {
-        Table::Holding => "holding",
-        Table::Input => "input",
-    };
-    if last == first {
-        format!("{table} {first:04}")
-    } else {
-        format!("{table} {first:04}–{last:04}")
-    }
 }
 
 /// The register-manual table every accessor's documentation ends with.
@@ -163,19 +142,13 @@ fn register_doc(model: &Model, register: &Register, copies: Option<&[&Register]>
     lines
 }
 
-/// A register's entry in `DEVICE.registers`.
-fn entry(index: usize) -> TokenStream {
-    let index = Literal::usize_unsuffixed(index);
-    quote!(&DEVICE.registers[#index])
-}
-
-/// How an accessor reaches its register: a fixed entry, or one of a repeat block's copies.
+/// How an accessor reaches its register: a named constant, or one copy of a repeat member.
 enum Target<'m> {
-    Single(usize, &'m Register),
+    Single(&'m Register),
     Copies {
         index_type: Ident,
-        indexes: Vec<usize>,
-        first: &'m Register,
+        repeat: &'m str,
+        member: &'m str,
         copies: Vec<&'m Register>,
     },
 }
@@ -184,19 +157,20 @@ impl Target<'_> {
     /// `(parameter list, expression giving &'static RegisterInfo)`.
     fn access(&self, param: &Ident) -> (TokenStream, TokenStream) {
         match self {
-            Self::Single(index, _) => (quote!(), entry(*index)),
+            Self::Single(register) => (quote!(), {
+                let path = register_path(&register.name);
+                quote!(&#path)
+            }),
             Self::Copies {
                 index_type,
-                indexes,
+                repeat,
+                member,
                 ..
             } => {
-                let indexes = indexes.iter().map(|i| Literal::usize_unsuffixed(*i));
+                let copies = copies_path(repeat, member);
                 (
                     quote!(#param: #index_type,),
-                    quote!({
-                        const COPIES: &[usize] = &[#(#indexes),*];
-                        &DEVICE.registers[COPIES[usize::from(#param.number()) - 1]]
-                    }),
+                    quote!(#copies[#param.index()]),
                 )
             }
         }
@@ -204,44 +178,42 @@ impl Target<'_> {
 
     fn register(&self) -> &Register {
         match self {
-            Self::Single(_, register) => register,
-            Self::Copies { first, .. } => first,
+            Self::Single(register) => register,
+            Self::Copies { copies, .. } => copies[0],
         }
     }
 }
 
 /// Registers (plain ones, and repeat members once for all copies) with the method name
 /// their accessors take.
-fn targets<'m>(model: &'m Model) -> Vec<(String, Target<'m>)> {
+fn targets(model: &Model) -> Vec<(String, Target<'_>)> {
     let mut out = Vec::new();
     let mut seen_bases = HashSet::new();
-    for (index, register) in model.registers.iter().enumerate() {
+    for register in &model.registers {
         match &register.repeat {
-            None => out.push((register.name.clone(), Target::Single(index, register))),
+            None => out.push((register.name.clone(), Target::Single(register))),
             Some(copy) => {
-                let key = (copy.repeat, copy.base.clone());
-                if !seen_bases.insert(key) {
+                if !seen_bases.insert((copy.repeat, copy.base.clone())) {
                     continue;
                 }
-                let mut copies: Vec<(u32, usize, &Register)> = model
+                let mut copies: Vec<&Register> = model
                     .registers
                     .iter()
-                    .enumerate()
-                    .filter(|(_, r)| {
+                    .filter(|r| {
                         r.repeat
                             .as_ref()
                             .is_some_and(|c| c.repeat == copy.repeat && c.base == copy.base)
                     })
-                    .map(|(i, r)| (r.repeat.as_ref().map_or(0, |c| c.number), i, r))
                     .collect();
-                copies.sort_by_key(|c| c.0);
+                copies.sort_by_key(|r| r.repeat.as_ref().map_or(0, |c| c.number));
+                let repeat = &model.repeats[copy.repeat].name;
                 out.push((
                     copy.base.clone(),
                     Target::Copies {
-                        index_type: super::type_ident(&model.repeats[copy.repeat].name),
-                        indexes: copies.iter().map(|c| c.1).collect(),
-                        first: register,
-                        copies: copies.iter().map(|c| c.2).collect(),
+                        index_type: type_ident(repeat),
+                        repeat,
+                        member: &copy.base,
+                        copies,
                     },
                 ));
             }
@@ -250,118 +222,34 @@ fn targets<'m>(model: &'m Model) -> Vec<(String, Target<'m>)> {
     out
 }
 
-/// `Decode` and `Encode` for the generated value types.
-pub(super) fn value_impls(model: &Model, names: &TypeNames) -> TokenStream {
-    let enums = names.enums.iter().map(|ty| {
-        quote! {
-            impl ::optobus_driver::Decode for #ty {
-                fn decode(register: &::optobus_device::RegisterInfo, words: &[u16]) -> Self {
-                    Self::from_raw(::optobus_driver::raw_bits(register, words))
-                }
-            }
-
-            impl ::optobus_driver::Encode for #ty {
-                /// Refuses `Unknown` codes and codes the register does not define.
-                fn encode(
-                    &self,
-                    register: &'static ::optobus_device::RegisterInfo,
-                ) -> ::core::result::Result<::std::vec::Vec<u16>, ::optobus_driver::Error> {
-                    if let Self::Unknown(code) = self {
-                        return Err(::optobus_driver::Error::UndefinedCode {
-                            register: register.name,
-                            field: None,
-                            code: *code,
-                        });
-                    }
-                    ::optobus_driver::encode_code(register, self.raw())
-                }
-            }
-        }
-    });
-    let structs = model
-        .registers
-        .iter()
-        .filter(|r| r.repeat.as_ref().is_none_or(|c| c.number == 1))
-        .filter_map(|register| {
-            let ty = names.struct_name(register);
-            match &register.kind {
-                Kind::Packed(_) => Some(quote! {
-                    impl ::optobus_driver::Decode for #ty {
-                        fn decode(register: &::optobus_device::RegisterInfo, words: &[u16]) -> Self {
-                            Self::from_raw(::optobus_driver::raw_bits(register, words))
-                        }
-                    }
-
-                    impl ::optobus_driver::Encode for #ty {
-                        /// Refuses fields that do not fit their bits or hold undefined codes.
-                        fn encode(
-                            &self,
-                            register: &'static ::optobus_device::RegisterInfo,
-                        ) -> ::core::result::Result<::std::vec::Vec<u16>, ::optobus_driver::Error> {
-                            ::optobus_driver::encode_packed(register, self.to_raw())
-                        }
-                    }
-                }),
-                Kind::Version(_) => Some(quote! {
-                    impl ::optobus_driver::Decode for #ty {
-                        fn decode(_register: &::optobus_device::RegisterInfo, words: &[u16]) -> Self {
-                            let word = |i: usize| words.get(i).copied().unwrap_or(0);
-                            Self::from_words([word(0), word(1)])
-                        }
-                    }
-                }),
-                Kind::Record(_) => Some(quote! {
-                    impl ::optobus_driver::Decode for #ty {
-                        fn decode(_register: &::optobus_device::RegisterInfo, words: &[u16]) -> Self {
-                            let mut all = [0u16; Self::WORDS];
-                            for (slot, word) in all.iter_mut().zip(words) {
-                                *slot = *word;
-                            }
-                            Self::from_words(&all)
-                        }
-                    }
-                }),
-                _ => None,
-            }
-        });
-    quote! { #(#enums)* #(#structs)* }
-}
-
 /// A group member as a struct field: one register, or every copy of a repeat member.
 struct Member<'m> {
     name: String,
     register: &'m Register,
-    /// Entries in `DEVICE.registers` (one, or each copy in order).
-    indexes: Vec<usize>,
-    array: bool,
+    /// For a repeat member: its block and number of copies.
+    copies: Option<(&'m str, usize)>,
 }
 
 /// The members of a group, and the repeat index type when the group is read per copy (every
 /// member a repeat block's member name: CCF's `read_measurements(channel)`).
-fn group_members<'m>(
-    model: &'m Model,
-    names: &[String],
-) -> (Vec<Member<'m>>, Option<(Ident, usize)>) {
-    let index_of = |name: &str| model.registers.iter().position(|r| r.name == name);
-    let copies_of = |base: &str| -> Vec<(usize, &'m Register)> {
-        let mut copies: Vec<(usize, &Register)> = model
+fn group_members<'m>(model: &'m Model, names: &[String]) -> (Vec<Member<'m>>, Option<Ident>) {
+    let single = |name: &str| model.registers.iter().find(|r| r.name == name);
+    let copies_of = |base: &str| -> Vec<&'m Register> {
+        model
             .registers
             .iter()
-            .enumerate()
-            .filter(|(_, r)| r.repeat.as_ref().is_some_and(|c| c.base == base))
-            .collect();
-        copies.sort_by_key(|(_, r)| r.repeat.as_ref().map_or(0, |c| c.number));
-        copies
+            .filter(|r| r.repeat.as_ref().is_some_and(|c| c.base == base))
+            .collect()
     };
     let per_copy_repeat = names
         .iter()
         .map(|name| {
-            if index_of(name).is_some() {
+            if single(name).is_some() {
                 None
             } else {
                 copies_of(name)
                     .first()
-                    .and_then(|(_, r)| r.repeat.as_ref().map(|c| c.repeat))
+                    .and_then(|r| r.repeat.as_ref().map(|c| c.repeat))
             }
         })
         .collect::<Option<Vec<usize>>>()
@@ -370,34 +258,30 @@ fn group_members<'m>(
     let members = names
         .iter()
         .filter_map(|name| {
-            if let Some(index) = index_of(name) {
+            if let Some(register) = single(name) {
                 return Some(Member {
                     name: name.clone(),
-                    register: &model.registers[index],
-                    indexes: vec![index],
-                    array: false,
+                    register,
+                    copies: None,
                 });
             }
             let copies = copies_of(name);
-            let register = copies.first()?.1;
+            let register = *copies.first()?;
+            let repeat = register.repeat.as_ref()?.repeat;
             Some(Member {
                 name: name.clone(),
                 register,
-                indexes: copies.iter().map(|c| c.0).collect(),
-                array: per_copy_repeat.is_none(),
+                copies: Some((model.repeats[repeat].name.as_str(), copies.len())),
             })
         })
         .collect();
-    let per_copy = per_copy_repeat.map(|repeat| {
-        let count = usize::try_from(model.repeats[repeat].count).unwrap_or(0);
-        (super::type_ident(&model.repeats[repeat].name), count)
-    });
+    let per_copy = per_copy_repeat.map(|repeat| type_ident(&model.repeats[repeat].name));
     (members, per_copy)
 }
 
-/// The driver type and its methods.
-pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
-    let driver = format_ident!("{}", camel(&model.family));
+/// The driver type, its methods, and the structs its group reads return.
+pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> TokenStream {
+    let driver = &names.driver;
     let title = &model.title;
     let mut taken: HashSet<String> = [
         "new",
@@ -413,6 +297,7 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
     // Commands keep the manual's names; a register accessor of the same name gets `_state`.
     taken.extend(model.commands.iter().map(|c| c.name.clone()));
     let copy_param = format_ident!("copy");
+    let unit = quote!(());
 
     let mut methods = Vec::new();
     for (name, target) in targets(model) {
@@ -427,14 +312,16 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
             Target::Single(..) => None,
         };
         let doc = register_doc(model, register, copies);
+        let alias = doc_alias(register.zh.as_deref());
         let (param, info) = target.access(&copy_param);
         if register.access.readable() {
             taken.insert(name.clone());
             let method = ident(&name);
-            let ty = read_type(register, names);
+            let result = imports.result(read_type(register, names, imports));
             methods.push(quote! {
                 #(#[doc = #doc])*
-                pub async fn #method(&mut self, #param) -> ::core::result::Result<#ty, ::optobus_driver::Error> {
+                #alias
+                pub async fn #method(&mut self, #param) -> #result {
                     self.core.read(#info).await
                 }
             });
@@ -443,13 +330,20 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
             let setter = format!("set_{name}");
             taken.insert(setter.clone());
             let method = ident(&setter);
-            let ty = value_type(register, names);
+            let ty = value_type(register, names, imports);
             let first = format!("Writes `{name}` after checking the value; an invalid value is refused before anything is sent.");
+            let alias = if register.access.readable() {
+                quote!()
+            } else {
+                alias
+            };
+            let result = imports.result(unit.clone());
             methods.push(quote! {
                 #[doc = #first]
                 ///
                 #(#[doc = #doc])*
-                pub async fn #method(&mut self, #param value: #ty) -> ::core::result::Result<(), ::optobus_driver::Error> {
+                #alias
+                pub async fn #method(&mut self, #param value: #ty) -> #result {
                     self.core.write(#info, &value).await
                 }
             });
@@ -457,55 +351,35 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
     }
 
     let mut group_types = Vec::new();
-    for group in &model.groups {
+    for (group, struct_ident) in model.groups.iter().zip(&names.groups) {
         let member_names: Vec<String> = group.registers.iter().map(|(n, _)| n.clone()).collect();
         let (members, per_copy) = group_members(model, &member_names);
-        let mut struct_name = camel(&group.name);
-        while names.taken.contains(&struct_name) {
-            struct_name.push_str("Values");
-        }
-        let struct_ident = format_ident!("{struct_name}");
         let fields: Vec<Ident> = members.iter().map(|m| ident(&m.name)).collect();
         let field_docs = members.iter().map(|m| doc_text(m.register.doc.as_deref()));
-        let field_types: Vec<TokenStream> = members
-            .iter()
-            .map(|m| {
-                let ty = read_type(m.register, names);
-                if m.array {
-                    let len = Literal::usize_unsuffixed(m.indexes.len());
-                    quote!([#ty; #len])
-                } else {
-                    ty
+        let field_types = members.iter().map(|m| {
+            let ty = read_type(m.register, names, imports);
+            match (m.copies, &per_copy) {
+                (Some((_, count)), None) => {
+                    let count = Literal::usize_unsuffixed(count);
+                    quote!([#ty; #count])
                 }
-            })
-            .collect();
-        // The registers to read, in member order, and how each field picks its values.
-        let mut entries = Vec::new();
-        let mut values = Vec::new();
-        for member in &members {
-            let start = Literal::usize_unsuffixed(entries.len());
-            match (&per_copy, member.array) {
-                (Some(_), _) => {
-                    let indexes = member.indexes.iter().map(|i| Literal::usize_unsuffixed(*i));
-                    entries.push(quote!({
-                        const COPIES: &[usize] = &[#(#indexes),*];
-                        &DEVICE.registers[COPIES[usize::from(#copy_param.number()) - 1]]
-                    }));
-                    values.push(quote!(readings.get(registers[#start])));
-                }
-                (None, true) => {
-                    entries.extend(member.indexes.iter().map(|i| entry(*i)));
-                    values.push(
-                        quote!(::core::array::from_fn(|i| readings.get(registers[#start + i]))),
-                    );
-                }
-                (None, false) => {
-                    entries.push(entry(member.indexes[0]));
-                    values.push(quote!(readings.get(registers[#start])));
-                }
+                _ => ty,
             }
-        }
-        let count = Literal::usize_unsuffixed(entries.len());
+        });
+        let values = members.iter().map(|m| match (m.copies, &per_copy) {
+            (Some((repeat, _)), Some(_)) => {
+                let copies = copies_path(repeat, &m.name);
+                quote!(readings.get(#copies[#copy_param.index()]))
+            }
+            (Some((repeat, _)), None) => {
+                let copies = copies_path(repeat, &m.name);
+                quote!(#copies.map(|register| readings.get(register)))
+            }
+            (None, _) => {
+                let path = register_path(&m.name);
+                quote!(readings.get(&#path))
+            }
+        });
         let method = format_ident!("read_{}", group.name);
         taken.insert(method.to_string());
         let doc = doc_text(group.doc.as_deref());
@@ -514,26 +388,13 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
             "Reads `{}` in the fewest requests the device allows: {doc}",
             group.name
         );
-        let (param, plan) = match &per_copy {
-            Some((index_type, copies)) => {
-                let copies = Literal::usize_unsuffixed(*copies);
-                (
-                    quote!(#copy_param: #index_type),
-                    quote! {
-                        static PLANS: [::std::sync::OnceLock<::std::vec::Vec<::optobus_driver::ReadSpan>>; #copies] =
-                            [const { ::std::sync::OnceLock::new() }; #copies];
-                        let plan = &PLANS[usize::from(#copy_param.number()) - 1];
-                    },
-                )
-            }
-            None => (
-                quote!(),
-                quote! {
-                    static PLAN: ::std::sync::OnceLock<::std::vec::Vec<::optobus_driver::ReadSpan>> =
-                        ::std::sync::OnceLock::new();
-                    let plan = &PLAN;
-                },
+        let group = group_path(&group.name);
+        let (param, read) = match &per_copy {
+            Some(index_type) => (
+                quote!(#copy_param: #index_type),
+                quote!(self.core.read_declared_group_copy(&#group, #copy_param.number())),
             ),
+            None => (quote!(), quote!(self.core.read_declared_group(&#group))),
         };
         group_types.push(quote! {
             #[doc = #struct_doc]
@@ -545,26 +406,22 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
                 )*
             }
         });
+        let result = imports.result(quote!(#struct_ident));
         methods.push(quote! {
             #[doc = #method_doc]
-            pub async fn #method(&mut self, #param) -> ::core::result::Result<#struct_ident, ::optobus_driver::Error> {
-                let registers: [&'static ::optobus_device::RegisterInfo; #count] = [#(#entries),*];
-                // The requests are planned on the first call and kept.
-                #plan
-                let readings = self.core.read_group_with(plan, &registers).await?;
+            pub async fn #method(&mut self, #param) -> #result {
+                let readings = #read.await?;
                 Ok(#struct_ident { #(#fields: #values,)* })
             }
         });
     }
 
-    for (index, command) in model.commands.iter().enumerate() {
+    let all_targets = targets(model);
+    for command in &model.commands {
         let method = ident(&command.name);
-        let index = Literal::usize_unsuffixed(index);
-        let target = targets(model)
-            .into_iter()
-            .find(|(n, _)| *n == command.register)
-            .map(|(_, t)| t);
-        let Some(target) = target else { continue };
+        let Some((_, target)) = all_targets.iter().find(|(n, _)| *n == command.register) else {
+            continue;
+        };
         let (param, info) = target.access(&copy_param);
         let mut doc = vec![doc_text(command.doc.as_deref()), String::new()];
         doc.push(format!(
@@ -580,10 +437,12 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
             doc.push(String::new());
             doc.push(format!("Manual: {section}."));
         }
+        let command = command_path(&command.name);
+        let result = imports.result(unit.clone());
         methods.push(quote! {
             #(#[doc = #doc])*
-            pub async fn #method(&mut self, #param) -> ::core::result::Result<(), ::optobus_driver::Error> {
-                self.core.run(&DEVICE.commands[#index], #info).await
+            pub async fn #method(&mut self, #param) -> #result {
+                self.core.run(&#command, #info).await
             }
         });
     }
@@ -601,6 +460,11 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
         "Polls until the device answers, for up to {} ms (the manual's start-up time plus one second); gives the time it took.",
         model.device.power_up_ms.unwrap_or(0) + 1000
     );
+    let core = imports.get("optobus_driver::Core");
+    let transport = imports.get("optobus_driver::Transport");
+    let duration = imports.get("core::time::Duration");
+    let new_result = imports.result(quote!(Self));
+    let ready_result = imports.result(duration.clone());
     quote! {
         #(#group_types)*
 
@@ -610,18 +474,18 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
         /// give `Unknown(raw)`); every write is validated before a byte is sent.
         #[derive(Debug)]
         pub struct #driver<T> {
-            core: ::optobus_driver::Core<T>,
+            core: #core<T>,
         }
 
-        impl<T: ::optobus_driver::Transport> #driver<T> {
+        impl<T: #transport> #driver<T> {
             #[doc = #slave_doc]
-            pub fn new(transport: T, slave: u8) -> ::core::result::Result<Self, ::optobus_driver::Error> {
-                ::optobus_driver::Core::new(transport, slave, &DEVICE).map(|core| Self { core })
+            pub fn new(transport: T, slave: u8) -> #new_result {
+                #core::new(transport, slave, &DEVICE).map(|core| Self { core })
             }
 
             /// A driver for the device at its factory slave address.
             pub fn with_default_slave(transport: T) -> Self {
-                Self { core: ::optobus_driver::Core::with_default_slave(transport, &DEVICE) }
+                Self { core: #core::with_default_slave(transport, &DEVICE) }
             }
 
             /// The slave address requests go to.
@@ -630,7 +494,7 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
             }
 
             /// The generic core, for register access by name (tools) or another slave address.
-            pub fn core(&mut self) -> &mut ::optobus_driver::Core<T> {
+            pub fn core(&mut self) -> &mut #core<T> {
                 &mut self.core
             }
 
@@ -640,8 +504,8 @@ pub(super) fn driver(model: &Model, names: &TypeNames) -> TokenStream {
             }
 
             #[doc = #ready_doc]
-            pub async fn wait_ready(&mut self) -> ::core::result::Result<::core::time::Duration, ::optobus_driver::Error> {
-                self.core.wait_ready(::core::time::Duration::from_millis(#ready_ms)).await
+            pub async fn wait_ready(&mut self) -> #ready_result {
+                self.core.wait_ready(#duration::from_millis(#ready_ms)).await
             }
 
             #(#methods)*

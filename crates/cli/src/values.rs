@@ -62,7 +62,7 @@ pub(crate) fn single(
             registers.len()
         ))
         .hint(match first.copy {
-            Some((repeat, _)) => format!("choose one with --{repeat} N… try --channel N"),
+            Some(copy) => format!("choose one with --{} N… try --channel N", copy.repeat),
             None => "name one register".into(),
         })),
         [] => Err(CliError::new(format!("`{name}` names no register"))),
@@ -90,10 +90,10 @@ fn resolve_register(
         Some(number) => copies
             .iter()
             .copied()
-            .find(|r| r.copy.is_some_and(|(_, n)| n == number))
+            .find(|r| r.copy.is_some_and(|c| c.number == number))
             .map(|r| vec![r])
             .ok_or_else(|| {
-                let (repeat, _) = copies[0].copy.unwrap_or(("copy", 0));
+                let repeat = copies[0].copy.map_or("copy", |c| c.repeat);
                 CliError::new(format!(
                     "`{name}` has no {repeat} {number}: {repeat}s are numbered 1 to {}",
                     copies.len()

@@ -10,6 +10,7 @@
 #![forbid(unsafe_code)]
 
 pub mod crc;
+mod fixed;
 mod line;
 mod pdu;
 pub mod rtu;

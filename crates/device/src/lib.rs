@@ -9,7 +9,7 @@
 #![forbid(unsafe_code)]
 
 pub use optobus_codec::value::{Scale, WordOrder, WriteOrder};
-pub use optobus_codec::{ExceptionShape, FrameShape};
+pub use optobus_codec::{ExceptionShape, FrameShape, Parity};
 
 /// A register table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -85,6 +85,33 @@ pub enum Scalar {
 }
 
 impl Scalar {
+    /// `u16`, `i16`, `u32` or `i32`, as in the specs.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Self::U16 => "u16",
+            Self::I16 => "i16",
+            Self::U32 => "u32",
+            Self::I32 => "i32",
+        }
+    }
+
+    /// Words on the wire: 1 or 2.
+    pub const fn words(self) -> u32 {
+        match self {
+            Self::U16 | Self::I16 => 1,
+            Self::U32 | Self::I32 => 2,
+        }
+    }
+
+    /// The unsigned type of `words` words (two or more: `U32`).
+    pub const fn unsigned(words: u32) -> Self {
+        if words >= 2 {
+            Self::U32
+        } else {
+            Self::U16
+        }
+    }
+
     /// The smallest and largest value the type holds.
     pub const fn bounds(self) -> (i64, i64) {
         match self {
@@ -183,10 +210,7 @@ impl ValueKind {
     pub const fn name(&self) -> &'static str {
         match self {
             Self::Bool => "bool",
-            Self::Scalar(Scalar::U16) => "u16",
-            Self::Scalar(Scalar::I16) => "i16",
-            Self::Scalar(Scalar::U32) => "u32",
-            Self::Scalar(Scalar::I32) => "i32",
+            Self::Scalar(scalar) => scalar.as_str(),
             Self::Enum => "enum",
             Self::Packed(_) => "packed",
             Self::Ipv4 => "ipv4",
@@ -231,8 +255,8 @@ pub struct RegisterInfo {
     pub word_order: WordOrder,
     /// Which word of a split write goes first.
     pub write_order: WriteOrder,
-    /// Repeat copy: (repeat index name, 1-based copy number).
-    pub copy: Option<(&'static str, u8)>,
+    /// Which copy of a repeat block's member the register is (`None` outside repeats).
+    pub copy: Option<RepeatCopy>,
     /// What reading the register changes in the device (it turns a buffer page), if
     /// anything: such a read is made once, never retried.
     pub read_side_effect: Option<&'static str>,
@@ -256,16 +280,24 @@ impl RegisterInfo {
 
     /// For a repeat copy, the repeat member it is a copy of (`channel_2_exposure_time` →
     /// `exposure_time`), the name commands and groups use for all copies.
-    pub fn member_name(&self) -> Option<&'static str> {
-        let (repeat, number) = self.copy?;
-        let rest = self.name.strip_prefix(repeat)?.strip_prefix('_')?;
-        let digits = rest.len() - rest.trim_start_matches(|c: char| c.is_ascii_digit()).len();
-        let (copy, member) = rest.split_at(digits);
-        if copy.parse::<u8>().ok()? != number {
-            return None;
+    pub const fn member_name(&self) -> Option<&'static str> {
+        match self.copy {
+            Some(copy) => Some(copy.member),
+            None => None,
         }
-        member.strip_prefix('_')
     }
+}
+
+/// Where a register sits in a repeat block: `channel_2_exposure_time` is copy 2 of the
+/// `channel` block's member `exposure_time`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct RepeatCopy {
+    /// The repeat block (`channel`), also the name of its index type.
+    pub repeat: &'static str,
+    /// 1-based copy number, as in the manual.
+    pub number: u8,
+    /// The member's name, shared by every copy (`exposure_time`).
+    pub member: &'static str,
 }
 
 /// An address range the device reserves (reads answer zeros).
@@ -346,8 +378,8 @@ pub struct RtuInfo {
     pub default_baud: u32,
     /// Supported baud rates.
     pub bauds: &'static [u32],
-    /// Parity: `none`, `odd` or `even`.
-    pub parity: &'static str,
+    /// Factory parity.
+    pub parity: Parity,
     /// Data bits.
     pub data_bits: u8,
     /// Stop bits.
@@ -451,6 +483,17 @@ impl DeviceInfo {
     /// The register called `name`.
     pub fn register(&self, name: &str) -> Option<&'static RegisterInfo> {
         self.registers.iter().find(|r| r.name == name)
+    }
+
+    /// The registers `name` stands for in groups and commands: the register of that name, or
+    /// every copy of the repeat member of that name, in copy order.
+    pub fn members<'a>(&self, name: &'a str) -> impl Iterator<Item = &'static RegisterInfo> + 'a {
+        let registers = self.registers;
+        let single = self.register(name);
+        let copies = registers
+            .iter()
+            .filter(move |r| single.is_none() && r.member_name() == Some(name));
+        single.into_iter().chain(copies)
     }
 
     /// The command called `name`.

@@ -1,7 +1,7 @@
 //! Transport settings taken from a device description (its serial defaults and frame shapes).
 
 use optobus_device::DeviceInfo;
-use optobus_transport::{LineFormat, Parity, RtuConfig, SerialSettings, TcpConfig};
+use optobus_transport::{LineFormat, RtuConfig, SerialSettings, TcpConfig};
 
 /// The factory line format of `device` (115200 8N1 for a device without serial settings).
 pub fn line_format(device: &DeviceInfo) -> LineFormat {
@@ -10,7 +10,7 @@ pub fn line_format(device: &DeviceInfo) -> LineFormat {
         .map_or(LineFormat::new(115_200), |rtu| LineFormat {
             baud: rtu.default_baud,
             data_bits: rtu.data_bits,
-            parity: Parity::from_name(rtu.parity).unwrap_or_default(),
+            parity: rtu.parity,
             stop_bits: rtu.stop_bits,
         })
 }

@@ -1,11 +1,13 @@
 //! The engine of every generated driver: reads, validated writes, groups, commands.
 
-use std::sync::OnceLock;
+use std::sync::Arc;
 use std::time::Duration;
 
 use optobus_codec::value::{join_u32, u32_writes};
 use optobus_codec::{ReadFunction, WriteValue, BROADCAST, MAX_SLAVE};
-use optobus_device::{Addressing, CommandInfo, DeviceInfo, LongWrites, RegisterInfo, Table};
+use optobus_device::{
+    Addressing, CommandInfo, DeviceInfo, GroupInfo, LongWrites, RegisterInfo, Table,
+};
 use optobus_transport::Transport;
 
 use crate::plan::{plan_reads, ReadSpan};
@@ -17,6 +19,16 @@ pub struct Core<T> {
     transport: T,
     slave: u8,
     device: &'static DeviceInfo,
+    /// The requests of each declared group read so far (group name, copy), planned once.
+    plans: Vec<GroupPlan>,
+}
+
+/// The requests that read one of the device's declared groups (or one copy of it).
+#[derive(Clone, Debug)]
+struct GroupPlan {
+    group: &'static str,
+    copy: Option<u8>,
+    spans: Arc<[ReadSpan]>,
 }
 
 /// The words a group read fetched, by request.
@@ -79,6 +91,7 @@ impl<T: Transport> Core<T> {
             transport,
             slave: check_slave(slave)?,
             device,
+            plans: Vec::new(),
         })
     }
 
@@ -88,6 +101,7 @@ impl<T: Transport> Core<T> {
             transport,
             slave: device.default_slave,
             device,
+            plans: Vec::new(),
         }
     }
 
@@ -181,16 +195,54 @@ impl<T: Transport> Core<T> {
         self.read_plan(&plan).await
     }
 
-    /// Like [`Core::read_group`], planning once: `plan` keeps the requests for the next call
-    /// (generated group methods keep one per group in a static).
-    pub async fn read_group_with(
+    /// Reads a group the device declares (every copy of a repeat member it names), in the
+    /// fewest requests: planned on the first call, the requests are kept for the next.
+    pub async fn read_declared_group(
         &mut self,
-        plan: &OnceLock<Vec<ReadSpan>>,
-        registers: &[&'static RegisterInfo],
+        group: &'static GroupInfo,
     ) -> Result<Readings, Error> {
-        let device = self.device;
-        let plan = plan.get_or_init(|| plan_reads(device, registers));
-        self.read_plan(plan).await
+        self.read_declared(group, None).await
+    }
+
+    /// Like [`Core::read_declared_group`], for a group of repeat members read one copy at a
+    /// time: copy `copy` (1-based) of each (CCF's measurements of one channel).
+    pub async fn read_declared_group_copy(
+        &mut self,
+        group: &'static GroupInfo,
+        copy: u8,
+    ) -> Result<Readings, Error> {
+        self.read_declared(group, Some(copy)).await
+    }
+
+    async fn read_declared(
+        &mut self,
+        group: &'static GroupInfo,
+        copy: Option<u8>,
+    ) -> Result<Readings, Error> {
+        let known = self
+            .plans
+            .iter()
+            .position(|plan| plan.group == group.name && plan.copy == copy);
+        let index = match known {
+            Some(index) => index,
+            None => {
+                let device = self.device;
+                let registers: Vec<&'static RegisterInfo> = group
+                    .registers
+                    .iter()
+                    .flat_map(|name| device.members(name))
+                    .filter(|r| copy.is_none() || r.copy.map(|c| c.number) == copy)
+                    .collect();
+                self.plans.push(GroupPlan {
+                    group: group.name,
+                    copy,
+                    spans: plan_reads(device, &registers).into(),
+                });
+                self.plans.len() - 1
+            }
+        };
+        let spans = Arc::clone(&self.plans[index].spans);
+        self.read_plan(&spans).await
     }
 
     async fn read_plan(&mut self, plan: &[ReadSpan]) -> Result<Readings, Error> {

@@ -26,7 +26,10 @@ pub use crate::connect::{line_format, rtu_config, serial_settings, tcp_config};
 pub use crate::core::{Core, Readings};
 pub use error::Error;
 pub use optobus_codec::value::{Fixed, ParseFixedError, Scale};
-pub use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
+pub use optobus_device::{CommandInfo, DeviceInfo, GroupInfo, RegisterInfo};
 pub use optobus_transport::{self as transport, Transport};
 pub use plan::{plan_reads, ReadSpan};
-pub use value::{encode_code, encode_integer, encode_packed, raw_bits, Decode, Encode};
+pub use value::{
+    encode_code, encode_integer, encode_packed, raw_bits, word_array, CodeEnum, Decode, Encode,
+    RawValue,
+};

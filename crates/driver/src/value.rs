@@ -1,9 +1,10 @@
 //! Typed values to and from register words.
 
+use std::fmt;
 use std::net::Ipv4Addr;
 
 use optobus_codec::value::{join_u32, split_u32, Fixed, Scale};
-use optobus_device::{RegisterInfo, ValueKind};
+use optobus_device::{CodeInfo, RegisterInfo, ValueKind};
 
 use crate::Error;
 
@@ -30,6 +31,16 @@ pub fn raw_bits(register: &RegisterInfo, words: &[u16]) -> u32 {
     } else {
         u32::from(word(0))
     }
+}
+
+/// The first `N` of a register's words, zeros where fewer were read (version and record
+/// values decode from a fixed number of words).
+pub fn word_array<const N: usize>(words: &[u16]) -> [u16; N] {
+    let mut all = [0; N];
+    for (slot, word) in all.iter_mut().zip(words) {
+        *slot = *word;
+    }
+    all
 }
 
 /// The register's integer value, sign-extended by its wire type.
@@ -108,6 +119,74 @@ pub fn encode_packed(
         }
     }
     Ok(bits_to_words(register, bits))
+}
+
+/// A generated value kept in a register's raw bits: a code enum (`Unknown(raw)` for codes the
+/// manual does not define) or a packed struct of bit fields.
+///
+/// [`Decode`] and [`Encode`] come with it, written once here: a read never fails; a write is
+/// refused unless every code is one the register (or its packed field) defines and every
+/// field fits its bits and range.
+pub trait RawValue: Copy + PartialEq + 'static {
+    /// The value of the register's raw bits.
+    fn from_raw(raw: u32) -> Self;
+
+    /// The raw bits; `None` when a packed field does not fit its bits.
+    fn to_raw(self) -> Option<u32>;
+}
+
+impl<V: RawValue> Decode for V {
+    fn decode(register: &RegisterInfo, words: &[u16]) -> Self {
+        V::from_raw(raw_bits(register, words))
+    }
+}
+
+impl<V: RawValue> Encode for V {
+    fn encode(&self, register: &'static RegisterInfo) -> Result<Vec<u16>, Error> {
+        if let ValueKind::Packed(_) = register.kind {
+            return encode_packed(register, self.to_raw());
+        }
+        let code = self.to_raw().unwrap_or(u32::MAX);
+        // `Unknown(0)` where 0 is a named code is not a value a read gives: refused too.
+        if V::from_raw(code) != *self {
+            return Err(Error::UndefinedCode {
+                register: register.name,
+                field: None,
+                code,
+            });
+        }
+        encode_code(register, code)
+    }
+}
+
+/// A generated enum of codes: the [`RawValue`] of an enumerated register or field, with its
+/// codes as data.
+pub trait CodeEnum: RawValue {
+    /// Every defined code, in the manual's order.
+    const CODES: &'static [CodeInfo];
+
+    /// The code as defined in the spec; `None` for `Unknown` values.
+    fn info(self) -> Option<&'static CodeInfo> {
+        let raw = self.to_raw()?;
+        Self::CODES
+            .iter()
+            .find(|code| code.code == raw)
+            .filter(|_| Self::from_raw(raw) == self)
+    }
+
+    /// The snake_case name of a defined code.
+    fn name(self) -> Option<&'static str> {
+        self.info().map(|code| code.name)
+    }
+
+    /// Writes the code's name, or `unknown (raw)`: the `Display` of every code enum.
+    fn write_name(self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (self.name(), self.to_raw()) {
+            (Some(name), _) => f.write_str(name),
+            (None, Some(raw)) => write!(f, "unknown ({raw})"),
+            (None, None) => f.write_str("unknown"),
+        }
+    }
 }
 
 impl<V: Decode> Decode for Option<V> {

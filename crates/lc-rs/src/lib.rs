@@ -29,6 +29,14 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
-include!(concat!(env!("OUT_DIR"), "/lc_rs.rs"));
+/// The code generated from `specs/lc_rs.yaml`, re-exported at the crate root; its imports stay
+/// private to it.
+mod generated {
+    include!(concat!(env!("OUT_DIR"), "/lc_rs.rs"));
+}
 
-pub use optobus_driver::{rtu_config, serial_settings, transport, units, Error, Fixed, Transport};
+pub use generated::*;
+
+pub use optobus_driver::{
+    rtu_config, serial_settings, transport, units, CodeEnum, Error, Fixed, Transport,
+};

@@ -31,8 +31,16 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
-include!(concat!(env!("OUT_DIR"), "/p_series.rs"));
+/// The code generated from `specs/p_series.yaml`, re-exported at the crate root; its imports stay
+/// private to it.
+mod generated {
+    include!(concat!(env!("OUT_DIR"), "/p_series.rs"));
+}
+
+pub use generated::*;
 
 pub mod download;
 
-pub use optobus_driver::{rtu_config, serial_settings, transport, units, Error, Fixed, Transport};
+pub use optobus_driver::{
+    rtu_config, serial_settings, transport, units, CodeEnum, Error, Fixed, Transport,
+};

@@ -32,7 +32,10 @@ fn baud_code(codes: &[CodeInfo], baud: u32) -> Option<u32> {
 
 fn parity_code(codes: &[CodeInfo], device: &DeviceInfo) -> Option<u32> {
     let parity = device.rtu?.parity;
-    codes.iter().find(|c| c.name == parity).map(|c| c.code)
+    codes
+        .iter()
+        .find(|c| c.name == parity.name())
+        .map(|c| c.code)
 }
 
 /// The value of `range` nearest to zero.

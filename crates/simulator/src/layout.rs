@@ -88,8 +88,8 @@ pub(crate) fn command_copy(
     if register.name == command.register {
         return Some(None);
     }
-    let (repeat, copy) = register.copy?;
-    (register.member_name()? == command.register).then(|| Some(format!("{repeat}_{copy}_")))
+    let copy = register.copy?;
+    (copy.member == command.register).then(|| Some(format!("{}_{}_", copy.repeat, copy.number)))
 }
 
 /// The registers a group names, in order; a repeat member's base name stands for every copy,
@@ -106,8 +106,8 @@ pub(crate) fn group_members(device: &DeviceInfo, group: &GroupInfo) -> Vec<usize
             .iter()
             .enumerate()
             .filter_map(|(index, register)| {
-                let (_, copy) = register.copy?;
-                (register.member_name()? == *name).then_some((copy, index))
+                let copy = register.copy?;
+                (copy.member == *name).then_some((copy.number, index))
             })
             .collect();
         copies.sort_unstable();

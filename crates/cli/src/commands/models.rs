@@ -17,7 +17,7 @@ pub(crate) fn run(global: &Global) -> Result<(), CliError> {
 
 /// `none`, `odd` or `even`.
 fn parity(rtu: &RtuInfo) -> &'static str {
-    rtu.parity
+    rtu.parity.name()
 }
 
 /// The factory IP address, if the manual gives one.
