@@ -6,6 +6,9 @@ use core::fmt;
 /// The largest number of registers one FC03/FC04 request may ask for (Modbus limit).
 pub const MAX_READ_WORDS: u16 = 125;
 
+/// Length of an FC03/FC04 request PDU: function code, address and count.
+pub const READ_REQUEST_PDU_LEN: usize = 5;
+
 /// Function code of "write single register".
 pub const WRITE_SINGLE: u8 = 0x06;
 
@@ -166,7 +169,7 @@ impl Request {
     /// Length of the PDU (function code and data) in bytes.
     pub const fn pdu_len(&self) -> usize {
         match self {
-            Self::Read { .. } => 5,
+            Self::Read { .. } => READ_REQUEST_PDU_LEN,
             Self::Write { value, .. } => 3 + value.width().bytes(),
         }
     }

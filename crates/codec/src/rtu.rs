@@ -8,7 +8,7 @@
 use crate::crc::{crc16, is_valid_frame};
 use crate::pdu::{
     DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, ReadFunction,
-    Request, Response, Words, EXCEPTION_BIT, MAX_SLAVE, WRITE_SINGLE,
+    Request, Response, Words, EXCEPTION_BIT, MAX_SLAVE, READ_REQUEST_PDU_LEN, WRITE_SINGLE,
 };
 
 /// The longest RTU frame Modbus allows.
@@ -112,7 +112,7 @@ pub const OVERHEAD: usize = 3;
 /// this codec does not frame.
 pub fn request_len(buf: &[u8], shape: &FrameShape<'_>) -> Option<usize> {
     let pdu_len = match *buf.get(1)? {
-        0x03 | 0x04 => 5,
+        0x03 | 0x04 => READ_REQUEST_PDU_LEN,
         WRITE_SINGLE => {
             let address = u16::from_be_bytes([*buf.get(2)?, *buf.get(3)?]);
             3 + shape.write_width(address).bytes()
@@ -162,7 +162,7 @@ pub fn decode_request(
     need!(buf, 2);
     let function = buf[1];
     let pdu_len = match function {
-        0x03 | 0x04 => 5,
+        0x03 | 0x04 => READ_REQUEST_PDU_LEN,
         WRITE_SINGLE => {
             need!(buf, 4);
             3 + shape

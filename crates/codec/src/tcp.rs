@@ -6,7 +6,7 @@
 
 use crate::pdu::{
     DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, Request,
-    Response, WRITE_SINGLE,
+    Response, READ_REQUEST_PDU_LEN, WRITE_SINGLE,
 };
 use crate::rtu::{need, parse_reply, reply_pdu_len, ReplyLength};
 
@@ -201,7 +201,7 @@ pub fn decode_request(
     let mbap = parse_mbap(buf)?;
     let function = buf[HEADER_LEN];
     let pdu_len = match function {
-        0x03 | 0x04 => 5,
+        0x03 | 0x04 => READ_REQUEST_PDU_LEN,
         WRITE_SINGLE => {
             need!(buf, HEADER_LEN + 3);
             let address = u16::from_be_bytes([buf[HEADER_LEN + 1], buf[HEADER_LEN + 2]]);

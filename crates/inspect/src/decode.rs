@@ -3,7 +3,8 @@
 use optobus_codec::crc::{crc16, is_valid_frame};
 use optobus_codec::tcp::{Mbap, HEADER_LEN};
 use optobus_codec::{
-    exception_function, rtu, ExceptionShape, FrameShape, ReadFunction, Request, WRITE_SINGLE,
+    exception_function, rtu, ExceptionShape, FrameShape, ReadFunction, Request,
+    READ_REQUEST_PDU_LEN, WRITE_SINGLE,
 };
 use optobus_device::DeviceInfo;
 
@@ -369,9 +370,10 @@ fn tcp_frame(
     let function = pdu_bytes.first().copied().unwrap_or(0);
     // The MBAP length delimits the PDU: its length tells the shapes apart.
     let counted = ExceptionShape::CountedWord.pdu_len();
+    let read = ReadFunction::from_code(function).is_some();
     let kind = match function {
-        0x03 | 0x04 if pdu_bytes.len() == 5 => PduKind::ReadRequest,
-        0x03 | 0x04 => PduKind::ReadReply,
+        _ if read && pdu_bytes.len() == READ_REQUEST_PDU_LEN => PduKind::ReadRequest,
+        _ if read => PduKind::ReadReply,
         WRITE_SINGLE => PduKind::Write,
         _ if exception_function(function).is_some() && pdu_bytes.len() == counted => {
             PduKind::Exception(ExceptionShape::CountedWord)
