@@ -19,7 +19,7 @@ pub mod value;
 
 pub use line::{LineFormat, LineFormatError, Parity};
 pub use pdu::{
-    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, PayloadWidth,
-    ReadFunction, Request, Response, Words, WriteValue, BROADCAST, EXCEPTION_BIT, MAX_READ_WORDS,
-    MAX_SLAVE, WRITE_SINGLE,
+    exception_function, function_name, DecodeError, Decoded, EncodeError, ExceptionCode,
+    ExceptionShape, FrameShape, PayloadWidth, ReadFunction, Request, Response, Words, WriteValue,
+    BROADCAST, EXCEPTION_BIT, MAX_READ_WORDS, MAX_SLAVE, READ_REQUEST_PDU_LEN, WRITE_SINGLE,
 };

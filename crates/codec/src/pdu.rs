@@ -6,11 +6,45 @@ use core::fmt;
 /// The largest number of registers one FC03/FC04 request may ask for (Modbus limit).
 pub const MAX_READ_WORDS: u16 = 125;
 
+/// Length of an FC03/FC04 request PDU: function code, address and count.
+pub const READ_REQUEST_PDU_LEN: usize = 5;
+
 /// Function code of "write single register".
 pub const WRITE_SINGLE: u8 = 0x06;
 
 /// The bit a device sets in the function code of an exception reply.
 pub const EXCEPTION_BIT: u8 = 0x80;
+
+/// The standard name of a Modbus function code (`read holding registers`), if it has one.
+pub const fn function_name(code: u8) -> Option<&'static str> {
+    Some(match code {
+        0x01 => "read coils",
+        0x02 => "read discrete inputs",
+        0x03 => "read holding registers",
+        0x04 => "read input registers",
+        0x05 => "write single coil",
+        0x06 => "write single register",
+        0x07 => "read exception status",
+        0x08 => "diagnostics",
+        0x0F => "write multiple coils",
+        0x10 => "write multiple registers",
+        0x11 => "report server id",
+        0x16 => "mask write register",
+        0x17 => "read/write multiple registers",
+        0x2B => "encapsulated interface transport",
+        _ => return None,
+    })
+}
+
+/// For the function code of an exception reply (one with [`EXCEPTION_BIT`] set), the function
+/// that failed; `None` for other codes.
+pub const fn exception_function(code: u8) -> Option<u8> {
+    if code & EXCEPTION_BIT != 0 {
+        Some(code & !EXCEPTION_BIT)
+    } else {
+        None
+    }
+}
 
 /// Which register table a read addresses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -135,7 +169,7 @@ impl Request {
     /// Length of the PDU (function code and data) in bytes.
     pub const fn pdu_len(&self) -> usize {
         match self {
-            Self::Read { .. } => 5,
+            Self::Read { .. } => READ_REQUEST_PDU_LEN,
             Self::Write { value, .. } => 3 + value.width().bytes(),
         }
     }

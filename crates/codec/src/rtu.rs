@@ -8,7 +8,7 @@
 use crate::crc::{crc16, is_valid_frame};
 use crate::pdu::{
     DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, ReadFunction,
-    Request, Response, Words, EXCEPTION_BIT, MAX_SLAVE, WRITE_SINGLE,
+    Request, Response, Words, EXCEPTION_BIT, MAX_SLAVE, READ_REQUEST_PDU_LEN, WRITE_SINGLE,
 };
 
 /// The longest RTU frame Modbus allows.
@@ -103,6 +103,40 @@ pub(crate) fn check_crc(frame: &[u8]) -> Result<(), DecodeError> {
     }
 }
 
+/// Bytes an RTU frame adds to its PDU: the slave address in front, the CRC behind.
+pub const OVERHEAD: usize = 3;
+
+/// The length of the RTU request frame starting at `buf`, from its first bytes: 8 for FC03
+/// and FC04; for FC06 8, or 10 where `shape` says the address takes four data bytes (the
+/// address must be in `buf`). `None` while too few bytes are there to tell, or for a function
+/// this codec does not frame.
+pub fn request_len(buf: &[u8], shape: &FrameShape<'_>) -> Option<usize> {
+    let pdu_len = match *buf.get(1)? {
+        0x03 | 0x04 => READ_REQUEST_PDU_LEN,
+        WRITE_SINGLE => {
+            let address = u16::from_be_bytes([*buf.get(2)?, *buf.get(3)?]);
+            3 + shape.write_width(address).bytes()
+        }
+        _ => return None,
+    };
+    Some(pdu_len + OVERHEAD)
+}
+
+/// The length of the RTU reply frame starting at `buf`, from its first bytes: FC03 and FC04
+/// by their byte count, an FC06 echo like its request, an exception reply (function code
+/// with [`EXCEPTION_BIT`]) in `shape`'s exception shape. `None` while too few bytes are
+/// there to tell, or for a function this codec does not frame.
+pub fn response_len(buf: &[u8], shape: &FrameShape<'_>) -> Option<usize> {
+    let function = *buf.get(1)?;
+    if function & EXCEPTION_BIT != 0 {
+        return Some(shape.exception.pdu_len() + OVERHEAD);
+    }
+    match function {
+        0x03 | 0x04 => Some(2 + usize::from(*buf.get(2)?) + OVERHEAD),
+        _ => request_len(buf, shape),
+    }
+}
+
 /// Returns `NeedMore` from the enclosing decoder when `$buf` is shorter than `$len`.
 macro_rules! need {
     ($buf:expr, $len:expr) => {{
@@ -128,7 +162,7 @@ pub fn decode_request(
     need!(buf, 2);
     let function = buf[1];
     let pdu_len = match function {
-        0x03 | 0x04 => 5,
+        0x03 | 0x04 => READ_REQUEST_PDU_LEN,
         WRITE_SINGLE => {
             need!(buf, 4);
             3 + shape

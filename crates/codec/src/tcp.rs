@@ -6,7 +6,7 @@
 
 use crate::pdu::{
     DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, Request,
-    Response, WRITE_SINGLE,
+    Response, READ_REQUEST_PDU_LEN, WRITE_SINGLE,
 };
 use crate::rtu::{need, parse_reply, reply_pdu_len, ReplyLength};
 
@@ -107,28 +107,70 @@ pub fn encode_exception(
     })
 }
 
-/// The MBAP fields of a header whose first six bytes are in `buf`.
-struct Mbap {
-    transaction: u16,
-    length: u16,
+/// An MBAP header as it is on the wire, unchecked: what a sniffer shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Mbap {
+    /// Transaction id.
+    pub transaction: u16,
+    /// Protocol id (0 for Modbus).
+    pub protocol: u16,
+    /// Bytes that follow the length field: the unit id and the PDU.
+    pub length: u16,
+    /// Unit identifier.
+    pub unit: u8,
 }
 
+impl Mbap {
+    /// The header at the start of `buf`, if `buf` holds its [`HEADER_LEN`] bytes.
+    pub fn parse(buf: &[u8]) -> Option<Self> {
+        let [t0, t1, p0, p1, l0, l1, unit, ..] = *buf else {
+            return None;
+        };
+        Some(Self {
+            transaction: u16::from_be_bytes([t0, t1]),
+            protocol: u16::from_be_bytes([p0, p1]),
+            length: u16::from_be_bytes([l0, l1]),
+            unit,
+        })
+    }
+
+    /// The length of the whole frame the header announces (header and PDU).
+    pub const fn frame_len(&self) -> usize {
+        6 + self.length as usize
+    }
+
+    /// The length of the PDU the header announces (`None` when the length field leaves no
+    /// room for the unit id).
+    pub const fn pdu_len(&self) -> Option<usize> {
+        (self.length as usize).checked_sub(1)
+    }
+
+    /// Checks the header as a decoder does: protocol id 0, a length that holds a unit id, a
+    /// function code and at most a 253-byte PDU.
+    pub fn check(&self) -> Result<(), DecodeError> {
+        if self.protocol != 0 {
+            return Err(DecodeError::BadProtocolId {
+                received: self.protocol,
+            });
+        }
+        if !(2..=MAX_LENGTH_FIELD).contains(&self.length) {
+            return Err(DecodeError::BadLength {
+                expected: self.length.clamp(2, MAX_LENGTH_FIELD),
+                received: self.length,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The checked header at the start of `buf`, which holds at least [`HEADER_LEN`] bytes.
 fn parse_mbap(buf: &[u8]) -> Result<Mbap, DecodeError> {
-    let protocol = u16::from_be_bytes([buf[2], buf[3]]);
-    if protocol != 0 {
-        return Err(DecodeError::BadProtocolId { received: protocol });
-    }
-    let length = u16::from_be_bytes([buf[4], buf[5]]);
-    if !(2..=MAX_LENGTH_FIELD).contains(&length) {
-        return Err(DecodeError::BadLength {
-            expected: length.clamp(2, MAX_LENGTH_FIELD),
-            received: length,
-        });
-    }
-    Ok(Mbap {
-        transaction: u16::from_be_bytes([buf[0], buf[1]]),
-        length,
-    })
+    let mbap = Mbap::parse(buf).ok_or(DecodeError::BadLength {
+        expected: 2,
+        received: 0,
+    })?;
+    mbap.check()?;
+    Ok(mbap)
 }
 
 /// The length of the whole frame starting at `buf`, once its header says so: lets a server
@@ -159,7 +201,7 @@ pub fn decode_request(
     let mbap = parse_mbap(buf)?;
     let function = buf[HEADER_LEN];
     let pdu_len = match function {
-        0x03 | 0x04 => 5,
+        0x03 | 0x04 => READ_REQUEST_PDU_LEN,
         WRITE_SINGLE => {
             need!(buf, HEADER_LEN + 3);
             let address = u16::from_be_bytes([buf[HEADER_LEN + 1], buf[HEADER_LEN + 2]]);
@@ -176,7 +218,7 @@ pub fn decode_request(
         frame: Frame {
             header: Header {
                 transaction: mbap.transaction,
-                unit: buf[6],
+                unit: mbap.unit,
             },
             pdu: Request::parse_pdu(pdu, width),
         },
@@ -200,10 +242,10 @@ pub fn decode_response<'b>(
             received: mbap.transaction,
         });
     }
-    if buf[6] != header.unit {
+    if mbap.unit != header.unit {
         return Err(DecodeError::UnexpectedSlave {
             expected: header.unit,
-            received: buf[6],
+            received: mbap.unit,
         });
     }
     let (kind, pdu_len) = match reply_pdu_len(&buf[HEADER_LEN..], request, exception)? {

@@ -14,6 +14,16 @@ pub enum WordOrder {
     LowFirst,
 }
 
+impl WordOrder {
+    /// The offset (0 or 1) of the high word of a register pair from its first address.
+    pub const fn high_offset(self) -> u16 {
+        match self {
+            Self::HighFirst => 0,
+            Self::LowFirst => 1,
+        }
+    }
+}
+
 /// Joins two words, listed in address order, into a `u32`.
 pub const fn join_u32(words: [u16; 2], order: WordOrder) -> u32 {
     let [first, second] = words;
@@ -163,10 +173,8 @@ pub const fn u32_writes(
     write_order: WriteOrder,
 ) -> [WordWrite; 2] {
     let words = split_u32(value, word_order);
-    let (high_offset, low_offset) = match word_order {
-        WordOrder::HighFirst => (0, 1),
-        WordOrder::LowFirst => (1, 0),
-    };
+    let high_offset = word_order.high_offset();
+    let low_offset = 1 - high_offset;
     let high = WordWrite {
         offset: high_offset,
         value: words[high_offset as usize],

@@ -8,8 +8,13 @@
 #![no_std]
 #![forbid(unsafe_code)]
 
+mod check;
+mod words;
+
+pub use check::Invalid;
 pub use optobus_codec::value::{Scale, WordOrder, WriteOrder};
-pub use optobus_codec::{ExceptionShape, FrameShape, Parity};
+pub use optobus_codec::{ExceptionShape, FrameShape, Parity, ReadFunction};
+pub use words::RawWords;
 
 /// A register table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -32,6 +37,42 @@ impl Table {
             Self::Holding => "holding",
             Self::Input => "input",
         }
+    }
+
+    /// The function that reads the table: FC03 for holding, FC04 for input registers.
+    pub const fn read_function(self) -> ReadFunction {
+        match self {
+            Self::Holding => ReadFunction::Holding,
+            Self::Input => ReadFunction::Input,
+        }
+    }
+
+    /// The table a read function reads.
+    pub const fn read_by(function: ReadFunction) -> Self {
+        match function {
+            ReadFunction::Holding => Self::Holding,
+            ReadFunction::Input => Self::Input,
+        }
+    }
+
+    /// The table read by function code `code` (03 or 04), if it is a read.
+    pub const fn of_function_code(code: u8) -> Option<Self> {
+        match ReadFunction::from_code(code) {
+            Some(function) => Some(Self::read_by(function)),
+            None => None,
+        }
+    }
+}
+
+impl From<Table> for ReadFunction {
+    fn from(table: Table) -> Self {
+        table.read_function()
+    }
+}
+
+impl From<ReadFunction> for Table {
+    fn from(function: ReadFunction) -> Self {
+        Self::read_by(function)
     }
 }
 
@@ -130,6 +171,20 @@ impl Scalar {
             Self::U32 => bits as i64,
             Self::I32 => bits as i32 as i64,
         }
+    }
+
+    /// The raw bits of `value` in the type's width (wrapping: the caller checks the bounds).
+    pub const fn to_raw(self, value: i64) -> u32 {
+        match self {
+            Self::U16 | Self::I16 => value as u16 as u32,
+            Self::U32 | Self::I32 => value as u32,
+        }
+    }
+
+    /// Whether the type holds `value`.
+    pub const fn holds(self, value: i64) -> bool {
+        let (min, max) = self.bounds();
+        min <= value && value <= max
     }
 }
 
@@ -275,6 +330,15 @@ impl RegisterInfo {
             ValueKind::Scalar(scalar) => scalar,
             _ if self.words >= 2 => Scalar::U32,
             _ => Scalar::U16,
+        }
+    }
+
+    /// How many addresses the register takes: one per word, or one in all with one address
+    /// per field.
+    pub const fn span(&self, addressing: Addressing) -> u16 {
+        match addressing {
+            Addressing::Word => self.words,
+            Addressing::Field => 1,
         }
     }
 
@@ -511,6 +575,36 @@ impl DeviceInfo {
     /// devices whose address is not a register (or not one a spec names so).
     pub fn slave_address_register(&self) -> Option<&'static RegisterInfo> {
         self.register(SLAVE_ADDRESS_REGISTER)
+    }
+
+    /// The register `address` of `table` belongs to, and which of its addresses it is (0 for
+    /// its first; always 0 with one address per field). A register starting at `address` is
+    /// preferred to one it lies inside of (aliases overlap).
+    pub fn register_at(&self, table: Table, address: u16) -> Option<(&'static RegisterInfo, u16)> {
+        let starting = self
+            .registers
+            .iter()
+            .find(|r| r.table == table && r.address == address);
+        if let Some(register) = starting {
+            return Some((register, 0));
+        }
+        self.registers.iter().find_map(|r| {
+            let offset = address.checked_sub(r.address)?;
+            (r.table == table && offset < r.span(self.addressing)).then_some((r, offset))
+        })
+    }
+
+    /// The command that writes `raw` to `register` (a register of its own, or a repeat copy of
+    /// the command's register), if one does.
+    pub fn command_writing(
+        &self,
+        register: &RegisterInfo,
+        raw: u32,
+    ) -> Option<&'static CommandInfo> {
+        self.commands.iter().find(|c| {
+            c.value == raw
+                && (c.register == register.name || register.member_name() == Some(c.register))
+        })
     }
 
     /// How many registers `table` has.

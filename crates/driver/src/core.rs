@@ -3,14 +3,11 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use optobus_codec::value::{join_u32, u32_writes};
-use optobus_codec::{ReadFunction, WriteValue, BROADCAST, MAX_SLAVE};
-use optobus_device::{
-    Addressing, CommandInfo, DeviceInfo, GroupInfo, LongWrites, RegisterInfo, Table,
-};
+use optobus_codec::{BROADCAST, MAX_SLAVE};
+use optobus_device::{Addressing, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo, Table};
 use optobus_transport::Transport;
 
-use crate::plan::{plan_reads, ReadSpan};
+use crate::plan::{plan_reads, plan_write, ReadSpan};
 use crate::{Decode, Encode, Error};
 
 /// A transport, a slave address and the device description: what a generated driver wraps.
@@ -62,13 +59,6 @@ impl Readings {
     /// The requests that were made.
     pub fn requests(&self) -> impl Iterator<Item = &ReadSpan> {
         self.first.iter().chain(&self.rest).map(|(span, _)| span)
-    }
-}
-
-fn function(table: Table) -> ReadFunction {
-    match table {
-        Table::Holding => ReadFunction::Holding,
-        Table::Input => ReadFunction::Input,
     }
 }
 
@@ -137,7 +127,7 @@ impl<T: Transport> Core<T> {
         repeatable: bool,
     ) -> Result<Vec<u16>, Error> {
         let slave = self.replying_slave()?;
-        let function = function(table);
+        let function = table.read_function();
         let words = if repeatable {
             self.transport.read(slave, function, address, count).await?
         } else {
@@ -281,43 +271,16 @@ impl<T: Transport> Core<T> {
         self.write_words(register, &words).await
     }
 
-    /// Writes already validated words: one FC06 per word, a two-word value in the spec's
-    /// write order, or one 4-byte FC06 on devices that take it.
+    /// Writes already validated words, as [`plan_write`] plans them.
     async fn write_words(
         &mut self,
         register: &'static RegisterInfo,
         words: &[u16],
     ) -> Result<(), Error> {
-        match *words {
-            [word] => {
-                self.transport
-                    .write(self.slave, register.address, WriteValue::Word(word))
-                    .await?
-            }
-            [first, second] => {
-                let value = join_u32([first, second], register.word_order);
-                if self.device.long_writes == LongWrites::Wide {
-                    let wire =
-                        join_u32([first, second], optobus_codec::value::WordOrder::HighFirst);
-                    self.transport
-                        .write(self.slave, register.address, WriteValue::DoubleWord(wire))
-                        .await?;
-                } else {
-                    for write in u32_writes(value, register.word_order, register.write_order) {
-                        let address = register.address.wrapping_add(write.offset);
-                        self.transport
-                            .write(self.slave, address, WriteValue::Word(write.value))
-                            .await?;
-                    }
-                }
-            }
-            _ => {
-                for (address, word) in (register.address..).zip(words) {
-                    self.transport
-                        .write(self.slave, address, WriteValue::Word(*word))
-                        .await?;
-                }
-            }
+        for step in plan_write(self.device, register, words) {
+            self.transport
+                .write(self.slave, step.address, step.value)
+                .await?;
         }
         Ok(())
     }

@@ -4,6 +4,7 @@ use std::fmt;
 use std::time::Duration;
 
 use optobus_codec::value::{Fixed, Scale};
+use optobus_device::{Invalid, RegisterInfo};
 
 /// Why a driver call failed. Validation errors are raised before anything is sent.
 #[derive(Debug)]
@@ -161,6 +162,32 @@ impl From<optobus_transport::Error> for Error {
 }
 
 impl Error {
+    /// The typed error for a value [`RegisterInfo::check`] refuses for `register`.
+    pub(crate) fn invalid(register: &'static RegisterInfo, why: Invalid) -> Self {
+        match why {
+            Invalid::OutOfRange {
+                field,
+                value,
+                min,
+                max,
+            } => Self::OutOfRange {
+                register: field.map_or(register.name, |field| field.name),
+                raw: value,
+                min,
+                max,
+                scale: field.map_or(register.scale, |field| field.scale),
+            },
+            Invalid::UndefinedCode { field, code } => Self::UndefinedCode {
+                register: register.name,
+                field: field.map(|field| field.name),
+                code,
+            },
+            Invalid::StrayBits { .. } => Self::FieldTooWide {
+                register: register.name,
+            },
+        }
+    }
+
     /// The device's exception code, when it answered with one.
     pub fn exception(&self) -> Option<optobus_transport::ExceptionCode> {
         match self {

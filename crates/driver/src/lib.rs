@@ -28,7 +28,7 @@ pub use error::Error;
 pub use optobus_codec::value::{Fixed, ParseFixedError, Scale};
 pub use optobus_device::{CommandInfo, DeviceInfo, GroupInfo, RegisterInfo};
 pub use optobus_transport::{self as transport, Transport};
-pub use plan::{plan_reads, ReadSpan};
+pub use plan::{plan_reads, plan_write, ReadSpan, WritePart, WriteStep};
 pub use value::{
     encode_code, encode_integer, encode_packed, raw_bits, word_array, CodeEnum, Decode, Encode,
     RawValue,

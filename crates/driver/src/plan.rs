@@ -1,6 +1,9 @@
-//! Read plans: which requests fetch a set of registers in the fewest transactions.
+//! Read plans (which requests fetch a set of registers in the fewest transactions) and write
+//! plans (which FC06 store a register's words, in send order).
 
-use optobus_device::{Addressing, DeviceInfo, RegisterInfo, Table};
+use optobus_codec::value::{join_u32, u32_writes, WordOrder};
+use optobus_codec::WriteValue;
+use optobus_device::{Addressing, DeviceInfo, LongWrites, RegisterInfo, Table};
 
 /// One read request of a plan.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -103,4 +106,75 @@ fn covered(device: &DeviceInfo, table: Table, from: u32, to: u32) -> bool {
         }
     }
     true
+}
+
+/// What part of a register's value one FC06 of a write plan carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WritePart {
+    /// The whole one-word value.
+    Whole,
+    /// The whole 32-bit value, in one FC06 with four data bytes (`long_writes: wide`).
+    Wide,
+    /// The high word of a 32-bit value written as two FC06.
+    High,
+    /// The low word of a 32-bit value written as two FC06.
+    Low,
+    /// Word `n` (from 0) of a register of more words, written one word at a time.
+    Word(u16),
+}
+
+/// One FC06 of a write plan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WriteStep {
+    /// Holding register address written.
+    pub address: u16,
+    /// The value the FC06 carries.
+    pub value: WriteValue,
+    /// What part of the register's value it is.
+    pub part: WritePart,
+}
+
+/// The FC06 requests that store `words` (a register's words in address order, already
+/// validated) in `register`, in the order they must be sent: one word; a 32-bit value as two
+/// words in the spec's `write_order`, or as one 4-byte FC06 on devices with `long_writes:
+/// wide`; a longer register (IPv4) word by word.
+pub fn plan_write(device: &DeviceInfo, register: &RegisterInfo, words: &[u16]) -> Vec<WriteStep> {
+    match *words {
+        [word] => vec![WriteStep {
+            address: register.address,
+            value: WriteValue::Word(word),
+            part: WritePart::Whole,
+        }],
+        [first, second] if device.long_writes == LongWrites::Wide => vec![WriteStep {
+            address: register.address,
+            // The wire carries the words in address order, most significant byte first.
+            value: WriteValue::DoubleWord(join_u32([first, second], WordOrder::HighFirst)),
+            part: WritePart::Wide,
+        }],
+        [first, second] => {
+            let value = join_u32([first, second], register.word_order);
+            let high = register.word_order.high_offset();
+            u32_writes(value, register.word_order, register.write_order)
+                .iter()
+                .map(|write| WriteStep {
+                    address: register.address.wrapping_add(write.offset),
+                    value: WriteValue::Word(write.value),
+                    part: if write.offset == high {
+                        WritePart::High
+                    } else {
+                        WritePart::Low
+                    },
+                })
+                .collect()
+        }
+        _ => (register.address..)
+            .zip(words)
+            .zip(0u16..)
+            .map(|((address, word), n)| WriteStep {
+                address,
+                value: WriteValue::Word(*word),
+                part: WritePart::Word(n),
+            })
+            .collect(),
+    }
 }

@@ -3,7 +3,7 @@
 use std::fmt;
 use std::net::Ipv4Addr;
 
-use optobus_codec::value::{join_u32, split_u32, Fixed, Scale};
+use optobus_codec::value::{Fixed, Scale};
 use optobus_device::{CodeInfo, RegisterInfo, ValueKind};
 
 use crate::Error;
@@ -25,12 +25,7 @@ pub trait Encode {
 
 /// The register's bits: one word, or two joined in the register's word order.
 pub fn raw_bits(register: &RegisterInfo, words: &[u16]) -> u32 {
-    let word = |i: usize| words.get(i).copied().unwrap_or(0);
-    if register.words >= 2 {
-        join_u32([word(0), word(1)], register.word_order)
-    } else {
-        u32::from(word(0))
-    }
+    register.raw(words)
 }
 
 /// The first `N` of a register's words, zeros where fewer were read (version and record
@@ -50,43 +45,25 @@ fn integer(register: &RegisterInfo, words: &[u16]) -> i64 {
 
 /// The words of `bits` for `register`.
 pub(crate) fn bits_to_words(register: &RegisterInfo, bits: u32) -> Vec<u16> {
-    if register.words >= 2 {
-        split_u32(bits, register.word_order).to_vec()
-    } else {
-        vec![bits as u16]
-    }
+    register.raw_words(bits).to_vec()
 }
 
-/// Checks `value` against the register's range and wire type, and gives its words.
+/// Checks `value` against the register's range, wire type and codes
+/// ([`RegisterInfo::check_integer`]), and gives its words.
 pub fn encode_integer(register: &'static RegisterInfo, value: i64) -> Result<Vec<u16>, Error> {
-    let (type_min, type_max) = register.scalar().bounds();
-    let (min, max) = register.range.unwrap_or((type_min, type_max));
-    let (min, max) = (min.max(type_min), max.min(type_max));
-    if value < min || value > max {
-        return Err(Error::OutOfRange {
-            register: register.name,
-            raw: value,
-            min,
-            max,
-            scale: register.scale,
-        });
-    }
-    Ok(bits_to_words(register, value as u32))
+    let bits = register
+        .check_integer(value)
+        .map_err(|why| Error::invalid(register, why))?;
+    Ok(bits_to_words(register, bits))
 }
 
 /// Checks that `code` is one the register defines, and gives its words.
 pub fn encode_code(register: &'static RegisterInfo, code: u32) -> Result<Vec<u16>, Error> {
-    if !register.codes.is_empty() && !register.codes.iter().any(|c| c.code == code) {
-        return Err(Error::UndefinedCode {
-            register: register.name,
-            field: None,
-            code,
-        });
-    }
     encode_integer(register, i64::from(code))
 }
 
-/// Checks each packed field of `bits` against its codes and range, and gives the words.
+/// Checks packed `bits` ([`RegisterInfo::check`]: each field's codes and range, no bit
+/// outside the fields), and gives the words; `None` is a field too wide for its bits.
 pub fn encode_packed(
     register: &'static RegisterInfo,
     bits: Option<u32>,
@@ -94,30 +71,9 @@ pub fn encode_packed(
     let bits = bits.ok_or(Error::FieldTooWide {
         register: register.name,
     })?;
-    if let ValueKind::Packed(fields) = register.kind {
-        for field in fields {
-            let value = field.get(bits);
-            if !field.codes.is_empty() && !field.codes.iter().any(|c| c.code == value) {
-                return Err(Error::UndefinedCode {
-                    register: register.name,
-                    field: Some(field.name),
-                    code: value,
-                });
-            }
-            if let Some((min, max)) = field.range {
-                let value = i64::from(value);
-                if value < min || value > max {
-                    return Err(Error::OutOfRange {
-                        register: field.name,
-                        raw: value,
-                        min,
-                        max,
-                        scale: field.scale,
-                    });
-                }
-            }
-        }
-    }
+    register
+        .check(bits)
+        .map_err(|why| Error::invalid(register, why))?;
     Ok(bits_to_words(register, bits))
 }
 

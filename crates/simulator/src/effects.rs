@@ -32,7 +32,7 @@ use crate::buffer::parse_duration;
 use crate::layout::command_copy;
 use crate::model::Device;
 use crate::names;
-use crate::value::{join, split};
+use crate::value::split;
 
 impl Device {
     /// Acts on a valid write of `raw` to register `index`, already stored.
@@ -174,7 +174,7 @@ impl Device {
         };
         let layout = buffer.layout.clone();
         let value = |index: usize| -> Option<u32> {
-            Some(join(self.register(index)?, self.words.get(index)?))
+            Some(self.register(index)?.raw(self.words.get(index)?))
         };
         let code = |index: usize| {
             let raw = value(index)?;

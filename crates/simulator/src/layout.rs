@@ -2,7 +2,7 @@
 
 use std::collections::HashMap;
 
-use optobus_device::{Addressing, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo, Table};
+use optobus_device::{CommandInfo, DeviceInfo, GroupInfo, RegisterInfo, Table};
 
 /// What one address holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -41,10 +41,7 @@ impl Layout {
         for (index, register) in device.registers.iter().enumerate() {
             layout.by_name.insert(register.name, index);
             // With one address per field a register takes one address whatever its width.
-            let span = match device.addressing {
-                Addressing::Word => register.words,
-                Addressing::Field => 1,
-            };
+            let span = register.span(device.addressing);
             let cells = layout.cells_mut(register.table);
             for offset in 0..span {
                 let address = usize::from(register.address) + usize::from(offset);

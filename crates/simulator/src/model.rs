@@ -3,8 +3,7 @@
 
 use optobus_codec::{ExceptionCode, ReadFunction, Request, WriteValue, MAX_READ_WORDS};
 use optobus_device::{
-    Addressing, DeviceInfo, LongWrites, RegisterInfo, Scalar, Table, ValueKind, WordOrder,
-    WriteOrder,
+    Addressing, DeviceInfo, LongWrites, RegisterInfo, Scalar, Table, ValueKind, WriteOrder,
 };
 use tokio::time::Instant;
 
@@ -15,7 +14,7 @@ use crate::layout::{Cell, Layout};
 use crate::names;
 use crate::quirks::{Quirks, UnreadableReads};
 use crate::signal::{raw_reading, raw_value, Signals, StatisticKind};
-use crate::value::{join, split, valid};
+use crate::value::split;
 
 /// What the device answers to one request.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -87,13 +86,6 @@ pub(crate) struct Device {
     pub(crate) faults: Option<Injector>,
 }
 
-fn function_table(function: ReadFunction) -> Table {
-    match function {
-        ReadFunction::Holding => Table::Holding,
-        ReadFunction::Input => Table::Input,
-    }
-}
-
 impl Device {
     pub(crate) fn new(info: &'static DeviceInfo) -> Self {
         let layout = Layout::new(info);
@@ -158,7 +150,7 @@ impl Device {
     /// The address the slave-address register of `words` names, if valid.
     pub(crate) fn configured_slave(&self, words: &[Vec<u16>]) -> Option<u8> {
         let index = self.slave_register()?;
-        let raw = join(&self.info.registers[index], words.get(index)?);
+        let raw = self.info.registers[index].raw(words.get(index)?);
         u8::try_from(raw).ok().filter(|a| (1..=247).contains(a))
     }
 
@@ -193,7 +185,7 @@ impl Device {
                 if broadcast && !self.quirks.answer_broadcast_reads {
                     return Reply::Silent;
                 }
-                self.read(function_table(*function), *address, *count, now)
+                self.read(Table::from(*function), *address, *count, now)
                     .map(|words| Reply::Read {
                         function: *function,
                         words,
@@ -381,7 +373,7 @@ impl Device {
     pub(crate) fn signal_value(&self, id: usize, t: f64) -> Option<i64> {
         self.signals.reading(id, t, |statistic| {
             let config = self.register(statistic.config)?;
-            let raw = join(config, self.words.get(statistic.config)?);
+            let raw = config.raw(self.words.get(statistic.config)?);
             let field_value = |field: &optobus_device::FieldInfo| {
                 let value = optobus_codec::value::BitField {
                     shift: field.lsb,
@@ -450,7 +442,7 @@ impl Device {
             }
             (WriteValue::Word(word), _) => {
                 // Multi-word registers other than 32-bit ones (IPv4): one word at a time.
-                if register.kind == ValueKind::Ipv4 && word > 0xFF {
+                if register.check(u32::from(word)).is_err() {
                     return Err(Fault::Value);
                 }
                 if let Some(slot) = self
@@ -463,7 +455,7 @@ impl Device {
                 return Ok(());
             }
         };
-        if !valid(register, raw) {
+        if register.check(raw).is_err() {
             return Err(Fault::Value);
         }
         self.words[index] = split(register, raw);
@@ -477,10 +469,7 @@ impl Device {
     /// a first pairs with the stored first half. `None` while waiting for the second half.
     fn split_write(&mut self, index: usize, offset: u16, word: u16) -> Option<u32> {
         let register = &self.info.registers[index];
-        let high = match register.word_order {
-            WordOrder::HighFirst => 0,
-            WordOrder::LowFirst => 1,
-        };
+        let high = register.word_order.high_offset();
         let first = match register.write_order {
             WriteOrder::HighWordFirst => high,
             WriteOrder::LowWordFirst => 1 - high,
@@ -501,7 +490,7 @@ impl Device {
         let mut words = [0u16; 2];
         words[usize::from(first)] = first_word;
         words[usize::from(offset)] = word;
-        Some(join(register, &words))
+        Some(register.raw(&words))
     }
 
     // ------------------------------------------------------------------ inspection

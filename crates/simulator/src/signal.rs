@@ -26,7 +26,6 @@ use optobus_device::{
 };
 
 use crate::names;
-use crate::value::to_raw;
 
 /// Index into [`Signals`].
 pub(crate) type SignalId = usize;
@@ -489,7 +488,7 @@ pub(crate) fn raw_reading(signal: &Signal, value: Option<i64>) -> u32 {
     let counter = matches!(signal.source, Source::Counter { .. });
     match value {
         // Counters wrap like the hardware's.
-        Some(value) if counter => to_raw(signal.scalar, value),
+        Some(value) if counter => signal.scalar.to_raw(value),
         _ => raw_value(signal.scalar, signal.sentinel, value),
     }
 }
@@ -501,10 +500,10 @@ pub(crate) fn raw_value(scalar: Scalar, sentinel: Option<u32>, value: Option<i64
     };
     let (min, max) = scalar.bounds();
     let value = value.clamp(min, max);
-    let raw = to_raw(scalar, value);
+    let raw = scalar.to_raw(value);
     if Some(raw) == sentinel {
         let nudged = if value >= max { value - 1 } else { value + 1 };
-        return to_raw(scalar, nudged);
+        return scalar.to_raw(nudged);
     }
     raw
 }

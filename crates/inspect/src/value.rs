@@ -1,0 +1,179 @@
+//! A register's words decoded for people (`Display`) and scripts (`Serialize`).
+
+use std::fmt;
+use std::net::Ipv4Addr;
+
+use optobus_codec::value::{join_u32, Fixed, Scale};
+use optobus_device::{CodeInfo, FieldInfo, RegisterInfo, Scalar, ValueKind};
+use optobus_driver::Decode;
+use serde::ser::{SerializeMap, Serializer};
+use serde::Serialize;
+
+/// A decoded register value.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Value {
+    /// The device marked the reading invalid (its sentinel).
+    Invalid,
+    /// A boolean register.
+    Bool(bool),
+    /// A plain integer.
+    Integer(i64),
+    /// An exact value with its unit.
+    Quantity(Fixed, Option<&'static str>),
+    /// An enumerated code and its name (none for codes the manual does not define).
+    Code(u32, Option<&'static str>),
+    /// Packed fields or record members.
+    Fields(Vec<(&'static str, Value)>),
+    /// An IPv4 address.
+    Ipv4(Ipv4Addr),
+    /// A version, its parts joined with dots.
+    Version(String),
+}
+
+impl fmt::Display for Value {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Invalid => f.write_str("invalid"),
+            Self::Bool(value) => write!(f, "{value}"),
+            Self::Integer(value) => write!(f, "{value}"),
+            Self::Quantity(value, Some(unit)) => write!(f, "{value} {unit}"),
+            Self::Quantity(value, None) => write!(f, "{value}"),
+            Self::Code(code, Some(name)) => write!(f, "{name} ({code})"),
+            Self::Code(code, None) => write!(f, "undefined code {code}"),
+            Self::Fields(fields) => {
+                for (i, (name, value)) in fields.iter().enumerate() {
+                    if i > 0 {
+                        f.write_str(", ")?;
+                    }
+                    write!(f, "{name}={value}")?;
+                }
+                Ok(())
+            }
+            Self::Ipv4(address) => write!(f, "{address}"),
+            Self::Version(text) => f.write_str(text),
+        }
+    }
+}
+
+/// For scripts: numbers as numbers (quantities with their exact text and unit), codes with
+/// their names, fields as an object, invalid readings as `null`.
+impl Serialize for Value {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Self::Invalid => serializer.serialize_none(),
+            Self::Bool(value) => serializer.serialize_bool(*value),
+            Self::Integer(value) => serializer.serialize_i64(*value),
+            Self::Quantity(value, unit) => {
+                let mut map = serializer.serialize_map(Some(3))?;
+                map.serialize_entry("exact", &value.to_string())?;
+                map.serialize_entry("unit", unit)?;
+                map.serialize_entry("value", &value.to_f64())?;
+                map.end()
+            }
+            Self::Code(code, name) => {
+                let mut map = serializer.serialize_map(Some(2))?;
+                map.serialize_entry("code", code)?;
+                map.serialize_entry("name", name)?;
+                map.end()
+            }
+            Self::Fields(fields) => {
+                let mut map = serializer.serialize_map(Some(fields.len()))?;
+                for (name, value) in fields {
+                    map.serialize_entry(name, value)?;
+                }
+                map.end()
+            }
+            Self::Ipv4(address) => serializer.collect_str(address),
+            Self::Version(text) => serializer.serialize_str(text),
+        }
+    }
+}
+
+fn code(codes: &'static [CodeInfo], raw: u32) -> Value {
+    Value::Code(raw, codes.iter().find(|c| c.code == raw).map(|c| c.name))
+}
+
+fn number(raw: i64, scale: Option<Scale>, unit: Option<&'static str>) -> Value {
+    match (scale, unit) {
+        (None, None) => Value::Integer(raw),
+        (scale, unit) => Value::Quantity(Fixed::new(raw, scale.unwrap_or(Scale::ONE)), unit),
+    }
+}
+
+fn field_value(field: &FieldInfo, bits: u32) -> Value {
+    let raw = field.get(bits);
+    if field.codes.is_empty() {
+        number(i64::from(raw), field.scale, field.unit)
+    } else {
+        code(field.codes, raw)
+    }
+}
+
+/// What `register` holds in `words` (its words in address order; missing words read as 0).
+pub fn decode_value(register: &'static RegisterInfo, words: &[u16]) -> Value {
+    let bits = register.raw(words);
+    if register.sentinel == Some(bits) {
+        return Value::Invalid;
+    }
+    match register.kind {
+        ValueKind::Bool => Value::Bool(bits != 0),
+        ValueKind::Scalar(scalar) => number(scalar.extend(bits), register.scale, register.unit),
+        ValueKind::Enum => code(register.codes, bits),
+        ValueKind::Packed(fields) => Value::Fields(
+            fields
+                .iter()
+                .map(|field| (field.name, field_value(field, bits)))
+                .collect(),
+        ),
+        ValueKind::Ipv4 => Value::Ipv4(Ipv4Addr::decode(register, words)),
+        ValueKind::Version(parts) => {
+            let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_be_bytes()).collect();
+            let shown: Vec<String> = parts
+                .iter()
+                .zip(&bytes)
+                .filter(|(part, _)| **part != "ignore")
+                .map(|(_, byte)| byte.to_string())
+                .collect();
+            Value::Version(shown.join("."))
+        }
+        ValueKind::Record(members) => {
+            let mut at = 0usize;
+            let mut fields = Vec::new();
+            for member in members {
+                let word = |i: usize| words.get(at + i).copied().unwrap_or(0);
+                let (bits, width) = match member.scalar {
+                    Scalar::U16 | Scalar::I16 => (u32::from(word(0)), 1),
+                    Scalar::U32 | Scalar::I32 => {
+                        (join_u32([word(0), word(1)], register.word_order), 2)
+                    }
+                };
+                at += width;
+                let value = if member.sentinel == Some(bits) {
+                    Value::Invalid
+                } else if member.codes.is_empty() {
+                    number(member.scalar.extend(bits), member.scale, member.unit)
+                } else {
+                    code(member.codes, bits)
+                };
+                fields.push((member.name, value));
+            }
+            Value::Fields(fields)
+        }
+    }
+}
+
+/// The allowed range of a register in its units (`0.5 % ..= 100.0 %`), if it has one.
+pub fn range_text(register: &RegisterInfo) -> Option<String> {
+    let (min, max) = register.range?;
+    let show = |raw: i64| match (register.scale, register.unit) {
+        (None, None) => raw.to_string(),
+        (scale, unit) => {
+            let value = Fixed::new(raw, scale.unwrap_or(Scale::ONE));
+            match unit {
+                Some(unit) => format!("{value} {unit}"),
+                None => value.to_string(),
+            }
+        }
+    };
+    Some(format!("{} ..= {}", show(min), show(max)))
+}
