@@ -9,6 +9,13 @@
 //!   the codec, a good CRC deciding), every field, the CRC checked, registers named, values
 //!   decoded ([`Value`]), exception codes with the meanings the spec gives, and notes on
 //!   anything a device would refuse. It never panics, whatever the bytes.
+//! - [`parse_hex`] reads bytes written in hex however a capture or a person writes them;
+//!   [`hex`] writes them back as `01 04 0C`.
+//! - [`resolve`] finds the registers a name stands for (a register, a repeat member and its
+//!   copies, a group); [`parse_value`] turns a value as people type it (`100us`, `42.5`, a
+//!   code's name or the manual's words for it, `name=value` fields) into the register's
+//!   validated words, refused with a one-line [`ParseError`] as the driver would refuse it;
+//!   [`decode_value`] turns words back into a [`Value`].
 //!
 //! Everything works from a device description (`DEVICE` of a family crate), and every result
 //! is plain data that serialises (with `serde`) to the JSON `optobus frame --json` prints.
@@ -16,7 +23,10 @@
 mod decode;
 mod encode;
 mod explain;
+mod hex;
 mod layout;
+mod parse;
+mod resolve;
 mod value;
 
 use std::fmt;
@@ -27,7 +37,10 @@ use serde::Serialize;
 
 pub use decode::decode;
 pub use encode::{encode_read, encode_write, EncodedFrame};
+pub use hex::{hex, parse_hex, HexError};
 pub use optobus_codec::EncodeError;
+pub use parse::{code_list, parse_value, ParseError};
+pub use resolve::{resolve, ResolveError};
 pub use value::{decode_value, range_text, Value};
 
 /// RTU (slave, PDU, CRC) or Modbus TCP (MBAP header, PDU).
@@ -194,12 +207,6 @@ impl fmt::Display for Error {
 }
 
 impl std::error::Error for Error {}
-
-/// `01 04 0C`: bytes in hex, space separated.
-pub fn hex(bytes: &[u8]) -> String {
-    let shown: Vec<String> = bytes.iter().map(|b| format!("{b:02X}")).collect();
-    shown.join(" ")
-}
 
 fn serialize_hex<S: Serializer>(bytes: &[u8], serializer: S) -> Result<S::Ok, S::Error> {
     serializer.serialize_str(&hex(bytes))

@@ -1,0 +1,243 @@
+//! Values typed by people turned into a register's validated words: engineering units
+//! (`100us`, `42.5`), code names or the manual's own words for a code, `name=value` fields.
+
+use std::fmt;
+use std::net::Ipv4Addr;
+
+use optobus_codec::value::Fixed;
+use optobus_device::{CodeInfo, RegisterInfo, ValueKind};
+use optobus_driver::{encode_code, encode_packed, Encode};
+
+use crate::value::range_text;
+
+/// Why [`parse_value`] refused a text; `Display` gives one line for people.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ParseError {
+    /// The register cannot be written (`` `distance_1` is read-only ``).
+    ReadOnly {
+        /// Register name.
+        register: &'static str,
+    },
+    /// A version or record register, written by no one (`` `firmware` cannot be written ``).
+    NotWritable {
+        /// Register name.
+        register: &'static str,
+    },
+    /// The register does not take `text` (`` `light_power` does not take `100.1`: allowed
+    /// 0.5 % ..= 100.0 % ``).
+    Refused {
+        /// Register name.
+        register: &'static str,
+        /// The text given.
+        text: String,
+        /// Why not, and what it takes instead.
+        reason: String,
+    },
+}
+
+impl fmt::Display for ParseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::ReadOnly { register } => write!(f, "`{register}` is read-only"),
+            Self::NotWritable { register } => write!(f, "`{register}` cannot be written"),
+            Self::Refused {
+                register,
+                text,
+                reason,
+            } => write!(f, "`{register}` does not take `{text}`: {reason}"),
+        }
+    }
+}
+
+impl std::error::Error for ParseError {}
+
+/// The validated words (in address order) that store `text` in `register`, checked as the
+/// driver checks a typed write: range, defined codes, packed fields, exact steps.
+///
+/// `text` is what a person types: `true`/`on`/`1` for a flag; a number with or without the
+/// register's unit (`100us`, `100 µs`, `42.5`); a code's name, the manual's meaning or the
+/// number (`0x10` too); packed fields as `name=value` pairs; an IPv4 address.
+pub fn parse_value(register: &'static RegisterInfo, text: &str) -> Result<Vec<u16>, ParseError> {
+    let refuse = |reason: String| ParseError::Refused {
+        register: register.name,
+        text: text.to_owned(),
+        reason,
+    };
+    if !register.access.writable() {
+        return Err(ParseError::ReadOnly {
+            register: register.name,
+        });
+    }
+    let result = match register.kind {
+        ValueKind::Bool => {
+            let value = match text.trim().to_ascii_lowercase().as_str() {
+                "1" | "true" | "on" | "yes" => true,
+                "0" | "false" | "off" | "no" => false,
+                _ => return Err(refuse("use true/false, on/off or 1/0".into())),
+            };
+            value.encode(register)
+        }
+        ValueKind::Enum => {
+            let Some(code) = parse_code(register.codes, text) else {
+                return Err(refuse(format!("codes are {}", code_list(register.codes))));
+            };
+            encode_code(register, code)
+        }
+        ValueKind::Scalar(_) => {
+            let value: Fixed = strip_unit(register, text).parse().map_err(|_| {
+                let unit = register.unit.map(|u| format!(" in {u}"));
+                refuse(format!("not a number{}", unit.unwrap_or_default()))
+            })?;
+            value.encode(register)
+        }
+        ValueKind::Packed(fields) => {
+            let mut bits = 0u32;
+            for field in fields {
+                let given = text.split([',', ' ']).find_map(|part| {
+                    let (name, value) = part.split_once('=')?;
+                    (name.trim() == field.name).then_some(value)
+                });
+                let Some(given) = given else {
+                    let names: Vec<&str> = fields.iter().map(|f| f.name).collect();
+                    return Err(refuse(format!(
+                        "give every field as name=value: {}",
+                        names.join(", ")
+                    )));
+                };
+                let raw = if field.codes.is_empty() {
+                    parse_integer(given).and_then(|n| u32::try_from(n).ok())
+                } else {
+                    parse_code(field.codes, given)
+                };
+                let Some(raw) = raw else {
+                    let takes = if field.codes.is_empty() {
+                        "a whole number".to_owned()
+                    } else {
+                        code_list(field.codes)
+                    };
+                    return Err(refuse(format!("`{}` takes {takes}", field.name)));
+                };
+                bits |= raw.checked_shl(u32::from(field.lsb)).unwrap_or(u32::MAX);
+            }
+            encode_packed(register, Some(bits))
+        }
+        ValueKind::Ipv4 => {
+            let address: Ipv4Addr = text
+                .trim()
+                .parse()
+                .map_err(|_| refuse("not an IPv4 address".into()))?;
+            address.encode(register)
+        }
+        ValueKind::Version(_) | ValueKind::Record(_) => {
+            return Err(ParseError::NotWritable {
+                register: register.name,
+            })
+        }
+    };
+    result.map_err(|error| {
+        refuse(match error {
+            optobus_driver::Error::OutOfRange { .. } => format!(
+                "allowed {}",
+                range_text(register).unwrap_or_else(|| "values that fit the register".into())
+            ),
+            optobus_driver::Error::NotRepresentable { scale, .. } => format!(
+                "it holds whole steps of {scale}{}",
+                register.unit.map(|u| format!(" {u}")).unwrap_or_default()
+            ),
+            optobus_driver::Error::UndefinedCode {
+                field: Some(field), ..
+            } => format!("`{field}` has no such code"),
+            other => other.to_string(),
+        })
+    })
+}
+
+/// Lower case, alphanumerics only: `100 us`, `100us` and `US_100` compare alike once sorted.
+fn tokens(text: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    let mut current = String::new();
+    let mut last_digit = None;
+    for c in text.chars() {
+        let digit = c.is_ascii_digit() || c == '.';
+        if !c.is_alphanumeric() && c != '.' {
+            if !current.is_empty() {
+                out.push(std::mem::take(&mut current));
+            }
+            last_digit = None;
+            continue;
+        }
+        if last_digit.is_some_and(|d| d != digit) && !current.is_empty() {
+            out.push(std::mem::take(&mut current));
+        }
+        current.extend(c.to_lowercase());
+        last_digit = Some(digit);
+    }
+    if !current.is_empty() {
+        out.push(current);
+    }
+    out.sort();
+    out
+}
+
+/// The code a person means by `text`: its name, the manual's words, or the number.
+fn parse_code(codes: &'static [CodeInfo], text: &str) -> Option<u32> {
+    let text = text.trim();
+    if let Some(found) = codes
+        .iter()
+        .find(|c| c.name.eq_ignore_ascii_case(text) || c.meaning == text)
+    {
+        return Some(found.code);
+    }
+    let wanted = tokens(&text.replace('_', "."));
+    if let Some(found) = codes
+        .iter()
+        .find(|c| tokens(&c.name.replace('_', ".")) == wanted || tokens(c.meaning) == wanted)
+    {
+        return Some(found.code);
+    }
+    parse_integer(text).and_then(|n| u32::try_from(n).ok())
+}
+
+/// `42` or `0x2A`.
+fn parse_integer(text: &str) -> Option<i64> {
+    let text = text.trim();
+    match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
+        Some(hex) => i64::from_str_radix(hex, 16).ok(),
+        None => text.parse().ok(),
+    }
+}
+
+/// `name (code), …`: the codes of a register or field, as messages list them.
+pub fn code_list(codes: &[CodeInfo]) -> String {
+    let names: Vec<String> = codes
+        .iter()
+        .map(|c| format!("{} ({})", c.name, c.code))
+        .collect();
+    names.join(", ")
+}
+
+/// Unit spellings people type for the unit a spec names.
+fn unit_spellings(unit: &str) -> &'static [&'static str] {
+    match unit {
+        "us" => &["us", "µs", "μs"],
+        "mm" => &["mm"],
+        "%" => &["%"],
+        "degC" => &["degC", "°C", "℃", "C"],
+        "uV" => &["uV", "µV"],
+        _ => &[],
+    }
+}
+
+/// `text` without a trailing unit the register is in.
+fn strip_unit<'t>(register: &RegisterInfo, text: &'t str) -> &'t str {
+    let text = text.trim();
+    let Some(unit) = register.unit else {
+        return text;
+    };
+    for spelling in unit_spellings(unit).iter().copied().chain([unit]) {
+        if let Some(number) = text.strip_suffix(spelling) {
+            return number.trim_end();
+        }
+    }
+    text
+}

@@ -1,0 +1,112 @@
+//! Registers by the names people use: a register, a repeat member (every copy, or one), or a
+//! group of them.
+
+use std::fmt;
+
+use optobus_device::{DeviceInfo, RegisterInfo};
+
+/// Why [`resolve`] found no register; `Display` gives one line for people.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ResolveError {
+    /// No register, repeat member or group has the name.
+    Unknown {
+        /// The name given.
+        name: String,
+        /// The device's family.
+        family: &'static str,
+        /// Up to five register, member or group names that contain it or that it contains.
+        near: Vec<&'static str>,
+    },
+    /// A repeat member has no copy of that number.
+    NoCopy {
+        /// The member's name.
+        name: String,
+        /// The repeat block (`channel`).
+        repeat: &'static str,
+        /// The copy asked for.
+        number: u8,
+        /// How many copies there are (numbered from 1).
+        copies: usize,
+    },
+}
+
+impl fmt::Display for ResolveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Unknown { name, family, .. } => {
+                write!(f, "`{name}` is no register or group of {family}")
+            }
+            Self::NoCopy {
+                name,
+                repeat,
+                number,
+                copies,
+            } => write!(
+                f,
+                "`{name}` has no {repeat} {number}: {repeat}s are numbered 1 to {copies}"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for ResolveError {}
+
+/// The registers `name` stands for on `device`, in order: a register; a repeat member, every
+/// copy or only copy `copy` (1-based; ignored for a register named in full); or a group, its
+/// members expanded the same way.
+pub fn resolve(
+    device: &'static DeviceInfo,
+    name: &str,
+    copy: Option<u8>,
+) -> Result<Vec<&'static RegisterInfo>, ResolveError> {
+    let Some(group) = device.group(name) else {
+        return members(device, name, copy);
+    };
+    let mut registers = Vec::new();
+    for member in group.registers {
+        registers.extend(members(device, member, copy)?);
+    }
+    Ok(registers)
+}
+
+/// The register `name`, or the copies (or copy `copy`) of the repeat member `name`.
+fn members(
+    device: &'static DeviceInfo,
+    name: &str,
+    copy: Option<u8>,
+) -> Result<Vec<&'static RegisterInfo>, ResolveError> {
+    let found: Vec<&'static RegisterInfo> = device.members(name).collect();
+    let Some(first) = found.first() else {
+        return Err(unknown(device, name));
+    };
+    match copy {
+        Some(number) if first.name != name => found
+            .iter()
+            .find(|r| r.copy.is_some_and(|c| c.number == number))
+            .map(|r| vec![*r])
+            .ok_or_else(|| ResolveError::NoCopy {
+                name: name.to_owned(),
+                repeat: first.copy.map_or("copy", |c| c.repeat),
+                number,
+                copies: found.len(),
+            }),
+        _ => Ok(found),
+    }
+}
+
+fn unknown(device: &DeviceInfo, name: &str) -> ResolveError {
+    let mut near: Vec<&'static str> = device
+        .registers
+        .iter()
+        .map(|r| r.member_name().unwrap_or(r.name))
+        .chain(device.groups.iter().map(|g| g.name))
+        .filter(|n| n.contains(name) || name.contains(n))
+        .collect();
+    near.dedup();
+    near.truncate(5);
+    ResolveError::Unknown {
+        name: name.to_owned(),
+        family: device.family,
+        near,
+    }
+}

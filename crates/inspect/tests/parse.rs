@@ -1,0 +1,183 @@
+//! What people type, read as the library reads it: hex bytes, register names and values.
+
+use optobus_device::{DeviceInfo, RegisterInfo};
+use optobus_inspect::{
+    decode_value, parse_hex, parse_value, resolve, HexError, ParseError, ResolveError,
+};
+
+const P: &DeviceInfo = &optobus_p_series::DEVICE;
+const RANGEFINDER: &DeviceInfo = &optobus_rangefinder::DEVICE;
+const CCF: &DeviceInfo = &optobus_ccf::DEVICE;
+
+fn register(device: &'static DeviceInfo, name: &str) -> &'static RegisterInfo {
+    device.register(name).expect("register")
+}
+
+/// The words of `text` in `name`, or the one-line refusal.
+fn parsed(device: &'static DeviceInfo, name: &str, text: &str) -> Result<Vec<u16>, String> {
+    parse_value(register(device, name), text).map_err(|e| e.to_string())
+}
+
+fn names(registers: &[&RegisterInfo]) -> Vec<&'static str> {
+    registers.iter().map(|r| r.name).collect()
+}
+
+#[test]
+fn hex_is_read_with_or_without_spaces_and_prefixes() {
+    let expected = vec![0x01, 0x04, 0x00, 0x00, 0x00, 0x02, 0x71, 0xCB];
+    for text in [
+        "01 04 00 00 00 02 71 CB",
+        "010400000002 71CB",
+        "0x01 0x04 0x00 0x00 0x00 0x02 0x71 0xcb",
+        "0x01040000 0x000271cb",
+        "01,04,00,00,00,02,71,CB",
+        "1 4 0 0 0 2 71 cb",
+        "01 04\n0000;0x0002:71CB",
+    ] {
+        assert_eq!(parse_hex(text), Ok(expected.clone()), "{text}");
+    }
+}
+
+#[test]
+fn bad_hex_is_refused_with_a_reason() {
+    let cases = [
+        ("01 0G", HexError::NotHex("0G".into()), "`0G` is not hex"),
+        ("0x", HexError::NotHex("0x".into()), "`0x` is not hex"),
+        (
+            "héllo",
+            HexError::NotHex("héllo".into()),
+            "`héllo` is not hex",
+        ),
+        (
+            "010",
+            HexError::OddDigits("010".into()),
+            "`010` has an odd number of hex digits",
+        ),
+        ("   ", HexError::Empty, "no bytes given"),
+        ("", HexError::Empty, "no bytes given"),
+    ];
+    for (text, error, message) in cases {
+        assert_eq!(parse_hex(text), Err(error.clone()), "{text:?}");
+        assert_eq!(error.to_string(), message);
+    }
+}
+
+#[test]
+fn values_are_read_in_units_codes_and_the_manuals_words() {
+    // 5.2.1: sampling interval 100 µs is code us_100 = 20 (0x14).
+    for text in ["us_100", "US_100", "100us", "100 us", "20", "0x14"] {
+        assert_eq!(
+            parsed(P, "sampling_interval", text),
+            Ok(vec![0x14]),
+            "{text}"
+        );
+    }
+    // Light power in steps of 0.1 %: 42.5 % is 425.
+    for text in ["42.5", "42.5%", "42.5 %"] {
+        assert_eq!(parsed(P, "light_power", text), Ok(vec![425]), "{text}");
+    }
+    // A packed register by its fields (rangefinder 3.7: odd parity at 57600 baud).
+    let words = parsed(
+        RANGEFINDER,
+        "serial_parameters",
+        "parity=odd,baud_rate=57600",
+    );
+    assert_eq!(words, Ok(vec![0x0100, 0xE100]));
+    // And back: what is parsed decodes to what was meant.
+    let light_power = register(P, "light_power");
+    let words = parse_value(light_power, "42.5").unwrap_or_default();
+    assert_eq!(decode_value(light_power, &words).to_string(), "42.5 %");
+}
+
+#[test]
+fn bad_values_are_refused_in_one_line() {
+    let cases = [
+        (
+            "light_power",
+            "100.1",
+            "`light_power` does not take `100.1`: allowed 0.5 % ..= 100.0 %",
+        ),
+        (
+            "light_power",
+            "50.05",
+            "`light_power` does not take `50.05`: it holds whole steps of 1e-1 %",
+        ),
+        (
+            "light_power",
+            "lots",
+            "`light_power` does not take `lots`: not a number in %",
+        ),
+        ("distance_1", "1", "`distance_1` is read-only"),
+    ];
+    for (name, text, message) in cases {
+        assert_eq!(
+            parsed(P, name, text),
+            Err(message.to_owned()),
+            "{name} {text}"
+        );
+    }
+    let refused = parse_value(register(P, "light_power"), "lots");
+    assert!(matches!(
+        refused,
+        Err(ParseError::Refused {
+            register: "light_power",
+            ..
+        })
+    ));
+    let codes = parsed(P, "sampling_interval", "fast")
+        .err()
+        .unwrap_or_default();
+    assert!(
+        codes.contains("codes are ") && codes.contains("us_100 (20)"),
+        "{codes}"
+    );
+    let fields = parsed(RANGEFINDER, "serial_parameters", "parity=odd")
+        .err()
+        .unwrap_or_default();
+    assert!(
+        fields.contains("give every field as name=value"),
+        "{fields}"
+    );
+}
+
+#[test]
+fn names_resolve_to_registers_copies_and_groups() {
+    let found = |device, name, copy| resolve(device, name, copy).map(|r| names(&r));
+    assert_eq!(found(P, "distance_1", None), Ok(vec!["distance_1"]));
+    // A register named in full ignores the copy number.
+    assert_eq!(found(P, "distance_1", Some(3)), Ok(vec!["distance_1"]));
+    let every = found(CCF, "exposure_time", None).unwrap_or_default();
+    assert_eq!(every.len(), 4);
+    let second = found(CCF, "exposure_time", Some(2)).unwrap_or_default();
+    assert_eq!(second.len(), 1);
+    assert_eq!(
+        CCF.register(second[0])
+            .and_then(|r| r.copy)
+            .map(|c| c.number),
+        Some(2)
+    );
+    let group = found(P, "measurements", None).unwrap_or_default();
+    assert_eq!(group.first(), Some(&"distance_1"));
+    assert_eq!(group.len(), 5);
+}
+
+#[test]
+fn unknown_names_and_copies_are_refused_with_near_names() {
+    let error = resolve(P, "distance", None).err();
+    let Some(ResolveError::Unknown { near, family, .. }) = &error else {
+        panic!("{error:?}");
+    };
+    assert_eq!(*family, "p_series");
+    assert!(near.contains(&"distance_1") && near.len() <= 5, "{near:?}");
+    assert_eq!(
+        error.map(|e| e.to_string()).unwrap_or_default(),
+        "`distance` is no register or group of p_series"
+    );
+    let error = resolve(CCF, "exposure_time", Some(5)).err();
+    assert_eq!(
+        error.map(|e| e.to_string()).unwrap_or_default(),
+        "`exposure_time` has no channel 5: channels are numbered 1 to 4"
+    );
+    let nothing_near = resolve(P, "zzz", None).err();
+    assert!(matches!(nothing_near, Some(ResolveError::Unknown { near, .. }) if near.is_empty()));
+}
