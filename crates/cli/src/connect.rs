@@ -6,10 +6,10 @@ use std::time::Duration;
 use clap::Args;
 use optobus_device::{DeviceInfo, RegisterInfo};
 use optobus_driver::Core;
+use optobus_inspect::{decode_value, Value};
 
 use crate::error::{driver_error, CliError};
 use crate::link::{self, Link, Target};
-use crate::values::{self, Value};
 use crate::{inputs, models};
 
 /// Options every command takes.
@@ -128,6 +128,6 @@ pub(crate) async fn read_values(
     })?;
     Ok(registers
         .iter()
-        .map(|r| (*r, values::decode(r, readings.words(r))))
+        .map(|r| (*r, decode_value(r, readings.words(r))))
         .collect())
 }

@@ -70,3 +70,36 @@ impl From<optobus_driver::Error> for CliError {
         driver_error(error, None)
     }
 }
+
+impl From<optobus_inspect::ResolveError> for CliError {
+    fn from(error: optobus_inspect::ResolveError) -> Self {
+        let hint = match &error {
+            optobus_inspect::ResolveError::Unknown { family, near, .. } if near.is_empty() => {
+                Some(format!("see `optobus registers {family}`"))
+            }
+            optobus_inspect::ResolveError::Unknown { near, .. } => {
+                Some(format!("did you mean {}?", near.join(", ")))
+            }
+            optobus_inspect::ResolveError::NoCopy { .. } => None,
+        };
+        Self {
+            message: error.to_string(),
+            hint,
+        }
+    }
+}
+
+impl From<optobus_inspect::ParseError> for CliError {
+    fn from(error: optobus_inspect::ParseError) -> Self {
+        Self::new(error.to_string())
+    }
+}
+
+impl From<optobus_inspect::Error> for CliError {
+    fn from(error: optobus_inspect::Error) -> Self {
+        Self {
+            message: error.message,
+            hint: error.hint,
+        }
+    }
+}

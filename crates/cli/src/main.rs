@@ -7,13 +7,12 @@
 mod commands;
 mod connect;
 mod error;
-mod frame;
 mod inputs;
 mod link;
 mod log;
 mod models;
+mod names;
 mod render;
-mod values;
 
 use std::process::ExitCode;
 

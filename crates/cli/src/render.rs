@@ -6,7 +6,7 @@ use std::io::Write;
 use optobus_device::RegisterInfo;
 use serde_json::{Map, Value as Json};
 
-use crate::values::Value;
+use optobus_inspect::Value;
 
 /// Prints `text` on stdout with a final newline, ignoring a closed stdout.
 pub(crate) fn print(text: &str) {
@@ -32,12 +32,17 @@ pub(crate) fn values_text(values: &[(&'static RegisterInfo, Value)]) -> String {
         .collect()
 }
 
+/// A value for scripts ([`Value`]'s serialisation).
+pub(crate) fn value_json(value: &Value) -> Json {
+    serde_json::to_value(value).unwrap_or_default()
+}
+
 /// `{"name": value, …}`.
 pub(crate) fn values_json(values: &[(&'static RegisterInfo, Value)]) -> Json {
     Json::Object(
         values
             .iter()
-            .map(|(r, v)| (r.name.to_owned(), v.to_json()))
+            .map(|(r, v)| (r.name.to_owned(), value_json(v)))
             .collect::<Map<_, _>>(),
     )
 }

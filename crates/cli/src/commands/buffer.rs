@@ -11,7 +11,7 @@ use crate::connect::Global;
 use crate::error::{driver_error, CliError};
 use crate::log::{self, note};
 use crate::render::print;
-use crate::{inputs, link, models, values};
+use crate::{inputs, link, models};
 
 #[derive(Debug, Args)]
 pub(crate) struct BufferArgs {
@@ -121,7 +121,7 @@ fn input(count: u16, source: &str) -> Result<MeasurementSource, CliError> {
     let register = DEVICE
         .register("buffer_data_type")
         .ok_or_else(|| CliError::new("the P-series spec has no buffer_data_type"))?;
-    let words = values::parse(register, source)?;
+    let words = optobus_inspect::parse_value(register, source)?;
     Ok(MeasurementSource::from_raw(u32::from(
         words.first().copied().unwrap_or(0),
     )))

@@ -8,7 +8,7 @@ use crate::connect::Global;
 use crate::error::{driver_error, CliError};
 use crate::log::note;
 use crate::render::print;
-use crate::{inputs, values};
+use crate::{inputs, names};
 
 #[derive(Debug, Args)]
 pub(crate) struct DoArgs {
@@ -37,7 +37,7 @@ pub(crate) async fn run(global: &Global, args: &DoArgs) -> Result<(), CliError> 
             inputs::effect_text(info)
         )));
     }
-    let register = values::single(device, info.register, args.channel)?;
+    let register = names::single(device, info.register, args.channel)?;
     let slave = global.writing_slave(device)?;
     if info.busy_ms > 0 && !global.json {
         note!(

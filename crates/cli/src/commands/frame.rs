@@ -8,12 +8,14 @@
 
 use clap::{Args, Subcommand};
 use optobus_device::{DeviceInfo, RegisterInfo};
-use optobus_inspect::{hex, EncodedFrame, ExplainedFrame, Framing};
-use serde_json::{json, Value as Json};
+use optobus_inspect::{hex, parse_hex, EncodedFrame, ExplainedFrame, Framing, HexError};
+use serde::Serialize;
+use serde_json::json;
 
+use crate::connect::Global;
 use crate::error::CliError;
 use crate::models;
-use crate::values;
+use crate::render::{pretty, print};
 
 /// `optobus frame …`.
 #[derive(Debug, Subcommand)]
@@ -83,26 +85,20 @@ pub(crate) struct EncodeOptions {
     mbap: bool,
 }
 
-/// Runs `command`; gives the text to print (JSON when `json`). `slave` is the global
-/// `--slave` (default: the model's factory address); `tcp` says the global `--tcp` was given,
-/// which implies Modbus TCP framing like `--mbap`.
-pub(crate) fn run(
-    command: &FrameCommand,
-    json: bool,
-    slave: Option<u8>,
-    tcp: bool,
-) -> Result<String, CliError> {
+/// Prints the frames (JSON with `--json`). The global `--slave` is the slave (default: the
+/// model's factory address); the global `--tcp` implies Modbus TCP framing like `--mbap`.
+pub(crate) fn run(global: &Global, command: &FrameCommand) -> Result<(), CliError> {
+    let framing = |mbap: bool| {
+        if mbap || global.tcp.is_some() {
+            Framing::Tcp
+        } else {
+            Framing::Rtu
+        }
+    };
     match command {
         FrameCommand::Encode { family, request } => {
             let device = models::find(family)?;
-            let slave = slave.unwrap_or(device.default_slave);
-            let framing = |options: &EncodeOptions| {
-                if options.mbap || tcp {
-                    Framing::Tcp
-                } else {
-                    Framing::Rtu
-                }
-            };
+            let slave = global.slave.unwrap_or(device.default_slave);
             let frames = match request {
                 EncodeRequest::Read { .. } if slave == 0 => {
                     return Err(CliError::new(
@@ -111,22 +107,18 @@ pub(crate) fn run(
                     .hint("give the device's address, 1 to 247, with --slave"))
                 }
                 EncodeRequest::Read { name, options } => {
-                    encode_read(device, name, options.channel, slave, framing(options))?
+                    encode_read(device, name, options.channel, slave, framing(options.mbap))?
                 }
                 EncodeRequest::Set {
                     name,
                     value,
                     options,
-                } => encode_write(
-                    device,
-                    name,
-                    value,
-                    options.channel,
-                    slave,
-                    framing(options),
-                )?,
+                } => {
+                    let register = one_register(device, name, options.channel)?;
+                    encode_write(device, register, value, slave, framing(options.mbap))?
+                }
             };
-            Ok(render_encoded(&frames, json))
+            print(&render(&frames, global.json, render_encoded));
         }
         FrameCommand::Decode {
             family,
@@ -135,23 +127,12 @@ pub(crate) fn run(
             address,
         } => {
             let device = models::find(family)?;
-            let bytes = parse_hex(hex)?;
-            let framing = if *mbap || tcp {
-                Framing::Tcp
-            } else {
-                Framing::Rtu
-            };
-            let frames =
-                optobus_inspect::decode(device, &bytes, framing, *address).map_err(|error| {
-                    let refused = CliError::new(error.message);
-                    match error.hint {
-                        Some(hint) => refused.hint(hint),
-                        None => refused,
-                    }
-                })?;
-            Ok(render_decoded(&frames, json))
+            let bytes = parse_hex(&hex.join(" ")).map_err(hex_refused)?;
+            let frames = optobus_inspect::decode(device, &bytes, framing(*mbap), *address)?;
+            print(&render(&frames, global.json, render_decoded));
         }
     }
+    Ok(())
 }
 
 /// `16`, or `0x10`.
@@ -166,7 +147,17 @@ fn parse_address(text: &str) -> Result<u16, String> {
     })
 }
 
-// ---------------------------------------------------------------------------------- encode
+/// A refused hex argument, with an example of what works.
+fn hex_refused(error: HexError) -> CliError {
+    let hint = match error {
+        HexError::NotHex(_) => {
+            "give bytes like `01 04 00 00 00 02 71 CB`, `010400000002 71CB` or `0x01 0x04 …`"
+        }
+        HexError::OddDigits(_) => "write every byte as two digits, e.g. `01 04 00 00`",
+        HexError::Empty => "e.g. `optobus frame decode p-series 01 04 00 00 00 02 71 CB`",
+    };
+    CliError::new(error.to_string()).hint(hint)
+}
 
 /// The frames that read `name` (a register, a repeat member or a group).
 fn encode_read(
@@ -176,7 +167,7 @@ fn encode_read(
     slave: u8,
     framing: Framing,
 ) -> Result<Vec<EncodedFrame>, CliError> {
-    let registers = values::resolve(device, name, channel)?;
+    let registers = optobus_inspect::resolve(device, name, channel)?;
     if !registers.iter().any(|r| r.access.readable()) {
         return Err(
             CliError::new(format!("`{name}` is write-only: there is nothing to read")).hint(
@@ -190,22 +181,21 @@ fn encode_read(
     optobus_inspect::encode_read(device, &registers, slave, framing).map_err(not_encoded)
 }
 
-/// The frames that write `text` to register `name`, validated as the drivers do.
+/// The frames that write `text` to `register`, validated as the drivers do.
 fn encode_write(
     device: &'static DeviceInfo,
-    name: &str,
+    register: &'static RegisterInfo,
     text: &str,
-    channel: Option<u8>,
     slave: u8,
     framing: Framing,
 ) -> Result<Vec<EncodedFrame>, CliError> {
-    let register = one_register(device, name, channel)?;
-    let words = values::parse(register, text)?;
+    let words = optobus_inspect::parse_value(register, text)?;
     let frames = optobus_inspect::encode_write(device, register, &words, slave, framing)
         .map_err(not_encoded)?;
     if frames.is_empty() {
         return Err(CliError::new(format!(
-            "`{text}` gives no words to write to `{name}`"
+            "`{text}` gives no words to write to `{}`",
+            register.name
         )));
     }
     Ok(frames)
@@ -217,7 +207,7 @@ fn one_register(
     name: &str,
     channel: Option<u8>,
 ) -> Result<&'static RegisterInfo, CliError> {
-    match values::resolve(device, name, channel)?.as_slice() {
+    match optobus_inspect::resolve(device, name, channel)?.as_slice() {
         [one] => Ok(*one),
         many if device.group(name).is_some() => {
             let names: Vec<&str> = many.iter().map(|r| r.name).collect();
@@ -238,11 +228,17 @@ fn not_encoded(error: optobus_inspect::EncodeError) -> CliError {
     CliError::new(format!("cannot encode the request: {error}"))
 }
 
-/// One `# description` line above each frame's hex, so a line copies as it is; or JSON.
-fn render_encoded(frames: &[EncodedFrame], json: bool) -> String {
+/// `{"frames": [...]}` as pretty JSON, or each frame as text.
+fn render<F: Serialize>(frames: &[F], json: bool, text: fn(&[F]) -> String) -> String {
     if json {
-        return pretty(serde_json::to_value(frames));
+        let frames = serde_json::to_value(frames).unwrap_or_default();
+        return pretty(&json!({ "frames": frames }));
     }
+    text(frames)
+}
+
+/// One `# description` line above each frame's hex, so a line copies as it is.
+fn render_encoded(frames: &[EncodedFrame]) -> String {
     frames
         .iter()
         .map(|frame| format!("# {}\n{}", frame.description, hex(&frame.bytes)))
@@ -250,64 +246,8 @@ fn render_encoded(frames: &[EncodedFrame], json: bool) -> String {
         .join("\n")
 }
 
-/// `{"frames": [...]}` as JSON text for people and scripts alike.
-fn pretty(frames: serde_json::Result<Json>) -> String {
-    let value = json!({ "frames": frames.unwrap_or_default() });
-    serde_json::to_string_pretty(&value).unwrap_or_else(|_| value.to_string())
-}
-
-// ---------------------------------------------------------------------------------- decode
-
-/// Bytes given as hex: several arguments or one, spaces (or `,`, `:`, `;`) optional, `0x`
-/// prefixes allowed. A token of one or two digits is one byte; longer ones are byte pairs.
-fn parse_hex(args: &[String]) -> Result<Vec<u8>, CliError> {
-    let mut bytes = Vec::new();
-    let separators = |c: char| c.is_whitespace() || matches!(c, ',' | ':' | ';');
-    for token in args.iter().flat_map(|a| a.split(separators)) {
-        if token.is_empty() {
-            continue;
-        }
-        let digits = token
-            .strip_prefix("0x")
-            .or_else(|| token.strip_prefix("0X"))
-            .unwrap_or(token);
-        let nibbles: Option<Vec<u8>> = digits
-            .chars()
-            .map(|c| c.to_digit(16).and_then(|d| u8::try_from(d).ok()))
-            .collect();
-        let nibbles = match nibbles {
-            Some(n) if !n.is_empty() => n,
-            _ => return Err(CliError::new(format!("`{token}` is not hex")).hint(
-                "give bytes like `01 04 00 00 00 02 71 CB`, `010400000002 71CB` or `0x01 0x04 …`",
-            )),
-        };
-        match nibbles.as_slice() {
-            [low] => bytes.push(*low),
-            [high, low] => bytes.push((high << 4) | low),
-            _ if nibbles.len() % 2 == 1 => {
-                return Err(
-                    CliError::new(format!("`{token}` has an odd number of hex digits"))
-                        .hint("write every byte as two digits, e.g. `01 04 00 00`"),
-                )
-            }
-            _ => bytes.extend(nibbles.chunks(2).map(|pair| match pair {
-                [high, low] => (high << 4) | low,
-                _ => 0,
-            })),
-        }
-    }
-    if bytes.is_empty() {
-        return Err(CliError::new("no bytes given")
-            .hint("e.g. `optobus frame decode p-series 01 04 00 00 00 02 71 CB`"));
-    }
-    Ok(bytes)
-}
-
-/// Frames explained, field by field; or JSON.
-fn render_decoded(frames: &[ExplainedFrame], json: bool) -> String {
-    if json {
-        return pretty(serde_json::to_value(frames));
-    }
+/// Frames explained, field by field.
+fn render_decoded(frames: &[ExplainedFrame]) -> String {
     // Wider fields (long data) go on their own line rather than pushing every meaning right.
     const MAX_COLUMN: usize = 23;
     let mut out = Vec::new();
@@ -349,77 +289,18 @@ fn render_decoded(frames: &[ExplainedFrame], json: bool) -> String {
 mod tests {
     use super::*;
 
-    const P: &DeviceInfo = &optobus_p_series::DEVICE;
-    const CCF: &DeviceInfo = &optobus_ccf::DEVICE;
-
-    fn bytes(text: &str) -> Vec<u8> {
-        parse_hex(&[text.to_owned()]).unwrap_or_default()
-    }
-
-    #[test]
-    fn hex_is_read_with_or_without_spaces_and_prefixes() {
-        let expected = vec![0x01, 0x04, 0x00, 0x00, 0x00, 0x02, 0x71, 0xCB];
-        for text in [
-            "01 04 00 00 00 02 71 CB",
-            "010400000002 71CB",
-            "0x01 0x04 0x00 0x00 0x00 0x02 0x71 0xcb",
-            "0x01040000 0x000271cb",
-            "01,04,00,00,00,02,71,CB",
-            "1 4 0 0 0 2 71 cb",
-        ] {
-            assert_eq!(bytes(text), expected, "{text}");
-        }
-        let split = parse_hex(&[
-            "01 04".to_owned(),
-            "0000".to_owned(),
-            "0x0002 71CB".to_owned(),
-        ]);
-        assert_eq!(split.ok(), Some(expected));
-    }
-
-    #[test]
-    fn bad_hex_is_refused_with_a_reason() {
-        let message = |text: &str| {
-            parse_hex(&[text.to_owned()])
-                .err()
-                .map(|e| e.message)
-                .unwrap_or_default()
-        };
-        assert!(message("01 0G").contains("not hex"));
-        assert!(message("0x").contains("not hex"));
-        assert!(message("héllo").contains("not hex"));
-        assert!(message("010").contains("odd number"));
-        assert!(message("   ").contains("no bytes"));
-    }
-
-    #[test]
-    fn addresses_parse_in_decimal_or_hex() {
-        assert_eq!(parse_address("16"), Ok(16));
-        assert_eq!(parse_address("0x10"), Ok(16));
-        assert!(parse_address("70000").is_err());
-    }
-
-    #[test]
-    fn invalid_writes_are_refused_before_encoding() {
-        let write = |device, name, text, channel| {
-            encode_write(device, name, text, channel, 1, Framing::Rtu)
-        };
-        let error = write(P, "light_power", "250", None).err();
-        assert!(error.is_some_and(|e| e.message.contains("0.5")));
-        assert!(write(P, "distance_1", "1", None).is_err());
-        assert!(write(P, "laser", "1", None).is_err());
-        assert!(write(CCF, "exposure_time", "100us", None).is_err());
-        assert!(write(CCF, "exposure_time", "100us", Some(2)).is_ok());
-    }
-
     #[test]
     fn rendering_never_panics() {
-        let input = bytes("01 04 00 00 00 06 70 08 01 04 0C 00 36 B0 BE 00 20 24 5C 00 56 D3 04");
+        let input =
+            parse_hex("01 04 00 00 00 06 70 08 01 04 0C 00 36 B0 BE 00 20 24 5C 00 56 D3 04")
+                .unwrap_or_default();
         for end in 0..input.len() {
             let prefix = input.get(..end).unwrap_or_default();
-            if let Ok(frames) = optobus_inspect::decode(P, prefix, Framing::Rtu, None) {
-                let _ = render_decoded(&frames, false);
-                let _ = render_decoded(&frames, true);
+            let decoded =
+                optobus_inspect::decode(&optobus_p_series::DEVICE, prefix, Framing::Rtu, None);
+            if let Ok(frames) = decoded {
+                let _ = render(&frames, false, render_decoded);
+                let _ = render(&frames, true, render_decoded);
             }
         }
     }

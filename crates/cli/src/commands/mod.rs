@@ -4,6 +4,7 @@
 
 mod buffer;
 mod do_command;
+mod frame;
 mod models;
 mod read;
 mod registers;
@@ -16,8 +17,6 @@ use clap::Subcommand;
 
 use crate::connect::Global;
 use crate::error::CliError;
-use crate::frame;
-use crate::render::print;
 
 #[derive(Debug, Subcommand)]
 pub(crate) enum Command {
@@ -60,14 +59,6 @@ pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError
         Command::Buffer(args) => buffer::run(&global, &args).await,
         Command::Scan(args) => scan::run(&global, &args).await,
         Command::Simulate(args) => simulate::run(&global, &args).await,
-        Command::Frame(frame) => {
-            print(&crate::frame::run(
-                &frame,
-                global.json,
-                global.slave,
-                global.tcp.is_some(),
-            )?);
-            Ok(())
-        }
+        Command::Frame(command) => frame::run(&global, &command),
     }
 }

@@ -9,8 +9,8 @@ use serde_json::json;
 use crate::connect::{read_values, Global};
 use crate::error::CliError;
 use crate::log::note;
+use crate::names;
 use crate::render::{pretty, print, values_json, values_text};
-use crate::values;
 
 #[derive(Debug, Args)]
 pub(crate) struct ReadArgs {
@@ -25,7 +25,7 @@ pub(crate) struct ReadArgs {
 pub(crate) async fn read(global: &Global, args: &ReadArgs) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
-    let registers = values::readable(device, &args.names, args.channel)?;
+    let registers = names::readable(device, &args.names, args.channel)?;
     let slave = global.answering_slave(device, "read")?;
     let mut core = global.connect(device, slave).await?;
     let values = read_values(&mut core, &registers).await?;

@@ -1,14 +1,14 @@
 //! `optobus registers`: a model's register map, groups and commands, from its spec.
 
 use clap::Args;
-use optobus_device::DeviceInfo;
+use optobus_device::{DeviceInfo, RegisterInfo, ValueKind};
+use optobus_inspect::{code_list, range_text};
 use serde_json::{json, Value as Json};
 
 use crate::connect::Global;
 use crate::error::CliError;
 use crate::models;
 use crate::render::{pretty, print};
-use crate::values;
 
 #[derive(Debug, Args)]
 pub(crate) struct RegistersArgs {
@@ -23,7 +23,7 @@ pub(crate) fn run(global: &Global, args: &RegistersArgs) -> Result<(), CliError>
 }
 
 fn text(device: &'static DeviceInfo, json: bool) -> String {
-    let rows: Vec<(String, Json)> = device.registers.iter().map(values::describe).collect();
+    let rows: Vec<(String, Json)> = device.registers.iter().map(describe).collect();
     if json {
         return pretty(&json!({
             "model": device.family,
@@ -49,4 +49,45 @@ fn text(device: &'static DeviceInfo, json: bool) -> String {
         out.push_str(&format!("  {:<22} {}\n", c.name, c.doc));
     }
     out
+}
+
+/// A register readable in a terminal and as JSON: name, table, address, access, type, unit,
+/// range or codes.
+fn describe(register: &RegisterInfo) -> (String, Json) {
+    let kind = register.kind.name();
+    let values = match register.kind {
+        ValueKind::Enum => code_list(register.codes),
+        ValueKind::Packed(fields) => fields
+            .iter()
+            .map(|f| format!("{}: {}", f.name, code_list(f.codes)))
+            .collect::<Vec<_>>()
+            .join("; "),
+        _ => range_text(register).unwrap_or_default(),
+    };
+    let text = format!(
+        "{:<34} {:<7} {:>5} {:<2} {:<7} {:<4} {}",
+        register.name,
+        register.table.as_str(),
+        register.address,
+        register.access.as_str(),
+        kind,
+        register.unit.unwrap_or(""),
+        values
+    );
+    let json = json!({
+        "name": register.name,
+        "table": register.table.as_str(),
+        "address": register.address,
+        "words": register.words,
+        "access": register.access.as_str(),
+        "type": kind,
+        "unit": register.unit,
+        "scale": register.scale.map(|s| s.to_string()),
+        "range": register.range.map(|(a, b)| [a, b]),
+        "codes": register.codes.iter().map(|c| json!({"code": c.code, "name": c.name, "meaning": c.meaning})).collect::<Vec<_>>(),
+        "sentinel": register.sentinel,
+        "doc": register.doc,
+        "section": register.section,
+    });
+    (text, json)
 }

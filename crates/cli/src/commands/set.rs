@@ -2,15 +2,16 @@
 
 use clap::Args;
 use optobus_device::{CommandInfo, DeviceInfo, Effect, RegisterInfo};
-use optobus_driver::raw_bits;
+use optobus_driver::{raw_bits, Encode};
+use optobus_inspect::{decode_value, parse_value};
 use serde_json::json;
 
 use crate::connect::Global;
 use crate::error::{driver_error, CliError};
 use crate::inputs;
 use crate::log::note;
-use crate::render::{pretty, print};
-use crate::values::{self, Validated};
+use crate::names;
+use crate::render::{pretty, print, value_json};
 
 #[derive(Debug, Args)]
 pub(crate) struct SetArgs {
@@ -31,8 +32,8 @@ pub(crate) struct SetArgs {
 pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
-    let register = values::single(device, &args.name, args.channel)?;
-    let words = values::parse(register, &args.value)?;
+    let register = names::single(device, &args.name, args.channel)?;
+    let words = parse_value(register, &args.value)?;
     let new_address = new_slave_address(device, register, &words)?;
     confirm(device, register, &words, args.yes)?;
     let slave = global.writing_slave(device)?;
@@ -41,9 +42,9 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
         .await
         .map_err(|e| driver_error(e, Some(register.name)))?;
     if slave == 0 {
-        let value = values::decode(register, &words);
+        let value = decode_value(register, &words);
         if global.json {
-            print(&json!({ register.name: value.to_json(), "broadcast": true }).to_string());
+            print(&json!({ register.name: value_json(&value), "broadcast": true }).to_string());
         } else {
             print(&format!(
                 "{}  {value}: broadcast sent, no reply expected",
@@ -79,9 +80,9 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
             .read_words(register)
             .await
             .map_err(|e| driver_error(e, Some(register.name)))?;
-        let value = values::decode(register, &back);
+        let value = decode_value(register, &back);
         if global.json {
-            print(&pretty(&json!({ register.name: value.to_json() })));
+            print(&pretty(&json!({ register.name: value_json(&value) })));
         } else {
             print(&format!("{}  {value}", register.name));
         }
@@ -155,5 +156,14 @@ fn new_slave_address(
             register.name
         ))
         .hint("0 is the broadcast address; Modbus reserves 248 to 255")),
+    }
+}
+
+/// Words [`parse_value`] already validated, written as they are.
+struct Validated(Vec<u16>);
+
+impl Encode for Validated {
+    fn encode(&self, _: &'static RegisterInfo) -> Result<Vec<u16>, optobus_driver::Error> {
+        Ok(self.0.clone())
     }
 }
