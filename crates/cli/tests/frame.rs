@@ -1,35 +1,10 @@
 //! `optobus frame encode` and `optobus frame decode`, run as a user runs them. Expected bytes
 //! are the manuals' own frames (tests/golden/*.yaml).
 
-use assert_cmd::Command;
+mod common;
+
+use common::{fails, ok};
 use serde_json::Value;
-
-/// Runs `optobus ARGS`; gives (success, stdout, stderr).
-fn optobus(args: &[&str]) -> (bool, String, String) {
-    let output = Command::cargo_bin("optobus")
-        .map(|mut command| command.args(args).output())
-        .unwrap_or_else(|error| panic!("no optobus binary: {error}"))
-        .unwrap_or_else(|error| panic!("optobus did not run: {error}"));
-    (
-        output.status.success(),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
-}
-
-/// Stdout of a run that must succeed.
-fn ok(args: &[&str]) -> String {
-    let (success, stdout, stderr) = optobus(args);
-    assert!(success, "optobus {args:?} failed: {stderr}");
-    stdout
-}
-
-/// Stderr of a run that must fail.
-fn fails(args: &[&str]) -> String {
-    let (success, stdout, stderr) = optobus(args);
-    assert!(!success, "optobus {args:?} succeeded: {stdout}");
-    stderr
-}
 
 /// The hex lines of `frame encode` text output, in order.
 fn hex_lines(stdout: &str) -> Vec<&str> {
@@ -39,21 +14,34 @@ fn hex_lines(stdout: &str) -> Vec<&str> {
         .collect()
 }
 
+/// `optobus frame encode ARGS` prints exactly `frames` (hex lines), in order; gives stdout.
+fn encodes(args: &[&str], frames: &[&str]) -> String {
+    let mut command = vec!["frame", "encode"];
+    command.extend(args);
+    let stdout = ok(&command);
+    assert_eq!(hex_lines(&stdout), frames, "{args:?}");
+    stdout
+}
+
 fn json(stdout: &str) -> Value {
     serde_json::from_str(stdout).unwrap_or_else(|error| panic!("not JSON ({error}): {stdout}"))
 }
 
 #[test]
 fn encode_read_of_a_register() {
-    let stdout = ok(&["frame", "encode", "p-series", "read", "distance_1"]);
-    assert_eq!(hex_lines(&stdout), ["01 04 00 00 00 02 71 CB"]);
+    let stdout = encodes(
+        &["p-series", "read", "distance_1"],
+        &["01 04 00 00 00 02 71 CB"],
+    );
     assert!(stdout.contains("# read input 0-1 (distance_1)"), "{stdout}");
 }
 
 #[test]
 fn encode_read_of_a_group_is_the_manuals_5_4_request() {
-    let stdout = ok(&["frame", "encode", "p-series", "read", "buffer_page"]);
-    assert_eq!(hex_lines(&stdout), ["01 04 00 10 00 7A 70 2C"]);
+    encodes(
+        &["p-series", "read", "buffer_page"],
+        &["01 04 00 10 00 7A 70 2C"],
+    );
 }
 
 #[test]
@@ -81,33 +69,37 @@ fn encode_rangefinder_group_is_one_request_per_field() {
 }
 
 #[test]
-fn encode_set_is_the_manuals_5_2_1_write() {
-    let stdout = ok(&[
-        "frame",
-        "encode",
-        "p-series",
-        "set",
-        "sampling_interval",
-        "100us",
-    ]);
-    assert_eq!(hex_lines(&stdout), ["01 06 00 06 00 14 69 C4"]);
-}
-
-#[test]
-fn encode_split_write_comes_in_send_order() {
-    // 4.1.2 note 4: slope 2.0 = 0x0020_0000, register 28 (low word) first, then 27.
-    let stdout = ok(&[
-        "frame",
-        "encode",
-        "p-series",
-        "set",
-        "position_1_slope",
-        "2",
-    ]);
-    assert_eq!(
-        hex_lines(&stdout),
-        ["01 06 00 1C 00 00 48 0C", "01 06 00 1B 00 20 F8 15"]
-    );
+fn encode_writes_as_the_manuals_do() {
+    let cases: [(&[&str], &[&str]); 4] = [
+        // 5.2.1.
+        (
+            &["p-series", "set", "sampling_interval", "100us"],
+            &["01 06 00 06 00 14 69 C4"],
+        ),
+        // 4.1.2 note 4: slope 2.0 = 0x0020_0000, register 28 (low word) first, then 27.
+        (
+            &["p-series", "set", "position_1_slope", "2"],
+            &["01 06 00 1C 00 00 48 0C", "01 06 00 1B 00 20 F8 15"],
+        ),
+        // Negative values are values, not options: -0.5 mm = -500000 nm, low word first.
+        (
+            &["p-series", "set", "position_1_offset", "-0.5"],
+            &["01 06 00 1E 5E E0 D0 24", "01 06 00 1D FF F8 59 BE"],
+        ),
+        // Rangefinder 3.7: odd parity, 57600 baud, one FC06 with 4 data bytes.
+        (
+            &[
+                "rangefinder",
+                "set",
+                "serial_parameters",
+                "parity=odd,baud_rate=57600",
+            ],
+            &["19 06 00 04 01 00 E1 00 5F 01"],
+        ),
+    ];
+    for (args, frames) in cases {
+        encodes(args, frames);
+    }
     let value = json(&ok(&[
         "frame",
         "encode",
@@ -127,45 +119,52 @@ fn encode_split_write_comes_in_send_order() {
 }
 
 #[test]
-fn encode_set_takes_negative_values() {
-    let stdout = ok(&[
-        "frame",
-        "encode",
-        "p-series",
-        "set",
-        "position_1_offset",
-        "-0.5",
-    ]);
-    assert_eq!(hex_lines(&stdout).len(), 2, "{stdout}");
-}
-
-#[test]
-fn encode_rangefinder_writes_32_bits_in_one_frame() {
-    // 3.7: odd parity, 57600 baud, one FC06 with 4 data bytes.
-    let stdout = ok(&[
-        "frame",
-        "encode",
-        "rangefinder",
-        "set",
-        "serial_parameters",
-        "parity=odd,baud_rate=57600",
-    ]);
-    assert_eq!(hex_lines(&stdout), ["19 06 00 04 01 00 E1 00 5F 01"]);
-}
-
-#[test]
-fn encode_refuses_out_of_range_values() {
-    let stderr = fails(&["frame", "encode", "p-series", "set", "light_power", "250"]);
-    assert!(stderr.contains("0.5 % ..= 100.0 %"), "{stderr}");
-    let stderr = fails(&["frame", "encode", "p-series", "set", "distance_1", "1"]);
-    assert!(stderr.contains("read-only"), "{stderr}");
-    let stderr = fails(&["frame", "encode", "p-series", "read", "no_such_register"]);
-    assert!(stderr.contains("no_such_register"), "{stderr}");
+fn encode_refuses_invalid_requests() {
+    for (args, message) in [
+        (
+            vec!["p-series", "set", "light_power", "250"],
+            "0.5 % ..= 100.0 %",
+        ),
+        (vec!["p-series", "set", "distance_1", "1"], "read-only"),
+        (
+            vec!["p-series", "read", "no_such_register"],
+            "no_such_register",
+        ),
+        (vec!["p-series", "set", "laser", "1"], "is a group"),
+        (
+            vec!["ccf", "set", "exposure_time", "100us"],
+            "--channel 1 to 4",
+        ),
+    ] {
+        let mut command = vec!["frame", "encode"];
+        command.extend(&args);
+        let stderr = fails(&command);
+        assert!(stderr.contains(message), "{args:?}: {stderr}");
+    }
+    encodes(
+        &["ccf", "set", "exposure_time", "100us", "--channel", "2"],
+        &["01 06 00 0A 03 E8 A9 76"],
+    );
 }
 
 #[test]
 fn encode_slave_and_channel() {
+    let frame = ["07 03 00 12 00 01 24 69"];
+    encodes(
+        &[
+            "ccf",
+            "read",
+            "exposure_time",
+            "--channel",
+            "3",
+            "--slave",
+            "7",
+        ],
+        &frame,
+    );
     let stdout = ok(&[
+        "--slave",
+        "7",
         "frame",
         "encode",
         "ccf",
@@ -173,37 +172,17 @@ fn encode_slave_and_channel() {
         "exposure_time",
         "--channel",
         "3",
-        "--slave",
-        "7",
     ]);
-    assert_eq!(hex_lines(&stdout), ["07 03 00 12 00 01 24 69"]);
-    let stdout = ok(&[
-        "--slave",
-        "7",
-        "frame",
-        "encode",
-        "ccf",
-        "read",
-        "exposure_time",
-        "--channel",
-        "3",
-    ]);
-    assert_eq!(hex_lines(&stdout), ["07 03 00 12 00 01 24 69"]);
+    assert_eq!(hex_lines(&stdout), frame);
 }
 
 #[test]
 fn encode_modbus_tcp_frames() {
     // 5.2.2's frame, with transaction 1 rather than the manual's 0.
-    let stdout = ok(&[
-        "frame",
-        "encode",
-        "p-series",
-        "set",
-        "sampling_interval",
-        "100us",
-        "--mbap",
-    ]);
-    assert_eq!(hex_lines(&stdout), ["00 01 00 00 00 06 01 06 00 06 00 14"]);
+    encodes(
+        &["p-series", "set", "sampling_interval", "100us", "--mbap"],
+        &["00 01 00 00 00 06 01 06 00 06 00 14"],
+    );
     // The global --tcp HOST implies Modbus TCP framing; transaction ids count up.
     let stdout = ok(&[
         "--tcp",

@@ -6,44 +6,7 @@
 
 mod common;
 
-use common::{ok, run, Served};
-
-/// Exit code of clap's usage errors (a value its parser refused).
-const USAGE: i32 = 2;
-/// Exit code of the tool's own refusals and failures.
-const FAILURE: i32 = 1;
-
-/// Runs `args --verbose`: it must fail with `code` and a stderr containing `message`, without
-/// a panic, without sending a frame and without opening a connection.
-fn refused(args: &[&str], code: i32, message: &str) -> String {
-    let mut verbose = args.to_vec();
-    verbose.push("--verbose");
-    let output = run(&verbose);
-    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
-    assert_eq!(output.status.code(), Some(code), "{args:?}: {stderr}");
-    assert!(stderr.contains(message), "{args:?}: {stderr}");
-    assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
-    for sign in [" -> ", "built-in", "cannot open", "cannot connect"] {
-        assert!(
-            !stderr.contains(sign),
-            "{args:?} went as far as `{sign}`: {stderr}"
-        );
-    }
-    if code == FAILURE {
-        assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
-    }
-    stderr
-}
-
-/// Runs `args`; gives (exit code, stdout, stderr).
-fn outcome(args: &[&str]) -> (Option<i32>, String, String) {
-    let output = run(args);
-    (
-        output.status.code(),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
-}
+use common::{ok, outcome, refused, Served, FAILURE, USAGE};
 
 #[test]
 fn durations_are_bounded_and_strict() {

@@ -4,7 +4,7 @@
 mod common;
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::process::{Child, Stdio};
 use std::sync::mpsc::{self, Receiver};
@@ -23,12 +23,8 @@ fn simulate(args: &[&str]) -> (Child, String) {
         .stderr(Stdio::piped())
         .spawn()
         .expect("start optobus simulate");
-    let mut line = String::new();
-    let stdout = child.stdout.take().expect("stdout");
-    BufReader::new(stdout)
-        .read_line(&mut line)
-        .expect("where it serves");
-    (child, line.trim().to_owned())
+    let at = common::serves_at(&mut child);
+    (child, at)
 }
 
 /// Waits for the child to end on its own (its --duration); gives its stderr.

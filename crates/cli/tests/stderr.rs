@@ -4,7 +4,7 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufReader, Read, Write};
 use std::net::TcpStream;
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
@@ -22,12 +22,7 @@ fn simulate(duration: &str, close_stderr: bool) -> (Child, String) {
     if close_stderr {
         drop(child.stderr.take());
     }
-    let mut line = String::new();
-    let stdout = child.stdout.take().expect("stdout");
-    BufReader::new(stdout)
-        .read_line(&mut line)
-        .expect("where it serves");
-    let address = line.trim().to_owned();
+    let address = common::serves_at(&mut child);
     assert!(address.starts_with("127.0.0.1:"), "{address:?}");
     (child, address)
 }

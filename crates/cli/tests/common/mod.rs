@@ -46,6 +46,55 @@ pub fn json(args: &[&str]) -> serde_json::Value {
     serde_json::from_str(&ok(&with_json)).expect("valid JSON")
 }
 
+/// Exit code of clap's usage errors (a value its parser refused).
+pub const USAGE: i32 = 2;
+/// Exit code of the tool's own refusals and failures.
+pub const FAILURE: i32 = 1;
+
+/// Runs `args`; gives (exit code, stdout, stderr).
+pub fn outcome(args: &[&str]) -> (Option<i32>, String, String) {
+    let output = run(args);
+    (
+        output.status.code(),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+/// Runs `args --verbose`: it must fail with `code` and a stderr containing `message`, without
+/// a panic, without sending a frame (` -> ` with --verbose) and without opening a connection
+/// (the built-in simulator's line, "cannot open", "cannot connect"); the tool's own refusals
+/// (`FAILURE`) in one line. Gives stderr.
+pub fn refused(args: &[&str], code: i32, message: &str) -> String {
+    let mut verbose = args.to_vec();
+    verbose.push("--verbose");
+    let (status, _, stderr) = outcome(&verbose);
+    assert_eq!(status, Some(code), "{args:?}: {stderr}");
+    assert!(stderr.contains(message), "{args:?}: {stderr}");
+    assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    for sign in [" -> ", "built-in", "cannot open", "cannot connect"] {
+        assert!(
+            !stderr.contains(sign),
+            "{args:?} went as far as `{sign}`: {stderr}"
+        );
+    }
+    if code == FAILURE {
+        assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
+    }
+    stderr
+}
+
+/// The first line `optobus simulate` prints on stdout: where it serves (the TCP address or
+/// the pty path).
+pub fn serves_at(child: &mut Child) -> String {
+    let mut line = String::new();
+    let stdout = child.stdout.take().expect("stdout");
+    BufReader::new(stdout)
+        .read_line(&mut line)
+        .expect("where it serves");
+    line.trim().to_owned()
+}
+
 /// `optobus simulate …` running in the background; stopped when dropped.
 pub struct Served {
     child: Child,
@@ -63,15 +112,8 @@ impl Served {
             .stderr(Stdio::null())
             .spawn()
             .expect("start optobus simulate");
-        let mut line = String::new();
-        let stdout = child.stdout.take().expect("stdout");
-        BufReader::new(stdout)
-            .read_line(&mut line)
-            .expect("where it serves");
-        Self {
-            child,
-            at: line.trim().to_owned(),
-        }
+        let at = serves_at(&mut child);
+        Self { child, at }
     }
 }
 
