@@ -8,7 +8,7 @@ use optobus_codec::{
 };
 use optobus_device::DeviceInfo;
 
-use crate::explain::{explain_pdu, function_list, PduKind};
+use crate::explain::{explain_pdu, function_list, ExplainAs};
 use crate::{hex, CrcCheck, Error, ExplainedFrame, Field, FrameKind, Framing};
 
 /// A request seen earlier in the same input, to pair its reply with.
@@ -81,7 +81,7 @@ pub fn decode(
 /// A way to read the bytes at the start of an RTU frame, and its length.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Candidate {
-    kind: PduKind,
+    kind: ExplainAs,
     len: usize,
 }
 
@@ -90,15 +90,15 @@ impl Candidate {
     fn describe(self, rest: &[u8]) -> String {
         let len = self.len;
         match self.kind {
-            PduKind::ReadRequest => format!("a read request ({len} bytes)"),
-            PduKind::ReadReply => format!(
+            ExplainAs::ReadRequest => format!("a read request ({len} bytes)"),
+            ExplainAs::ReadReply => format!(
                 "a read reply with byte count {} ({len} bytes)",
                 rest.get(2).copied().unwrap_or(0)
             ),
-            PduKind::Write if len == 10 => format!("a 4-byte write or its echo ({len} bytes)"),
-            PduKind::Write => format!("a write or its echo ({len} bytes)"),
-            PduKind::Exception(_) => format!("an exception reply ({len} bytes)"),
-            PduKind::Other => format!("a frame ({len} bytes)"),
+            ExplainAs::Write if len == 10 => format!("a 4-byte write or its echo ({len} bytes)"),
+            ExplainAs::Write => format!("a write or its echo ({len} bytes)"),
+            ExplainAs::Exception(_) => format!("an exception reply ({len} bytes)"),
+            ExplainAs::Other => format!("a frame ({len} bytes)"),
         }
     }
 }
@@ -126,8 +126,8 @@ fn rtu_candidates(device: &DeviceInfo, rest: &[u8], context: &Context) -> Vec<Ca
         ..FrameShape::STANDARD
     };
     let found: Vec<Option<Candidate>> = if let Some(read) = ReadFunction::from_code(function) {
-        let request = candidate(PduKind::ReadRequest, rtu::request_len(rest, &shape));
-        let reply = candidate(PduKind::ReadReply, rtu::response_len(rest, &shape));
+        let request = candidate(ExplainAs::ReadRequest, rtu::request_len(rest, &shape));
+        let reply = candidate(ExplainAs::ReadReply, rtu::response_len(rest, &shape));
         let answers_previous = matches!(
             context.previous,
             Some(Sent { request: Request::Read { function: f, .. }, .. }) if f == read
@@ -142,7 +142,7 @@ fn rtu_candidates(device: &DeviceInfo, rest: &[u8], context: &Context) -> Vec<Ca
             .into_iter()
             .map(|exception| {
                 candidate(
-                    PduKind::Exception(exception),
+                    ExplainAs::Exception(exception),
                     rtu::response_len(rest, &shapes(exception)),
                 )
             })
@@ -163,7 +163,7 @@ fn rtu_candidates(device: &DeviceInfo, rest: &[u8], context: &Context) -> Vec<Ca
             [two, four]
         };
         lens.into_iter()
-            .map(|len| candidate(PduKind::Write, len))
+            .map(|len| candidate(ExplainAs::Write, len))
             .collect()
     } else {
         Vec::new()
@@ -171,7 +171,7 @@ fn rtu_candidates(device: &DeviceInfo, rest: &[u8], context: &Context) -> Vec<Ca
     let found: Vec<Candidate> = found.into_iter().flatten().collect();
     if found.is_empty() {
         return vec![Candidate {
-            kind: PduKind::Other,
+            kind: ExplainAs::Other,
             len: rest.len(),
         }];
     }
@@ -235,7 +235,7 @@ fn rtu_frame(
             .filter(|c| c.len > rest.len())
             // Other widths of a write or an exception are fallbacks, not worth naming.
             .filter(|c| {
-                matches!(c.kind, PduKind::ReadRequest | PduKind::ReadReply)
+                matches!(c.kind, ExplainAs::ReadRequest | ExplainAs::ReadReply)
                     || Some(*c) == candidates.first()
             })
             .map(|c| c.describe(rest))
@@ -256,7 +256,7 @@ fn rtu_frame(
         received: u16::from_le_bytes(*crc),
         computed: crc16(body),
     };
-    if chosen.kind == PduKind::Other && !check.ok() {
+    if chosen.kind == ExplainAs::Other && !check.ok() {
         let function = body.get(1).copied().unwrap_or(0);
         return Err(tcp_hint(
             Error::new(format!(
@@ -372,14 +372,16 @@ fn tcp_frame(
     let counted = ExceptionShape::CountedWord.pdu_len();
     let read = ReadFunction::from_code(function).is_some();
     let kind = match function {
-        _ if read && pdu_bytes.len() == READ_REQUEST_PDU_LEN => PduKind::ReadRequest,
-        _ if read => PduKind::ReadReply,
-        WRITE_SINGLE => PduKind::Write,
+        _ if read && pdu_bytes.len() == READ_REQUEST_PDU_LEN => ExplainAs::ReadRequest,
+        _ if read => ExplainAs::ReadReply,
+        WRITE_SINGLE => ExplainAs::Write,
         _ if exception_function(function).is_some() && pdu_bytes.len() == counted => {
-            PduKind::Exception(ExceptionShape::CountedWord)
+            ExplainAs::Exception(ExceptionShape::CountedWord)
         }
-        _ if exception_function(function).is_some() => PduKind::Exception(ExceptionShape::Standard),
-        _ => PduKind::Other,
+        _ if exception_function(function).is_some() => {
+            ExplainAs::Exception(ExceptionShape::Standard)
+        }
+        _ => ExplainAs::Other,
     };
     let pdu = explain_pdu(device, kind, pdu_bytes, context);
     let header = frame.get(..HEADER_LEN).unwrap_or_default();

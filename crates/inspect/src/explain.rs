@@ -12,9 +12,10 @@ use crate::layout::{address_text, guess_start, layout, span_text, Held};
 use crate::value::{decode_value, range_text};
 use crate::{Field, FrameKind, RegisterValue};
 
-/// What a PDU is, from its function code (and length).
+/// How to explain a PDU: what it is, judged from its function code (and length). Not the
+/// codec's request and reply types: a guess that the CRC and the pairing then confirm.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum PduKind {
+pub(crate) enum ExplainAs {
     ReadRequest,
     ReadReply,
     Write,
@@ -22,9 +23,9 @@ pub(crate) enum PduKind {
     Other,
 }
 
-/// A PDU explained.
+/// A PDU explained (the body of an [`crate::ExplainedFrame`], before its framing is added).
 #[derive(Clone, Debug, PartialEq)]
-pub(crate) struct Pdu {
+pub(crate) struct ExplainedPdu {
     pub(crate) kind: FrameKind,
     pub(crate) summary: String,
     pub(crate) fields: Vec<Field>,
@@ -67,23 +68,23 @@ fn exception_meaning(device: &DeviceInfo, code: u16) -> String {
 /// A PDU (function code and data) explained.
 pub(crate) fn explain_pdu(
     device: &DeviceInfo,
-    kind: PduKind,
+    kind: ExplainAs,
     pdu: &[u8],
     context: &Context,
-) -> Pdu {
+) -> ExplainedPdu {
     match kind {
-        PduKind::ReadRequest => read_request(device, pdu),
-        PduKind::ReadReply => read_reply(device, pdu, context),
-        PduKind::Write => write(device, pdu, context),
-        PduKind::Exception(shape) => exception(device, pdu, shape, context),
-        PduKind::Other => other(device, pdu, None),
+        ExplainAs::ReadRequest => read_request(device, pdu),
+        ExplainAs::ReadReply => read_reply(device, pdu, context),
+        ExplainAs::Write => write(device, pdu, context),
+        ExplainAs::Exception(shape) => exception(device, pdu, shape, context),
+        ExplainAs::Other => other(device, pdu, None),
     }
 }
 
 /// A PDU shown as function code and data, with `why` it is not decoded further.
-fn other(device: &DeviceInfo, pdu: &[u8], why: Option<String>) -> Pdu {
+fn other(device: &DeviceInfo, pdu: &[u8], why: Option<String>) -> ExplainedPdu {
     let Some((&function, data)) = pdu.split_first() else {
-        return Pdu {
+        return ExplainedPdu {
             kind: FrameKind::Other,
             summary: "empty PDU".to_owned(),
             fields: Vec::new(),
@@ -115,7 +116,7 @@ fn other(device: &DeviceInfo, pdu: &[u8], why: Option<String>) -> Pdu {
             function_list(device)
         ));
     }
-    Pdu {
+    ExplainedPdu {
         kind: FrameKind::Other,
         summary: format!("function {function:02X} ({name}): not decoded"),
         fields,
@@ -134,7 +135,7 @@ fn function_field(function: u8) -> Field {
 }
 
 /// An FC03/FC04 request: address and count.
-fn read_request(device: &DeviceInfo, pdu: &[u8]) -> Pdu {
+fn read_request(device: &DeviceInfo, pdu: &[u8]) -> ExplainedPdu {
     let (&[function, a0, a1, c0, c1], Some(table)) =
         (pdu, pdu.first().copied().and_then(Table::of_function_code))
     else {
@@ -174,7 +175,7 @@ fn read_request(device: &DeviceInfo, pdu: &[u8]) -> Pdu {
             Held::Nothing => None,
         })
         .collect();
-    Pdu {
+    ExplainedPdu {
         kind: FrameKind::ReadRequest,
         summary: format!(
             "read request: {}",
@@ -231,7 +232,7 @@ fn reply_start(
 
 /// An FC03/FC04 reply: byte count and data, named and decoded when its start is known (from
 /// the request before it, or the caller's address).
-fn read_reply(device: &DeviceInfo, pdu: &[u8], context: &Context) -> Pdu {
+fn read_reply(device: &DeviceInfo, pdu: &[u8], context: &Context) -> ExplainedPdu {
     let (Some((&function, rest)), Some(table)) = (
         pdu.split_first(),
         pdu.first().copied().and_then(Table::of_function_code),
@@ -332,7 +333,7 @@ fn read_reply(device: &DeviceInfo, pdu: &[u8], context: &Context) -> Pdu {
     if !odd.is_empty() {
         fields.push(Field::new(odd, "odd byte: not a whole register"));
     }
-    Pdu {
+    ExplainedPdu {
         kind: FrameKind::ReadReply,
         summary,
         fields,
@@ -349,7 +350,7 @@ fn raw_words(words: &[u16]) -> String {
 }
 
 /// An FC06 request or its echo: the register written and the value, decoded.
-fn write(device: &DeviceInfo, pdu: &[u8], context: &Context) -> Pdu {
+fn write(device: &DeviceInfo, pdu: &[u8], context: &Context) -> ExplainedPdu {
     let (address_bytes, value) = match *pdu {
         [_, a0, a1, high, low] => ([a0, a1], WriteValue::Word(u16::from_be_bytes([high, low]))),
         [_, a0, a1, b3, b2, b1, b0] => (
@@ -421,7 +422,7 @@ fn write(device: &DeviceInfo, pdu: &[u8], context: &Context) -> Pdu {
         WriteValue::Word(word) => format!("value 0x{word:04X} = {word}"),
         WriteValue::DoubleWord(long) => format!("value 0x{long:08X} = {long} (4 data bytes)"),
     };
-    Pdu {
+    ExplainedPdu {
         kind,
         summary: format!("{role}: holding {address}: {}", meaning.text),
         fields: vec![
@@ -582,7 +583,12 @@ fn half_write(
 }
 
 /// An exception reply: the function that failed and why.
-fn exception(device: &DeviceInfo, pdu: &[u8], shape: ExceptionShape, context: &Context) -> Pdu {
+fn exception(
+    device: &DeviceInfo,
+    pdu: &[u8],
+    shape: ExceptionShape,
+    context: &Context,
+) -> ExplainedPdu {
     let mut fields = Vec::new();
     let mut notes = Vec::new();
     let (function, code) = match (shape, pdu) {
@@ -645,7 +651,7 @@ fn exception(device: &DeviceInfo, pdu: &[u8], shape: ExceptionShape, context: &C
             notes.push("answers the request above: the device refused it".to_owned());
         }
     }
-    Pdu {
+    ExplainedPdu {
         kind: FrameKind::Exception,
         summary: format!(
             "exception reply: function {failed:02X} ({}) failed: {meaning}",

@@ -8,7 +8,8 @@
 //! - [`decode`] explains any byte string leniently: the frames in it (candidate lengths from
 //!   the codec, a good CRC deciding), every field, the CRC checked, registers named, values
 //!   decoded ([`Value`]), exception codes with the meanings the spec gives, and notes on
-//!   anything a device would refuse. It never panics, whatever the bytes.
+//!   anything a device would refuse. It never panics, whatever the bytes. An
+//!   [`ExplainedFrame`] displays as the text `optobus frame decode` prints.
 //! - [`parse_hex`] reads bytes written in hex however a capture or a person writes them;
 //!   [`hex`] writes them back as `01 04 0C`.
 //! - [`resolve`] finds the registers a name stands for (a register, a repeat member and its
@@ -175,6 +176,38 @@ pub struct ExplainedFrame {
     pub registers: Vec<RegisterValue>,
     /// What a device would make of it, where that is worth saying.
     pub notes: Vec<String>,
+}
+
+/// The summary, then every field's bytes and meaning in aligned columns (long data on a line
+/// of its own), then the notes; no final newline. What `optobus frame decode` prints.
+impl fmt::Display for ExplainedFrame {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // Wider fields (long data) go on their own line rather than pushing every meaning right.
+        const MAX_COLUMN: usize = 23;
+        f.write_str(&self.summary)?;
+        if self.fields.is_empty() {
+            write!(f, "\n  {}", hex(&self.bytes))?;
+        }
+        let column = self
+            .fields
+            .iter()
+            .map(|field| hex(&field.bytes).len())
+            .filter(|&len| len <= MAX_COLUMN)
+            .max()
+            .unwrap_or(2);
+        for field in &self.fields {
+            let bytes = hex(&field.bytes);
+            if bytes.len() > column {
+                write!(f, "\n  {bytes}\n  {:column$}  {}", "", field.meaning)?;
+            } else {
+                write!(f, "\n  {bytes:column$}  {}", field.meaning)?;
+            }
+        }
+        for note in &self.notes {
+            write!(f, "\n  note: {note}")?;
+        }
+        Ok(())
+    }
 }
 
 /// Why the first frame of some bytes could not be decoded at all.

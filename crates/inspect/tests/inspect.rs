@@ -270,7 +270,8 @@ fn every_prefix_and_corruption_of_real_frames_decodes_without_panicking() {
     }
 }
 
-/// Decodes `input` for several devices, both framings, with and without a start address.
+/// Decodes `input` for several devices, both framings, with and without a start address, and
+/// renders what it gives as JSON and as text.
 fn decode_everywhere(input: &[u8]) {
     for device in [P, RANGEFINDER, LC_RS, CCF] {
         for framing in [Framing::Rtu, Framing::Tcp] {
@@ -280,6 +281,7 @@ fn decode_everywhere(input: &[u8]) {
                     let used: usize = frames.iter().map(|f| f.bytes.len()).sum();
                     assert!(used <= input.len());
                     let _ = serde_json::to_string(&frames);
+                    let _: Vec<String> = frames.iter().map(ToString::to_string).collect();
                 }
             }
         }
