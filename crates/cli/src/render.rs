@@ -3,6 +3,7 @@
 
 use std::io::Write;
 
+use optobus_codec::LineFormat;
 use optobus_device::RegisterInfo;
 use serde_json::{Map, Value as Json};
 
@@ -17,6 +18,18 @@ pub(crate) fn print(text: &str) {
         let _ = out.write_all(b"\n");
     }
     let _ = out.flush();
+}
+
+/// `9600 baud 8E1`.
+pub(crate) fn line_text(format: LineFormat) -> String {
+    let parity = format.parity.name().chars().next().unwrap_or('n');
+    format!(
+        "{} baud {}{}{}",
+        format.baud,
+        format.data_bits,
+        parity.to_ascii_uppercase(),
+        format.stop_bits
+    )
 }
 
 pub(crate) fn pretty(json: &Json) -> String {

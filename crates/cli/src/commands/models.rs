@@ -2,22 +2,18 @@
 
 use std::net::Ipv4Addr;
 
-use optobus_device::{RtuInfo, TcpInfo};
+use optobus_device::TcpInfo;
+use optobus_driver::line_format;
 use serde_json::{json, Value as Json};
 
 use crate::connect::Global;
 use crate::error::CliError;
 use crate::models::{self, MODELS};
-use crate::render::{pretty, print};
+use crate::render::{line_text, pretty, print};
 
 pub(crate) fn run(global: &Global) -> Result<(), CliError> {
     print(&if global.json { json() } else { text() });
     Ok(())
-}
-
-/// `none`, `odd` or `even`.
-fn parity(rtu: &RtuInfo) -> &'static str {
-    rtu.parity.name()
 }
 
 /// The factory IP address, if the manual gives one.
@@ -32,7 +28,7 @@ fn json() -> String {
             json!({
                 "model": d.family,
                 "title": d.title,
-                "rtu": d.rtu.map(|r| json!({"default_baud": r.default_baud, "bauds": r.bauds, "parity": parity(&r), "data_bits": r.data_bits, "stop_bits": r.stop_bits})),
+                "rtu": d.rtu.map(|r| json!({"default_baud": r.default_baud, "bauds": r.bauds, "parity": r.parity.name(), "data_bits": r.data_bits, "stop_bits": r.stop_bits})),
                 "tcp": d.tcp.map(|t| json!({"port": t.port, "default_ip": factory_ip(&t)})),
                 "default_slave": d.default_slave,
                 "registers": d.registers.len(),
@@ -51,15 +47,8 @@ fn text() -> String {
         if let Some(rtu) = d.rtu {
             let bauds: Vec<String> = rtu.bauds.iter().map(u32::to_string).collect();
             out.push_str(&format!(
-                "    RTU  {} baud {}{}{} (also {}), slave {}\n",
-                rtu.default_baud,
-                rtu.data_bits,
-                parity(&rtu)
-                    .chars()
-                    .next()
-                    .unwrap_or('n')
-                    .to_ascii_uppercase(),
-                rtu.stop_bits,
+                "    RTU  {} (also {}), slave {}\n",
+                line_text(line_format(d)),
                 bauds.join("/"),
                 d.default_slave
             ));

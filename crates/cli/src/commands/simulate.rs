@@ -14,7 +14,7 @@ use optobus_simulator::{
 use crate::connect::Global;
 use crate::error::CliError;
 use crate::log::Log;
-use crate::render::print;
+use crate::render::{line_text, print};
 use crate::{inputs, link, models};
 
 /// One log line for a request the simulator answered.
@@ -114,18 +114,6 @@ fn serial_format(device: &DeviceInfo, global: &Global) -> LineFormat {
     format
 }
 
-/// `9600 baud 8E1`.
-fn format_text(format: LineFormat) -> String {
-    let parity = format.parity.name().chars().next().unwrap_or('n');
-    format!(
-        "{} baud {}{}{}",
-        format.baud,
-        format.data_bits,
-        parity.to_ascii_uppercase(),
-        format.stop_bits
-    )
-}
-
 /// One line of the faults injected per kind, for the end of a run.
 fn fault_summary(faults: &Faults, stats: &FaultStats) -> String {
     let kinds: Vec<String> = FaultKind::ALL
@@ -178,7 +166,7 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
     if let Some(line) = &line {
         extras.push_str(&format!(
             ", line timed at {}, turnaround {:?}",
-            format_text(line.format()),
+            line_text(line.format()),
             args.turnaround
         ));
     }
