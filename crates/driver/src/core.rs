@@ -290,7 +290,7 @@ impl<T: Transport> Core<T> {
         command: &'static CommandInfo,
         register: &'static RegisterInfo,
     ) -> Result<(), Error> {
-        let words = crate::value::encode_integer(register, i64::from(command.value))?;
+        let words = crate::convert::encode_integer(register, i64::from(command.value))?;
         self.write_words(register, &words).await?;
         if command.busy_ms > 0 {
             tokio::time::sleep(Duration::from_millis(u64::from(command.busy_ms))).await;
