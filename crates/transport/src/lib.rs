@@ -61,6 +61,26 @@ pub struct ReadRequest {
     pub repeatable: bool,
 }
 
+impl ReadRequest {
+    /// A repeatable read of `count` words from `address`.
+    pub const fn new(function: ReadFunction, address: u16, count: u16) -> Self {
+        Self {
+            function,
+            address,
+            count,
+            repeatable: true,
+        }
+    }
+
+    /// The same read, made once whatever the retry setting.
+    pub const fn once(self) -> Self {
+        Self {
+            repeatable: false,
+            ..self
+        }
+    }
+}
+
 /// Reads and writes registers of Modbus slaves.
 ///
 /// An implementor provides [`Transport::read_words`] and [`Transport::write`];
@@ -83,13 +103,7 @@ pub trait Transport: Send {
         address: u16,
         count: u16,
     ) -> impl Future<Output = Result<Vec<u16>, Error>> + Send {
-        let read = ReadRequest {
-            function,
-            address,
-            count,
-            repeatable: true,
-        };
-        self.read_words(slave, read)
+        self.read_words(slave, ReadRequest::new(function, address, count))
     }
 
     /// Reads like [`Transport::read`] but makes one attempt whatever the retry setting: for
@@ -102,13 +116,7 @@ pub trait Transport: Send {
         address: u16,
         count: u16,
     ) -> impl Future<Output = Result<Vec<u16>, Error>> + Send {
-        let read = ReadRequest {
-            function,
-            address,
-            count,
-            repeatable: false,
-        };
-        self.read_words(slave, read)
+        self.read_words(slave, ReadRequest::new(function, address, count).once())
     }
 
     /// Writes one register with FC06 (two or four data bytes). Slave 0 broadcasts: the write
