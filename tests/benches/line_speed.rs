@@ -293,11 +293,7 @@ async fn download() {
 }
 
 fn main() {
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime");
-    runtime.block_on(async {
+    common::runtime().block_on(async {
         for baud in [9_600, 19_200, 115_200] {
             line_speed(baud).await;
         }

@@ -76,11 +76,7 @@ fn per_transaction(round: Duration) -> f64 {
 }
 
 fn main() {
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime");
-    runtime.block_on(async {
+    common::runtime().block_on(async {
         let sim = Simulator::new(&DEVICE).sentinel_every(0);
 
         let (typed_stream, _a) = sim.duplex();

@@ -1,6 +1,6 @@
 //! What the benches share: the transaction both sides of a comparison make (one FC04 of the
 //! P series' ten measurement registers), typed through a driver or raw through tokio-modbus,
-//! and the median they compare.
+//! the runtime they run on and the median they compare.
 
 use optobus_p_series::transport::Transport;
 use optobus_p_series::PSeries;
@@ -20,6 +20,15 @@ pub(crate) async fn read_raw(context: &mut Context) {
         .expect("transport")
         .expect("no exception");
     std::hint::black_box(words);
+}
+
+/// The runtime a bench runs on: one thread, real time (the line emulator and the sockets keep
+/// their own timing).
+pub(crate) fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime")
 }
 
 /// The middle sample (the upper one of an even count).
