@@ -1,20 +1,13 @@
 //! CCF end to end over our RTU client: four channels through one accessor each.
 
 use optobus_ccf::{Ccf, Channel, ExposureMode, DEVICE};
-use optobus_simulator::Simulator;
 use optobus_tests::e2e;
 
 #[tokio::test(start_paused = true)]
 async fn every_register_and_group() {
-    let sim = Simulator::new(&DEVICE).sentinel_every(0);
-    let mut sensor = Ccf::with_default_slave(e2e::rtu(&sim));
-    let readable = DEVICE
-        .registers
-        .iter()
-        .filter(|r| r.access.readable())
-        .count();
-    assert_eq!(e2e::read_every_register(sensor.core()).await, readable);
-    assert!(e2e::write_every_register(sensor.core()).await > 40);
+    let (_sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = Ccf::with_default_slave(client);
+    assert!(e2e::sweep(sensor.core()).await > 40);
     for channel in Channel::all() {
         let m = sensor.read_measurements(channel).await.unwrap();
         assert!(m.distance_1.is_some());
@@ -28,8 +21,8 @@ async fn every_register_and_group() {
 
 #[tokio::test(start_paused = true)]
 async fn channels_are_independent() {
-    let sim = Simulator::new(&DEVICE).sentinel_every(0);
-    let mut sensor = Ccf::with_default_slave(e2e::rtu(&sim));
+    let (_sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = Ccf::with_default_slave(client);
     for channel in Channel::all() {
         let tenths = 1000 + u16::from(channel.number());
         let time = format!("{}.{}", tenths / 10, tenths % 10);

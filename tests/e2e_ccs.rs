@@ -1,20 +1,13 @@
 //! CCS end to end over our RTU client.
 
 use optobus_ccs::{Ccs, ExposureMode, SamplingInterval, DEVICE};
-use optobus_simulator::Simulator;
 use optobus_tests::e2e;
 
 #[tokio::test(start_paused = true)]
 async fn every_register_and_group() {
-    let sim = Simulator::new(&DEVICE).sentinel_every(0);
-    let mut sensor = Ccs::with_default_slave(e2e::rtu(&sim));
-    let readable = DEVICE
-        .registers
-        .iter()
-        .filter(|r| r.access.readable())
-        .count();
-    assert_eq!(e2e::read_every_register(sensor.core()).await, readable);
-    assert!(e2e::write_every_register(sensor.core()).await > 20);
+    let (_sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = Ccs::with_default_slave(client);
+    assert!(e2e::sweep(sensor.core()).await > 20);
     let m = sensor.read_measurements().await.unwrap();
     assert!(m.distance_1.is_some());
     sensor.read_encoder_counts().await.unwrap();
@@ -25,8 +18,8 @@ async fn every_register_and_group() {
 
 #[tokio::test(start_paused = true)]
 async fn typed_settings_and_commands() {
-    let sim = Simulator::new(&DEVICE).sentinel_every(0);
-    let mut sensor = Ccs::with_default_slave(e2e::rtu(&sim));
+    let (_sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = Ccs::with_default_slave(client);
     sensor
         .set_exposure_mode(ExposureMode::ALL[1])
         .await

@@ -9,16 +9,10 @@ use optobus_tests::e2e;
 
 #[tokio::test(start_paused = true)]
 async fn every_register_and_group() {
-    let sim = Simulator::new(&DEVICE);
-    let mut sensor = LcRs::with_default_slave(e2e::rtu(&sim));
-    let readable = DEVICE
-        .registers
-        .iter()
-        .filter(|r| r.access.readable())
-        .count();
-    assert_eq!(e2e::read_every_register(sensor.core()).await, readable);
+    let (_sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = LcRs::with_default_slave(client);
     // Baud rate (range ends and middle), three parities, two work modes.
-    assert_eq!(e2e::write_every_register(sensor.core()).await, 8);
+    assert_eq!(e2e::sweep(sensor.core()).await, 8);
     sensor.read_measurements().await.unwrap();
     let serial = sensor.read_serial_settings().await.unwrap();
     assert_eq!(serial.slave_address, DEVICE.default_slave.into());

@@ -12,10 +12,6 @@ use optobus_p_series::{MeasurementSource, MedianFilterWidth, PSeries, DEVICE};
 use optobus_simulator::Simulator;
 use optobus_tests::e2e;
 
-fn simulator() -> Simulator {
-    Simulator::new(&DEVICE).sentinel_every(0)
-}
-
 async fn every_register_and_group<T: Transport>(sensor: &mut PSeries<T>) {
     // Every P-series register is readable, write-only command registers included.
     assert_eq!(e2e::read_every_register(sensor.core()).await, 106);
@@ -48,14 +44,14 @@ async fn every_group<T: Transport>(sensor: &mut PSeries<T>) {
 
 #[tokio::test(start_paused = true)]
 async fn rtu_every_register_and_group() {
-    let sim = simulator();
-    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    let (_sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = PSeries::with_default_slave(client);
     every_register_and_group(&mut sensor).await;
 }
 
 #[tokio::test]
 async fn tcp_every_register_and_group() {
-    let sim = simulator();
+    let sim = Simulator::new(&DEVICE).sentinel_every(0);
     let (context, _server) = e2e::tcp(&sim).await;
     let mut sensor = PSeries::with_default_slave(context);
     every_register_and_group(&mut sensor).await;
@@ -63,8 +59,8 @@ async fn tcp_every_register_and_group() {
 
 #[tokio::test(start_paused = true)]
 async fn typed_values_round_trip() {
-    let sim = simulator();
-    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    let (sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = PSeries::with_default_slave(client);
     sensor
         .set_light_power("42.5".parse().unwrap())
         .await
@@ -110,8 +106,8 @@ async fn typed_values_round_trip() {
 
 #[tokio::test(start_paused = true)]
 async fn commands_act_on_the_device() {
-    let sim = simulator();
-    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    let (_sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = PSeries::with_default_slave(client);
     let before = sensor.distance_1().await.unwrap().unwrap();
     assert!(before.to_f64() > 1.0);
     sensor.zero_position_1().await.unwrap();
@@ -130,8 +126,8 @@ async fn commands_act_on_the_device() {
 
 #[tokio::test(start_paused = true)]
 async fn download_1000_buffered_values() {
-    let sim = simulator();
-    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    let (_sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = PSeries::with_default_slave(client);
     sensor
         .start_buffering(MeasurementSource::ALL[0], 1000)
         .await
@@ -170,8 +166,7 @@ async fn download_1000_buffered_values() {
 
 #[tokio::test(start_paused = true)]
 async fn device_exceptions_are_typed() {
-    let sim = simulator();
-    let mut client = e2e::rtu(&sim);
+    let (_sim, mut client) = e2e::simulated(&DEVICE);
     // Reserved input 141: reads as zeros (spec README); past the table: 02.
     let error = client
         .read(1, optobus_driver::transport::ReadFunction::Input, 158, 4)
@@ -194,8 +189,8 @@ async fn device_exceptions_are_typed() {
 
 #[tokio::test(start_paused = true)]
 async fn wait_ready_after_a_power_cycle() {
-    let sim = simulator();
-    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    let (sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = PSeries::with_default_slave(client);
     sim.power_cycle();
     let took = sensor.wait_ready().await.unwrap();
     assert!(took >= Duration::from_millis(4000), "{took:?}");

@@ -7,21 +7,15 @@ use optobus_simulator::Simulator;
 use optobus_tests::e2e;
 
 fn sensor() -> (Simulator, Rangefinder<impl optobus_driver::Transport>) {
-    let sim = Simulator::new(&DEVICE).sentinel_every(0);
-    let sensor = Rangefinder::with_default_slave(e2e::rtu(&sim));
+    let (sim, client) = e2e::simulated(&DEVICE);
+    let sensor = Rangefinder::with_default_slave(client);
     (sim, sensor)
 }
 
 #[tokio::test(start_paused = true)]
 async fn every_register_and_group() {
     let (_sim, mut sensor) = sensor();
-    let readable = DEVICE
-        .registers
-        .iter()
-        .filter(|r| r.access.readable())
-        .count();
-    assert_eq!(e2e::read_every_register(sensor.core()).await, readable);
-    assert!(e2e::write_every_register(sensor.core()).await > 40);
+    assert!(e2e::sweep(sensor.core()).await > 40);
     let m = sensor.read_measurements().await.unwrap();
     assert!(m.measurement_results.distance > 0);
     let status = sensor.read_status().await.unwrap();

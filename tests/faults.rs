@@ -9,7 +9,7 @@
 use std::time::Duration;
 
 use optobus_device::Table;
-use optobus_driver::transport::{Error as WireError, RtuClient, RtuConfig, Transport};
+use optobus_driver::transport::{Error as WireError, ReadRequest, RtuClient, RtuConfig, Transport};
 use optobus_driver::{rtu_config, Core, Error};
 use optobus_p_series::{PSeries, DEVICE};
 use optobus_simulator::{FaultKind, Faults, Simulator};
@@ -152,39 +152,23 @@ async fn buffer_download_with_lost_replies_is_never_short() {
     );
 }
 
-/// A transport that loses one page on the way: its `read_once` reads twice and returns the
-/// second reply (as a careless retrying layer would). The device's own count gives it away.
+/// A transport that loses one page on the way: it makes every read that must not be repeated
+/// twice and returns the second reply (as a careless retrying layer would). The device's own
+/// count gives it away.
 struct LosesAPage<T> {
     inner: T,
     page_reads: usize,
 }
 
 impl<T: Transport> Transport for LosesAPage<T> {
-    async fn read(
-        &mut self,
-        slave: u8,
-        function: optobus_driver::transport::ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> Result<Vec<u16>, WireError> {
-        self.inner.read(slave, function, address, count).await
-    }
-
-    async fn read_once(
-        &mut self,
-        slave: u8,
-        function: optobus_driver::transport::ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> Result<Vec<u16>, WireError> {
-        self.page_reads += 1;
-        if self.page_reads == 3 {
-            let _lost = self
-                .inner
-                .read_once(slave, function, address, count)
-                .await?;
+    async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, WireError> {
+        if !read.repeatable {
+            self.page_reads += 1;
+            if self.page_reads == 3 {
+                let _lost = self.inner.read_words(slave, read).await?;
+            }
         }
-        self.inner.read_once(slave, function, address, count).await
+        self.inner.read_words(slave, read).await
     }
 
     async fn write(

@@ -3,7 +3,7 @@
 //! call), and through the typed setters themselves.
 
 use optobus_device::{DeviceInfo, RegisterInfo, ValueKind};
-use optobus_driver::transport::{Error as WireError, ReadFunction, WriteValue};
+use optobus_driver::transport::{Error as WireError, ReadRequest, WriteValue};
 use optobus_driver::{Core, Error, Fixed, Scale, Transport};
 use optobus_tests::generated::{ccf, ccs, lc_rs, p_series, rangefinder};
 
@@ -14,13 +14,7 @@ struct NoWire {
 }
 
 impl Transport for NoWire {
-    async fn read(
-        &mut self,
-        _: u8,
-        _: ReadFunction,
-        _: u16,
-        _: u16,
-    ) -> Result<Vec<u16>, WireError> {
+    async fn read_words(&mut self, _: u8, _: ReadRequest) -> Result<Vec<u16>, WireError> {
         self.calls += 1;
         Err(WireError::Closed)
     }

@@ -19,6 +19,8 @@
 //! measured run before it is compared. Run with
 //! `cargo bench -p optobus-tests --bench line_speed`.
 
+mod common;
+
 use std::io;
 use std::pin::Pin;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -31,7 +33,6 @@ use optobus_p_series::transport::{LineFormat, RtuClient, RtuConfig, Transport};
 use optobus_p_series::{rtu_config, MeasurementSource, PSeries, DEVICE};
 use optobus_simulator::{Line, LineStats, Simulator};
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
-use tokio_modbus::client::Reader;
 use tokio_modbus::Slave;
 
 /// The device answers as soon as it has seen the end of a request.
@@ -45,11 +46,6 @@ const REQUEST: usize = 8;
 const REPLY: usize = 5 + 2 * 10;
 /// Downloads timed (each after the buffer has filled again).
 const DOWNLOADS: usize = 5;
-
-fn median(mut samples: Vec<f64>) -> f64 {
-    samples.sort_by(f64::total_cmp);
-    samples[samples.len() / 2]
-}
 
 /// The line's shortest transaction: its characters, t3.5 after the request (the device sees
 /// its end), the turnaround, and t3.5 after the reply before the next request.
@@ -96,8 +92,8 @@ impl Times {
         let limit = line_cycle(format, REQUEST + REPLY).as_secs_f64();
         // A round's last transaction does not wait for its closing t3.5.
         let per_transaction =
-            (median(self.rounds) + format.frame_gap().as_secs_f64()) / per_round as f64;
-        let single = median(self.transactions);
+            (common::median(self.rounds) + format.frame_gap().as_secs_f64()) / per_round as f64;
+        let single = common::median(self.transactions);
         println!(
             "         {who}: {:.2} tx/s = {:.3} of the limit (median round), {:.3} (median \
              transaction), gap violations {} of {} requests",
@@ -132,18 +128,12 @@ async fn line_speed(baud: u32) {
         let warm_up = round == 0;
         ours_times
             .round(per_round, warm_up, async || {
-                let m = ours.read_measurements().await.expect("our read");
-                std::hint::black_box(m);
+                common::read_typed(&mut ours).await
             })
             .await;
         theirs_times
             .round(per_round, warm_up, async || {
-                let words = theirs
-                    .read_input_registers(0, 10)
-                    .await
-                    .expect("transport")
-                    .expect("no exception");
-                std::hint::black_box(words);
+                common::read_raw(&mut theirs).await
             })
             .await;
     }
@@ -298,16 +288,12 @@ async fn download() {
     println!("         last run: {last}");
     println!(
         "         time / line time {:.4} (median of {DOWNLOADS}; target <= 1.02)",
-        median(ratios)
+        common::median(ratios)
     );
 }
 
 fn main() {
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime");
-    runtime.block_on(async {
+    common::runtime().block_on(async {
         for baud in [9_600, 19_200, 115_200] {
             line_speed(baud).await;
         }

@@ -13,22 +13,19 @@
 //! transactions-per-second ratio over TCP (target ≥ 0.97). Run with
 //! `cargo bench -p optobus-tests --bench read_measurements`.
 
+mod common;
+
 use std::time::{Duration, Instant};
 
 use optobus_driver::transport::{ModbusContext, RtuClient, RtuConfig};
 use optobus_p_series::{rtu_config, PSeries, DEVICE};
 use optobus_simulator::Simulator;
 use tokio::io::DuplexStream;
-use tokio_modbus::client::{Context, Reader};
+use tokio_modbus::client::Context;
 use tokio_modbus::Slave;
 
 const ROUNDS: usize = 31;
 const PER_ROUND: usize = 400;
-
-fn median(mut samples: Vec<Duration>) -> Duration {
-    samples.sort();
-    samples[samples.len() / 2]
-}
 
 /// One side of the comparison.
 enum Contender {
@@ -46,22 +43,9 @@ impl Contender {
         let started = Instant::now();
         for _ in 0..PER_ROUND {
             match self {
-                Self::Typed(sensor) => {
-                    let m = sensor.read_measurements().await.expect("typed read");
-                    std::hint::black_box(m);
-                }
-                Self::Ours(sensor) => {
-                    let m = sensor.read_measurements().await.expect("our read");
-                    std::hint::black_box(m);
-                }
-                Self::Raw(raw) => {
-                    let words = raw
-                        .read_input_registers(0, 10)
-                        .await
-                        .expect("transport")
-                        .expect("no exception");
-                    std::hint::black_box(words);
-                }
+                Self::Typed(sensor) => common::read_typed(sensor).await,
+                Self::Ours(sensor) => common::read_typed(sensor).await,
+                Self::Raw(raw) => common::read_raw(raw).await,
             }
         }
         started.elapsed()
@@ -80,7 +64,7 @@ async fn measure<const N: usize>(mut contenders: [Contender; N]) -> [Duration; N
             }
         }
     }
-    rounds.map(median)
+    rounds.map(common::median)
 }
 
 fn typed_contender(context: Context) -> Contender {
@@ -92,11 +76,7 @@ fn per_transaction(round: Duration) -> f64 {
 }
 
 fn main() {
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime");
-    runtime.block_on(async {
+    common::runtime().block_on(async {
         let sim = Simulator::new(&DEVICE).sentinel_every(0);
 
         let (typed_stream, _a) = sim.duplex();

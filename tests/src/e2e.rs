@@ -21,6 +21,14 @@ pub fn rtu(sim: &Simulator) -> RtuClient<DuplexStream> {
     RtuClient::with_config(stream, config)
 }
 
+/// A simulator of `device` whose readings are always valid (no invalid-reading sentinels), and
+/// our RTU client on an in-memory line to it.
+pub fn simulated(device: &'static DeviceInfo) -> (Simulator, RtuClient<DuplexStream>) {
+    let sim = Simulator::new(device).sentinel_every(0);
+    let client = rtu(&sim);
+    (sim, client)
+}
+
 /// Our Modbus TCP client connected to `sim` served on 127.0.0.1 (keep the server).
 pub async fn tcp(sim: &Simulator) -> (TcpClient, TcpServer) {
     let server = sim.serve_tcp("127.0.0.1:0").await.expect("serve TCP");
@@ -139,6 +147,13 @@ pub async fn read_every_register<T: Transport>(core: &mut Core<T>) -> usize {
         count += 1;
     }
     count
+}
+
+/// The sweep every family's end-to-end suite starts with: [`read_every_register`], then
+/// [`write_every_register`]. Returns how many writes were checked.
+pub async fn sweep<T: Transport>(core: &mut Core<T>) -> usize {
+    read_every_register(core).await;
+    write_every_register(core).await
 }
 
 /// Writes valid values to every writable setting and reads each back (write-only registers

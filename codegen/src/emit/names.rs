@@ -88,6 +88,20 @@ impl TypeNames {
     }
 }
 
+/// What a driver crate re-exports from the runtime beside its generated items: the error, the
+/// transports and the helpers that open them, the unit and number types its methods take and
+/// return. The generated file is the crate root, so it says so itself.
+const REEXPORTS: [&str; 8] = [
+    "optobus_driver::rtu_config",
+    "optobus_driver::serial_settings",
+    "optobus_driver::transport",
+    "optobus_driver::units",
+    "optobus_driver::CodeEnum",
+    "optobus_driver::Error",
+    "optobus_driver::Fixed",
+    "optobus_driver::Transport",
+];
+
 /// The runtime items the generated code uses, for its `use` block.
 pub(super) struct Imports {
     declared: HashSet<String>,
@@ -144,10 +158,20 @@ impl Imports {
     }
 
     /// The `use` block: the standard library first, then the optobus crates, one `use` per
-    /// module, ordered as rustfmt orders them.
+    /// module, ordered as rustfmt orders them; last the crate's public re-exports of the
+    /// runtime ([`REEXPORTS`], but for names the file declares itself), which also bring those
+    /// items into scope.
     pub(super) fn use_block(&self) -> String {
+        let reexports: Vec<(&str, &str)> = REEXPORTS
+            .into_iter()
+            .map(split)
+            .filter(|(_, name)| !self.declared.contains(*name))
+            .collect();
         let mut modules: BTreeMap<&str, Vec<String>> = BTreeMap::new();
         for &(module, name, anonymous) in self.used.borrow().iter() {
+            if !anonymous && reexports.contains(&(module, name)) {
+                continue;
+            }
             let item = if anonymous {
                 format!("{name} as _")
             } else {
@@ -158,12 +182,8 @@ impl Imports {
         let mut std = Vec::new();
         let mut ours = Vec::new();
         for (module, mut items) in modules {
-            // Functions and modules before types, as rustfmt sorts them.
-            items.sort_by_key(|item| (item.starts_with(char::is_uppercase), item.clone()));
-            let line = match items.as_slice() {
-                [item] => format!("use {module}::{item};"),
-                _ => format!("use {module}::{{{}}};", items.join(", ")),
-            };
+            sort_items(&mut items);
+            let line = use_line("use", module, &items);
             if module.starts_with("core") || module.starts_with("std") {
                 std.push(line);
             } else {
@@ -172,7 +192,18 @@ impl Imports {
         }
         std.sort();
         ours.sort();
-        [std, ours]
+        let mut public: BTreeMap<&str, Vec<String>> = BTreeMap::new();
+        for (module, name) in reexports {
+            public.entry(module).or_default().push(name.to_owned());
+        }
+        let public = public
+            .into_iter()
+            .map(|(module, mut items)| {
+                sort_items(&mut items);
+                use_line("pub use", module, &items)
+            })
+            .collect();
+        [std, ours, public]
             .into_iter()
             .filter(|lines| !lines.is_empty())
             .map(|lines| {
@@ -182,6 +213,19 @@ impl Imports {
             })
             .collect::<Vec<_>>()
             .join("\n")
+    }
+}
+
+/// Functions and modules before types, as rustfmt sorts them.
+fn sort_items(items: &mut [String]) {
+    items.sort_by_key(|item| (item.starts_with(char::is_uppercase), item.clone()));
+}
+
+/// `use module::item;` or `use module::{a, B};` (`keyword` is `use` or `pub use`).
+fn use_line(keyword: &str, module: &str, items: &[String]) -> String {
+    match items {
+        [item] => format!("{keyword} {module}::{item};"),
+        _ => format!("{keyword} {module}::{{{}}};", items.join(", ")),
     }
 }
 

@@ -132,7 +132,7 @@ fn packed_struct(
         )
     });
     let parts: Vec<_> = fields.iter().map(|f| field_type(f, names)).collect();
-    let types = parts.iter().map(|p| &p.0);
+    let types = parts.iter().map(|p| p.0.clone());
     let decodes = parts.iter().map(|p| &p.1);
     let encodes = parts.iter().map(|p| &p.2);
     let lsbs = fields.iter().map(|f| lit(f.lsb.unwrap_or(0)));
@@ -140,15 +140,16 @@ fn packed_struct(
     let bit_field = imports.get("optobus_codec::value::BitField");
     let raw_value = imports.trait_("optobus_driver::RawValue");
     let option = imports.prelude("core::option::Option");
+    let declaration = plain_struct(
+        quote!(#[doc = #doc]),
+        ident,
+        Order::Unordered,
+        &field_names,
+        docs,
+        types,
+    );
     quote! {
-        #[doc = #doc]
-        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-        pub struct #ident {
-            #(
-                #[doc = #docs]
-                pub #field_names: #types,
-            )*
-        }
+        #declaration
 
         impl #ident {
             /// Splits the register's raw value into its fields.
@@ -180,6 +181,41 @@ fn packed_struct(
     }
 }
 
+/// Whether a value struct derives `PartialOrd` and `Ord`.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Order {
+    Ordered,
+    Unordered,
+}
+
+/// The declaration every value struct starts with: `doc`, the derives of a small `Copy` value,
+/// and a documented public field per name.
+fn plain_struct(
+    doc: TokenStream,
+    ident: &Ident,
+    order: Order,
+    names: &[impl quote::ToTokens],
+    docs: impl IntoIterator<Item = String>,
+    types: impl IntoIterator<Item = TokenStream>,
+) -> TokenStream {
+    let docs = docs.into_iter();
+    let types = types.into_iter();
+    let ord = match order {
+        Order::Ordered => quote!(, PartialOrd, Ord),
+        Order::Unordered => quote!(),
+    };
+    quote! {
+        #doc
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash #ord)]
+        pub struct #ident {
+            #(
+                #[doc = #docs]
+                pub #names: #types,
+            )*
+        }
+    }
+}
+
 fn version_struct(ident: &Ident, doc: &str, parts: &[String], imports: &Imports) -> TokenStream {
     let named: Vec<(usize, Ident)> = parts
         .iter()
@@ -197,15 +233,17 @@ fn version_struct(ident: &Ident, doc: &str, parts: &[String], imports: &Imports)
     let decode = imports.get("optobus_driver::Decode");
     let register_info = imports.get("optobus_device::RegisterInfo");
     let word_array = imports.get("optobus_driver::word_array");
+    // Versions compare field by field, major first.
+    let declaration = plain_struct(
+        quote!(#[doc = #doc]),
+        ident,
+        Order::Ordered,
+        &fields,
+        field_docs,
+        fields.iter().map(|_| quote!(u8)),
+    );
     quote! {
-        #[doc = #doc]
-        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-        pub struct #ident {
-            #(
-                #[doc = #field_docs]
-                pub #fields: u8,
-            )*
-        }
+        #declaration
 
         impl #ident {
             /// Reads the version from its two words.
@@ -281,17 +319,14 @@ fn record_struct(ident: &Ident, doc: &str, fields: &[Field], imports: &Imports) 
     let decode = imports.get("optobus_driver::Decode");
     let register_info = imports.get("optobus_device::RegisterInfo");
     let word_array = imports.get("optobus_driver::word_array");
-    quote! {
+    let doc = quote! {
         #[doc = #doc]
         ///
         /// Raw register values; the driver applies scales and sentinels.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-        pub struct #ident {
-            #(
-                #[doc = #docs]
-                pub #field_names: #types,
-            )*
-        }
+    };
+    let declaration = plain_struct(doc, ident, Order::Unordered, &field_names, docs, types);
+    quote! {
+        #declaration
 
         impl #ident {
             /// Number of words the record takes.

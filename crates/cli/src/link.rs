@@ -8,7 +8,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use optobus_device::DeviceInfo;
 use optobus_driver::transport::{
-    Error as WireError, Parity, ReadFunction, RtuClient, SerialStream, TcpClient, WriteValue,
+    Error as WireError, Parity, ReadRequest, RtuClient, SerialStream, TcpClient, WriteValue,
 };
 use optobus_driver::{rtu_config, serial_settings, tcp_config, Transport};
 use optobus_simulator::Simulator;
@@ -129,24 +129,8 @@ macro_rules! each_client {
 }
 
 impl Transport for Link {
-    async fn read(
-        &mut self,
-        slave: u8,
-        function: ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> Result<Vec<u16>, WireError> {
-        each_client!(self, c => c.read(slave, function, address, count))
-    }
-
-    async fn read_once(
-        &mut self,
-        slave: u8,
-        function: ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> Result<Vec<u16>, WireError> {
-        each_client!(self, c => c.read_once(slave, function, address, count))
+    async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, WireError> {
+        each_client!(self, c => c.read_words(slave, read))
     }
 
     async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), WireError> {

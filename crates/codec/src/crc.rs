@@ -16,21 +16,26 @@ const SLICES: usize = 16;
 /// byte followed by `k` zero bytes, which lets one step fold 16 input bytes at once.
 static TABLES: [[u16; 256]; SLICES] = build_tables();
 
+/// Eight bit steps of the reflected register: the byte XORed into its low bits shifted out
+/// through the polynomial.
+const fn shift_byte(mut crc: u16) -> u16 {
+    let mut bit = 0;
+    while bit < 8 {
+        crc = if crc & 1 != 0 {
+            (crc >> 1) ^ POLYNOMIAL
+        } else {
+            crc >> 1
+        };
+        bit += 1;
+    }
+    crc
+}
+
 const fn build_tables() -> [[u16; 256]; SLICES] {
     let mut tables = [[0u16; 256]; SLICES];
     let mut byte = 0;
     while byte < 256 {
-        let mut crc = byte as u16;
-        let mut bit = 0;
-        while bit < 8 {
-            crc = if crc & 1 != 0 {
-                (crc >> 1) ^ POLYNOMIAL
-            } else {
-                crc >> 1
-            };
-            bit += 1;
-        }
-        tables[0][byte] = crc;
+        tables[0][byte] = shift_byte(byte as u16);
         byte += 1;
     }
     let mut slice = 1;
@@ -63,16 +68,7 @@ pub const fn crc16_bitwise(data: &[u8]) -> u16 {
     let mut crc = INITIAL;
     let mut index = 0;
     while index < data.len() {
-        crc ^= data[index] as u16;
-        let mut bit = 0;
-        while bit < 8 {
-            crc = if crc & 1 != 0 {
-                (crc >> 1) ^ POLYNOMIAL
-            } else {
-                crc >> 1
-            };
-            bit += 1;
-        }
+        crc = shift_byte(crc ^ data[index] as u16);
         index += 1;
     }
     crc

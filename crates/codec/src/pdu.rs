@@ -91,6 +91,12 @@ impl PayloadWidth {
             Self::Four => 4,
         }
     }
+
+    /// The length of an FC06 PDU (request or echo) with this many data bytes: function code,
+    /// address, data.
+    pub const fn write_pdu_len(self) -> usize {
+        3 + self.bytes()
+    }
 }
 
 /// The value an FC06 request writes (and its reply echoes).
@@ -170,7 +176,7 @@ impl Request {
     pub const fn pdu_len(&self) -> usize {
         match self {
             Self::Read { .. } => READ_REQUEST_PDU_LEN,
-            Self::Write { value, .. } => 3 + value.width().bytes(),
+            Self::Write { value, .. } => value.width().write_pdu_len(),
         }
     }
 
@@ -179,30 +185,6 @@ impl Request {
         match self {
             Self::Read { count, .. } => 2 + 2 * *count as usize,
             Self::Write { .. } => self.pdu_len(),
-        }
-    }
-
-    pub(crate) fn check(&self) -> Result<(), EncodeError> {
-        match *self {
-            Self::Read { count, .. } if count == 0 || count > MAX_READ_WORDS => {
-                Err(EncodeError::InvalidCount { count })
-            }
-            _ => Ok(()),
-        }
-    }
-
-    /// Writes the PDU into `out`, which must hold `pdu_len()` bytes.
-    pub(crate) fn write_pdu(&self, out: &mut [u8]) {
-        out[0] = self.function_code();
-        match *self {
-            Self::Read { address, count, .. } => {
-                out[1..3].copy_from_slice(&address.to_be_bytes());
-                out[3..5].copy_from_slice(&count.to_be_bytes());
-            }
-            Self::Write { address, value } => {
-                out[1..3].copy_from_slice(&address.to_be_bytes());
-                value.write_to(&mut out[3..]);
-            }
         }
     }
 
@@ -227,6 +209,46 @@ impl Request {
             u16::from_be_bytes([pdu[1], pdu[2]]),
             WriteValue::read_from(width, &pdu[3..]),
         )
+    }
+}
+
+/// A PDU that an encoder frames: checked before the output buffer is touched (an error leaves
+/// it as it was), then written in place.
+pub(crate) trait OutgoingPdu {
+    /// Refuses what cannot be put on the wire.
+    fn check(&self) -> Result<(), EncodeError>;
+    /// Length of the PDU (function code and data) in bytes.
+    fn pdu_len(&self) -> usize;
+    /// Writes the checked PDU into `out`, which holds `pdu_len()` bytes.
+    fn write_pdu(&self, out: &mut [u8]);
+}
+
+impl OutgoingPdu for Request {
+    fn check(&self) -> Result<(), EncodeError> {
+        match *self {
+            Self::Read { count, .. } if count == 0 || count > MAX_READ_WORDS => {
+                Err(EncodeError::InvalidCount { count })
+            }
+            _ => Ok(()),
+        }
+    }
+
+    fn write_pdu(&self, out: &mut [u8]) {
+        out[0] = self.function_code();
+        match *self {
+            Self::Read { address, count, .. } => {
+                out[1..3].copy_from_slice(&address.to_be_bytes());
+                out[3..5].copy_from_slice(&count.to_be_bytes());
+            }
+            Self::Write { address, value } => {
+                out[1..3].copy_from_slice(&address.to_be_bytes());
+                value.write_to(&mut out[3..]);
+            }
+        }
+    }
+
+    fn pdu_len(&self) -> usize {
+        Request::pdu_len(self)
     }
 }
 
@@ -336,11 +358,13 @@ impl Response<'_> {
     pub const fn pdu_len(&self) -> usize {
         match self {
             Self::Read { words, .. } => 2 + words.as_bytes().len(),
-            Self::Write { value, .. } => 3 + value.width().bytes(),
+            Self::Write { value, .. } => value.width().write_pdu_len(),
         }
     }
+}
 
-    pub(crate) fn check(&self) -> Result<(), EncodeError> {
+impl OutgoingPdu for Response<'_> {
+    fn check(&self) -> Result<(), EncodeError> {
         match self {
             Self::Read { words, .. } if words.len() > usize::from(MAX_READ_WORDS) => {
                 Err(EncodeError::TooManyWords { words: words.len() })
@@ -349,7 +373,7 @@ impl Response<'_> {
         }
     }
 
-    pub(crate) fn write_pdu(&self, out: &mut [u8]) {
+    fn write_pdu(&self, out: &mut [u8]) {
         out[0] = self.function_code();
         match *self {
             Self::Read { words, .. } => {
@@ -363,6 +387,10 @@ impl Response<'_> {
                 value.write_to(&mut out[3..]);
             }
         }
+    }
+
+    fn pdu_len(&self) -> usize {
+        Response::pdu_len(self)
     }
 }
 
@@ -429,25 +457,6 @@ impl ExceptionShape {
         }
     }
 
-    pub(crate) fn write_pdu(
-        self,
-        out: &mut [u8],
-        function: u8,
-        code: ExceptionCode,
-    ) -> Result<(), EncodeError> {
-        match self {
-            Self::Standard => {
-                let byte = u8::try_from(code.0).map_err(|_| EncodeError::CodeTooWide { code })?;
-                out[..2].copy_from_slice(&[function | EXCEPTION_BIT, byte]);
-            }
-            Self::CountedWord => {
-                let [high, low] = code.0.to_be_bytes();
-                out[..4].copy_from_slice(&[function | EXCEPTION_BIT, 2, high, low]);
-            }
-        }
-        Ok(())
-    }
-
     /// Parses an exception PDU of `pdu_len()` bytes.
     pub(crate) fn parse_pdu(self, pdu: &[u8]) -> Result<ExceptionCode, DecodeError> {
         match self {
@@ -457,6 +466,39 @@ impl ExceptionShape {
                 received: pdu[1],
             }),
             Self::CountedWord => Ok(ExceptionCode(u16::from_be_bytes([pdu[2], pdu[3]]))),
+        }
+    }
+}
+
+/// An exception reply's PDU: the request's function code with the exception bit, and the
+/// device's code in the device's shape.
+pub(crate) struct ExceptionPdu {
+    pub(crate) function: u8,
+    pub(crate) code: ExceptionCode,
+    pub(crate) shape: ExceptionShape,
+}
+
+impl OutgoingPdu for ExceptionPdu {
+    fn check(&self) -> Result<(), EncodeError> {
+        match self.shape {
+            ExceptionShape::Standard if self.code.0 > 0xFF => {
+                Err(EncodeError::CodeTooWide { code: self.code })
+            }
+            _ => Ok(()),
+        }
+    }
+
+    fn pdu_len(&self) -> usize {
+        self.shape.pdu_len()
+    }
+
+    fn write_pdu(&self, out: &mut [u8]) {
+        let fc = self.function | EXCEPTION_BIT;
+        let [high, low] = self.code.0.to_be_bytes();
+        match self.shape {
+            // `check` bounds the code to one byte.
+            ExceptionShape::Standard => out[..2].copy_from_slice(&[fc, low]),
+            ExceptionShape::CountedWord => out[..4].copy_from_slice(&[fc, 2, high, low]),
         }
     }
 }

@@ -7,8 +7,9 @@
 
 use crate::crc::{crc16, is_valid_frame};
 use crate::pdu::{
-    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, ReadFunction,
-    Request, Response, Words, EXCEPTION_BIT, MAX_SLAVE, READ_REQUEST_PDU_LEN, WRITE_SINGLE,
+    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionPdu, ExceptionShape, FrameShape,
+    OutgoingPdu, ReadFunction, Request, Response, Words, EXCEPTION_BIT, MAX_SLAVE,
+    READ_REQUEST_PDU_LEN, WRITE_SINGLE,
 };
 
 /// The longest RTU frame Modbus allows.
@@ -23,19 +24,16 @@ pub struct Frame<T> {
     pub pdu: T,
 }
 
-/// Frames `pdu_len` bytes written by `write_pdu` with `slave` in front and the CRC behind.
-fn frame(
-    out: &mut [u8],
-    slave: u8,
-    pdu_len: usize,
-    write_pdu: impl FnOnce(&mut [u8]) -> Result<(), EncodeError>,
-) -> Result<usize, EncodeError> {
-    let len = pdu_len + 3;
+/// Frames `pdu` with `slave` in front and the CRC behind; returns the frame length.
+fn frame(out: &mut [u8], slave: u8, pdu: &impl OutgoingPdu) -> Result<usize, EncodeError> {
+    pdu.check()?;
+    let pdu_len = pdu.pdu_len();
+    let len = pdu_len + OVERHEAD;
     let Some(out) = out.get_mut(..len) else {
         return Err(EncodeError::BufferTooSmall { needed: len });
     };
-    write_pdu(&mut out[1..=pdu_len])?;
     out[0] = slave;
+    pdu.write_pdu(&mut out[1..=pdu_len]);
     let crc = crc16(&out[..=pdu_len]);
     out[pdu_len + 1..].copy_from_slice(&crc.to_le_bytes());
     Ok(len)
@@ -55,11 +53,7 @@ pub fn encode_request(out: &mut [u8], slave: u8, request: &Request) -> Result<us
     if slave > MAX_SLAVE {
         return Err(EncodeError::ReservedSlave { slave });
     }
-    request.check()?;
-    frame(out, slave, request.pdu_len(), |pdu| {
-        request.write_pdu(pdu);
-        Ok(())
-    })
+    frame(out, slave, request)
 }
 
 /// Encodes a device's successful reply; returns the frame length.
@@ -68,11 +62,7 @@ pub fn encode_response(
     slave: u8,
     response: &Response<'_>,
 ) -> Result<usize, EncodeError> {
-    response.check()?;
-    frame(out, slave, response.pdu_len(), |pdu| {
-        response.write_pdu(pdu);
-        Ok(())
-    })
+    frame(out, slave, response)
 }
 
 /// Encodes an exception reply to a request with function code `function`, in `shape`.
@@ -83,13 +73,12 @@ pub fn encode_exception(
     code: ExceptionCode,
     shape: ExceptionShape,
 ) -> Result<usize, EncodeError> {
-    // Validate before touching the buffer, so that an error leaves it as it was.
-    if shape == ExceptionShape::Standard && code.0 > 0xFF {
-        return Err(EncodeError::CodeTooWide { code });
-    }
-    frame(out, slave, shape.pdu_len(), |pdu| {
-        shape.write_pdu(pdu, function, code)
-    })
+    let pdu = ExceptionPdu {
+        function,
+        code,
+        shape,
+    };
+    frame(out, slave, &pdu)
 }
 
 pub(crate) fn check_crc(frame: &[u8]) -> Result<(), DecodeError> {
@@ -115,7 +104,7 @@ pub fn request_len(buf: &[u8], shape: &FrameShape<'_>) -> Option<usize> {
         0x03 | 0x04 => READ_REQUEST_PDU_LEN,
         WRITE_SINGLE => {
             let address = u16::from_be_bytes([*buf.get(2)?, *buf.get(3)?]);
-            3 + shape.write_width(address).bytes()
+            shape.write_width(address).write_pdu_len()
         }
         _ => return None,
     };

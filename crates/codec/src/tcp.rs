@@ -5,8 +5,8 @@
 //! incremental and shape-driven, and errors are typed.
 
 use crate::pdu::{
-    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, Request,
-    Response, READ_REQUEST_PDU_LEN, WRITE_SINGLE,
+    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionPdu, ExceptionShape, FrameShape,
+    OutgoingPdu, Request, Response, READ_REQUEST_PDU_LEN, WRITE_SINGLE,
 };
 use crate::rtu::{need, parse_reply, reply_pdu_len, ReplyLength};
 
@@ -37,17 +37,15 @@ pub struct Frame<T> {
     pub pdu: T,
 }
 
-fn frame(
-    out: &mut [u8],
-    header: Header,
-    pdu_len: usize,
-    write_pdu: impl FnOnce(&mut [u8]) -> Result<(), EncodeError>,
-) -> Result<usize, EncodeError> {
+/// Frames `pdu` behind the MBAP header; returns the frame length.
+fn frame(out: &mut [u8], header: Header, pdu: &impl OutgoingPdu) -> Result<usize, EncodeError> {
+    pdu.check()?;
+    let pdu_len = pdu.pdu_len();
     let len = HEADER_LEN + pdu_len;
     let Some(out) = out.get_mut(..len) else {
         return Err(EncodeError::BufferTooSmall { needed: len });
     };
-    write_pdu(&mut out[HEADER_LEN..])?;
+    pdu.write_pdu(&mut out[HEADER_LEN..]);
     // PDUs are at most 253 bytes, so the length field fits.
     let length = (pdu_len + 1) as u16;
     out[0..2].copy_from_slice(&header.transaction.to_be_bytes());
@@ -71,11 +69,7 @@ pub fn encode_request(
     header: Header,
     request: &Request,
 ) -> Result<usize, EncodeError> {
-    request.check()?;
-    frame(out, header, request.pdu_len(), |pdu| {
-        request.write_pdu(pdu);
-        Ok(())
-    })
+    frame(out, header, request)
 }
 
 /// Encodes a successful reply; returns the frame length.
@@ -84,11 +78,7 @@ pub fn encode_response(
     header: Header,
     response: &Response<'_>,
 ) -> Result<usize, EncodeError> {
-    response.check()?;
-    frame(out, header, response.pdu_len(), |pdu| {
-        response.write_pdu(pdu);
-        Ok(())
-    })
+    frame(out, header, response)
 }
 
 /// Encodes an exception reply to a request with function code `function`.
@@ -99,12 +89,12 @@ pub fn encode_exception(
     code: ExceptionCode,
     shape: ExceptionShape,
 ) -> Result<usize, EncodeError> {
-    if shape == ExceptionShape::Standard && code.0 > 0xFF {
-        return Err(EncodeError::CodeTooWide { code });
-    }
-    frame(out, header, shape.pdu_len(), |pdu| {
-        shape.write_pdu(pdu, function, code)
-    })
+    let pdu = ExceptionPdu {
+        function,
+        code,
+        shape,
+    };
+    frame(out, header, &pdu)
 }
 
 /// An MBAP header as it is on the wire, unchecked: what a sniffer shows.
@@ -205,7 +195,7 @@ pub fn decode_request(
         WRITE_SINGLE => {
             need!(buf, HEADER_LEN + 3);
             let address = u16::from_be_bytes([buf[HEADER_LEN + 1], buf[HEADER_LEN + 2]]);
-            3 + shape.write_width(address).bytes()
+            shape.write_width(address).write_pdu_len()
         }
         _ => return Err(DecodeError::UnsupportedFunction { function }),
     };

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use optobus_codec::{BROADCAST, MAX_SLAVE};
 use optobus_device::{Addressing, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo, Table};
-use optobus_transport::Transport;
+use optobus_transport::{ReadRequest, Transport};
 
 use crate::plan::{plan_reads, plan_write, ReadSpan};
 use crate::{Decode, Encode, Error};
@@ -117,8 +117,8 @@ impl<T: Transport> Core<T> {
         }
     }
 
-    /// Reads one span: once if reading any of its registers changes the device, else with
-    /// the transport's retries.
+    /// Makes one read at the driver's slave: once if reading any of its registers changes
+    /// the device, else with the transport's retries.
     async fn read_span(
         &mut self,
         table: Table,
@@ -127,15 +127,13 @@ impl<T: Transport> Core<T> {
         repeatable: bool,
     ) -> Result<Vec<u16>, Error> {
         let slave = self.replying_slave()?;
-        let function = table.read_function();
-        let words = if repeatable {
-            self.transport.read(slave, function, address, count).await?
-        } else {
-            self.transport
-                .read_once(slave, function, address, count)
-                .await?
+        let read = ReadRequest {
+            function: table.read_function(),
+            address,
+            count,
+            repeatable,
         };
-        Ok(words)
+        Ok(self.transport.read_words(slave, read).await?)
     }
 
     /// The device description.
@@ -292,7 +290,7 @@ impl<T: Transport> Core<T> {
         command: &'static CommandInfo,
         register: &'static RegisterInfo,
     ) -> Result<(), Error> {
-        let words = crate::value::encode_integer(register, i64::from(command.value))?;
+        let words = crate::convert::encode_integer(register, i64::from(command.value))?;
         self.write_words(register, &words).await?;
         if command.busy_ms > 0 {
             tokio::time::sleep(Duration::from_millis(u64::from(command.busy_ms))).await;

@@ -16,20 +16,20 @@
 #![forbid(unsafe_code)]
 
 mod connect;
+mod convert;
 mod core;
 mod error;
 mod plan;
 pub mod units;
-mod value;
 
 pub use crate::connect::{line_format, rtu_config, serial_settings, tcp_config};
 pub use crate::core::{Core, Readings};
+pub use convert::{
+    encode_code, encode_integer, encode_packed, raw_bits, word_array, CodeEnum, Decode, Encode,
+    RawValue,
+};
 pub use error::Error;
 pub use optobus_codec::value::{Fixed, ParseFixedError, Scale};
 pub use optobus_device::{CommandInfo, DeviceInfo, GroupInfo, RegisterInfo};
 pub use optobus_transport::{self as transport, Transport};
 pub use plan::{plan_reads, plan_write, ReadSpan, WritePart, WriteStep};
-pub use value::{
-    encode_code, encode_integer, encode_packed, raw_bits, word_array, CodeEnum, Decode, Encode,
-    RawValue,
-};

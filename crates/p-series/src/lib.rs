@@ -1,6 +1,6 @@
 //! Typed async driver for the P series (TS-LTP-E) laser displacement sensor.
 //!
-//! Everything in this crate except the re-exports is generated at build time from
+//! Everything in this crate but the [`download`] procedure is generated at build time from
 //! `specs/p_series.yaml`, the transcription of the vendor manual: [`PSeries`] has one async
 //! method per readable register, one `set_…` per writable one, one per command and one
 //! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
@@ -31,16 +31,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
-/// The code generated from `specs/p_series.yaml`, re-exported at the crate root; its imports stay
-/// private to it.
-mod generated {
-    include!(concat!(env!("OUT_DIR"), "/p_series.rs"));
-}
-
-pub use generated::*;
+// The driver, its types, `DEVICE` and the runtime items the crate re-exports.
+include!(concat!(env!("OUT_DIR"), "/p_series.rs"));
 
 pub mod download;
-
-pub use optobus_driver::{
-    rtu_config, serial_settings, transport, units, CodeEnum, Error, Fixed, Transport,
-};

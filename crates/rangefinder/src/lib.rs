@@ -1,6 +1,6 @@
 //! Typed async driver for the Industrial laser rangefinder (Modbus RTU, DAC / switch / CAN outputs).
 //!
-//! Everything in this crate except the re-exports is generated at build time from
+//! Everything in this crate is generated at build time from
 //! `specs/rangefinder.yaml`, the transcription of the vendor manual: [`Rangefinder`] has one async
 //! method per readable register, one `set_…` per writable one, one per command and one
 //! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
@@ -29,14 +29,5 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
-/// The code generated from `specs/rangefinder.yaml`, re-exported at the crate root; its imports stay
-/// private to it.
-mod generated {
-    include!(concat!(env!("OUT_DIR"), "/rangefinder.rs"));
-}
-
-pub use generated::*;
-
-pub use optobus_driver::{
-    rtu_config, serial_settings, transport, units, CodeEnum, Error, Fixed, Transport,
-};
+// The driver, its types, `DEVICE` and the runtime items the crate re-exports.
+include!(concat!(env!("OUT_DIR"), "/rangefinder.rs"));

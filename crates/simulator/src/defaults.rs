@@ -9,8 +9,8 @@
 
 use optobus_device::{CodeInfo, DeviceInfo, FieldInfo, RegisterInfo, ValueKind};
 
+use crate::layout::stored_words;
 use crate::names;
-use crate::value::split;
 
 /// The code a manual marks as default, else the first one.
 fn default_code(codes: &[CodeInfo]) -> u32 {
@@ -100,7 +100,7 @@ pub(crate) fn default_words(device: &DeviceInfo, register: &RegisterInfo, slave:
         }
         (_, ValueKind::Bool | ValueKind::Record(_)) => 0,
     };
-    let mut out = split(register, raw);
+    let mut out = stored_words(register, raw);
     out.resize(words, 0);
     out
 }

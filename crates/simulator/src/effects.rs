@@ -29,10 +29,9 @@ use optobus_device::{CommandInfo, Effect};
 use tokio::time::Instant;
 
 use crate::buffer::parse_duration;
-use crate::layout::command_copy;
+use crate::layout::{command_copy, stored_words};
 use crate::model::Device;
 use crate::names;
-use crate::value::split;
 
 impl Device {
     /// Acts on a valid write of `raw` to register `index`, already stored.
@@ -46,7 +45,7 @@ impl Device {
                 buffer.reset(t);
                 let lock = buffer.layout.lock;
                 if let Some(lock_register) = self.info.registers.get(lock) {
-                    self.words[lock] = split(lock_register, 0);
+                    self.words[lock] = stored_words(lock_register, 0);
                 }
             }
         }
@@ -81,7 +80,7 @@ impl Device {
             .filter(|code| !used.contains(code))
             .min()
         {
-            self.words[index] = split(register, idle);
+            self.words[index] = stored_words(register, idle);
         }
         let mut busy = 0;
         for (command, prefix) in fired {

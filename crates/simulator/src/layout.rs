@@ -1,4 +1,5 @@
-//! Which register, if any, each address of each table belongs to.
+//! Which register, if any, each address of each table belongs to, and the words a register
+//! stores for a raw value.
 
 use std::collections::HashMap;
 
@@ -111,4 +112,12 @@ pub(crate) fn group_members(device: &DeviceInfo, group: &GroupInfo) -> Vec<usize
         members.extend(copies.into_iter().map(|(_, index)| index));
     }
     members
+}
+
+/// The stored words of `register` holding `raw`: its raw value in the register's words,
+/// padded with zeros to the register's width.
+pub(crate) fn stored_words(register: &RegisterInfo, raw: u32) -> Vec<u16> {
+    let mut words = register.raw_words(raw).to_vec();
+    words.resize(usize::from(register.words).max(words.len()), 0);
+    words
 }

@@ -119,7 +119,6 @@ mod rtu;
 pub mod signal;
 mod sim;
 mod tcp;
-mod value;
 
 #[cfg(unix)]
 mod pty;

@@ -1,7 +1,10 @@
 //! The register model of one virtual device: stored words, measurements, reads, writes and
 //! the replies they earn.
 
-use optobus_codec::{ExceptionCode, ReadFunction, Request, WriteValue, MAX_READ_WORDS};
+use optobus_codec::{
+    rtu, tcp, EncodeError, ExceptionCode, ExceptionShape, ReadFunction, Request, Response, Words,
+    WriteValue, MAX_READ_WORDS,
+};
 use optobus_device::{
     Addressing, DeviceInfo, LongWrites, RegisterInfo, Scalar, Table, ValueKind, WriteOrder,
 };
@@ -10,11 +13,10 @@ use tokio::time::Instant;
 use crate::buffer::{Buffer, BufferLayout, Role};
 use crate::defaults::default_words;
 use crate::faults::Injector;
-use crate::layout::{Cell, Layout};
+use crate::layout::{stored_words, Cell, Layout};
 use crate::names;
 use crate::quirks::{Quirks, UnreadableReads};
 use crate::signal::{raw_reading, raw_value, Signals, StatisticKind};
-use crate::value::split;
 
 /// What the device answers to one request.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -44,6 +46,66 @@ pub enum Reply {
     Silent,
 }
 
+/// How a reply goes on the wire: an RTU frame from a slave address, or a Modbus TCP frame
+/// under the request's MBAP header.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Envelope {
+    Rtu { slave: u8 },
+    Tcp(tcp::Header),
+}
+
+impl Envelope {
+    /// Frames what `encode` writes into a buffer of the envelope's largest frame.
+    fn frame(
+        self,
+        encode: impl FnOnce(&mut [u8], Self) -> Result<usize, EncodeError>,
+    ) -> Option<Vec<u8>> {
+        let mut out = [0u8; tcp::MAX_FRAME_LEN];
+        let max = match self {
+            Self::Rtu { .. } => rtu::MAX_FRAME_LEN,
+            Self::Tcp(_) => tcp::MAX_FRAME_LEN,
+        };
+        let len = encode(&mut out[..max], self).ok()?;
+        out.get(..len).map(<[u8]>::to_vec)
+    }
+}
+
+impl Reply {
+    /// The bytes of this reply in `envelope`, an exception in the device's `shape`; `None`
+    /// for silence.
+    pub(crate) fn encode(&self, envelope: Envelope, shape: ExceptionShape) -> Option<Vec<u8>> {
+        let bytes: Vec<u8>;
+        let response = match self {
+            Self::Read { function, words } => {
+                bytes = words.iter().flat_map(|w| w.to_be_bytes()).collect();
+                Response::Read {
+                    function: *function,
+                    words: Words::from_bytes(&bytes)?,
+                }
+            }
+            Self::Write { address, value } => Response::Write {
+                address: *address,
+                value: *value,
+            },
+            &Self::Exception { function, code } => {
+                return envelope.frame(|out, envelope| match envelope {
+                    Envelope::Rtu { slave } => {
+                        rtu::encode_exception(out, slave, function, code, shape)
+                    }
+                    Envelope::Tcp(header) => {
+                        tcp::encode_exception(out, header, function, code, shape)
+                    }
+                });
+            }
+            Self::Silent => return None,
+        };
+        envelope.frame(|out, envelope| match envelope {
+            Envelope::Rtu { slave } => rtu::encode_response(out, slave, &response),
+            Envelope::Tcp(header) => tcp::encode_response(out, header, &response),
+        })
+    }
+}
+
 /// Why a request is refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Fault {
@@ -52,9 +114,10 @@ pub(crate) enum Fault {
     Value,
 }
 
-/// A request as the device sees it: one the codec decodes, or just a function code.
+/// A request as the device received it: one the codec decodes, or just the function code of
+/// one it does not.
 #[derive(Clone, Copy, Debug)]
-pub(crate) enum Pdu<'a> {
+pub(crate) enum Incoming<'a> {
     Request(&'a Request),
     Unsupported(u8),
 }
@@ -141,7 +204,7 @@ impl Device {
     pub(crate) fn set_slave(&mut self, slave: u8) {
         self.address = slave;
         if let Some(index) = self.slave_register() {
-            let words = split(&self.info.registers[index], u32::from(slave));
+            let words = stored_words(&self.info.registers[index], u32::from(slave));
             self.words[index] = words.clone();
             self.flash[index] = words;
         }
@@ -156,9 +219,14 @@ impl Device {
 
     // ------------------------------------------------------------------ requests
 
-    /// Answers `pdu`, sent to `slave` (`None`: over TCP, where the device is addressed by its
+    /// Answers `incoming`, sent to `slave` (`None`: over TCP, where the device is addressed by its
     /// IP and answers every unit id).
-    pub(crate) fn respond(&mut self, slave: Option<u8>, pdu: Pdu<'_>, now: Instant) -> Reply {
+    pub(crate) fn respond(
+        &mut self,
+        slave: Option<u8>,
+        incoming: Incoming<'_>,
+        now: Instant,
+    ) -> Reply {
         if self.silent || self.busy_until.is_some_and(|until| now < until) {
             return Reply::Silent;
         }
@@ -166,12 +234,12 @@ impl Device {
         if slave.is_some_and(|s| s != 0 && s != self.address) {
             return Reply::Silent;
         }
-        let function = match pdu {
-            Pdu::Request(request) => request.function_code(),
-            Pdu::Unsupported(function) => function,
+        let function = match incoming {
+            Incoming::Request(request) => request.function_code(),
+            Incoming::Unsupported(function) => function,
         };
-        let request = match pdu {
-            Pdu::Request(request) if self.info.functions.contains(&function) => Some(request),
+        let request = match incoming {
+            Incoming::Request(request) if self.info.functions.contains(&function) => Some(request),
             _ => None,
         };
         let outcome = match request {
@@ -357,7 +425,7 @@ impl Device {
             }
             _ => ids
                 .first()
-                .map(|&id| split(register, self.signal_raw(id, t)))
+                .map(|&id| stored_words(register, self.signal_raw(id, t)))
                 .unwrap_or_else(stored),
         }
     }
@@ -404,7 +472,7 @@ impl Device {
                 raw_value(register.scalar(), register.sentinel, value)
             }
         };
-        split(register, raw)
+        stored_words(register, raw)
     }
 
     // ------------------------------------------------------------------ writes
@@ -458,7 +526,7 @@ impl Device {
         if register.check(raw).is_err() {
             return Err(Fault::Value);
         }
-        self.words[index] = split(register, raw);
+        self.words[index] = stored_words(register, raw);
         self.after_write(index, raw, now);
         Ok(())
     }

@@ -10,13 +10,13 @@ use std::io;
 use std::time::Duration;
 
 use optobus_codec::crc::is_valid_frame;
-use optobus_codec::{rtu, DecodeError, Decoded, Request, Response, Words};
+use optobus_codec::{rtu, DecodeError, Decoded, Request};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, DuplexStream};
 use tokio::task::JoinHandle;
 use tokio::time::timeout;
 
 use crate::faults::{self, FaultStats, Faults, Framing, Injector, Plan};
-use crate::model::{Pdu, Reply};
+use crate::model::{Envelope, Incoming, Reply};
 use crate::sim::Simulator;
 
 /// Default silence after which a partial frame is dropped.
@@ -150,7 +150,7 @@ impl Bus {
         if let Some(&(_, _, consumed)) = frames.first() {
             let mut reply = None;
             for (member, frame, _) in frames.iter().filter(|(_, _, c)| *c == consumed) {
-                let answer = member.respond(Some(frame.slave), Pdu::Request(&frame.pdu));
+                let answer = member.respond(Some(frame.slave), Incoming::Request(&frame.pdu));
                 // One slave answers; a broadcast reaches every member.
                 if reply.is_none() {
                     reply = encode(member, frame.slave, &answer).map(|b| (b, member.injector()));
@@ -191,7 +191,7 @@ impl Bus {
         let slave = *frame.first()?;
         let mut reply = None;
         for member in &self.members {
-            let answer = member.respond(Some(slave), Pdu::Unsupported(function));
+            let answer = member.respond(Some(slave), Incoming::Unsupported(function));
             if reply.is_none() {
                 reply = encode(member, slave, &answer).map(|b| (b, member.injector()));
             }
@@ -205,31 +205,7 @@ fn encode(member: &Simulator, slave: u8, reply: &Reply) -> Option<Vec<u8>> {
     // A broadcast read that is answered comes from the device's own address (rangefinder 3.5).
     let from = if slave == 0 { member.address() } else { slave };
     let shape = member.device().frame_shape.exception;
-    let mut out = [0u8; rtu::MAX_FRAME_LEN];
-    let bytes: Vec<u8>;
-    let len = match reply {
-        Reply::Read { function, words } => {
-            bytes = words.iter().flat_map(|w| w.to_be_bytes()).collect();
-            let words = Words::from_bytes(&bytes)?;
-            let response = Response::Read {
-                function: *function,
-                words,
-            };
-            rtu::encode_response(&mut out, from, &response).ok()?
-        }
-        Reply::Write { address, value } => {
-            let response = Response::Write {
-                address: *address,
-                value: *value,
-            };
-            rtu::encode_response(&mut out, from, &response).ok()?
-        }
-        Reply::Exception { function, code } => {
-            rtu::encode_exception(&mut out, from, *function, *code, shape).ok()?
-        }
-        Reply::Silent => return None,
-    };
-    out.get(..len).map(<[u8]>::to_vec)
+    reply.encode(Envelope::Rtu { slave: from }, shape)
 }
 
 impl Simulator {

@@ -8,7 +8,7 @@ use optobus_device::{DeviceInfo, RegisterInfo, Table};
 use tokio::time::Instant;
 
 use crate::faults::{FaultStats, Faults, Injector};
-use crate::model::{Device, Pdu, Reply};
+use crate::model::{Device, Incoming, Reply};
 use crate::quirks::Quirks;
 
 /// A virtual device of one family, driven by its `DeviceInfo`.
@@ -210,21 +210,21 @@ impl Simulator {
     /// Answers one request sent to `slave` (0: broadcast), as the RTU server would.
     pub fn request(&self, slave: u8, request: &Request) -> Reply {
         self.lock()
-            .respond(Some(slave), Pdu::Request(request), Instant::now())
+            .respond(Some(slave), Incoming::Request(request), Instant::now())
     }
 
     /// Answers a request sent over Modbus TCP (any unit id).
     pub fn request_tcp(&self, request: &Request) -> Reply {
         self.lock()
-            .respond(None, Pdu::Request(request), Instant::now())
+            .respond(None, Incoming::Request(request), Instant::now())
     }
 
-    pub(crate) fn respond(&self, slave: Option<u8>, pdu: Pdu<'_>) -> Reply {
-        let reply = self.lock().respond(slave, pdu, Instant::now());
+    pub(crate) fn respond(&self, slave: Option<u8>, incoming: Incoming<'_>) -> Reply {
+        let reply = self.lock().respond(slave, incoming, Instant::now());
         if let Some(Observer(observer)) = &self.observer {
-            let (request, function) = match pdu {
-                Pdu::Request(request) => (Some(request), request.function_code()),
-                Pdu::Unsupported(function) => (None, function),
+            let (request, function) = match incoming {
+                Incoming::Request(request) => (Some(request), request.function_code()),
+                Incoming::Unsupported(function) => (None, function),
             };
             observer(&Exchange {
                 slave,

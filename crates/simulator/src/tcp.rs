@@ -9,13 +9,13 @@
 use std::io;
 use std::net::SocketAddr;
 
-use optobus_codec::{tcp, DecodeError, Decoded, Response, Words};
+use optobus_codec::{tcp, DecodeError, Decoded};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, ToSocketAddrs};
 use tokio::task::{JoinHandle, JoinSet};
 
 use crate::faults::{self, Framing, Plan};
-use crate::model::{Pdu, Reply};
+use crate::model::{Envelope, Incoming};
 use crate::names;
 use crate::sim::Simulator;
 
@@ -98,8 +98,10 @@ impl Simulator {
                     Ok(Decoded::NeedMore { .. }) => break,
                     Ok(Decoded::Frame { frame, consumed }) => {
                         pending.drain(..consumed.min(pending.len()));
-                        let reply = self.respond(None, Pdu::Request(&frame.pdu));
-                        if let Some(bytes) = encode(self, frame.header, &reply) {
+                        let reply = self.respond(None, Incoming::Request(&frame.pdu));
+                        if let Some(bytes) =
+                            reply.encode(Envelope::Tcp(frame.header), shape.exception)
+                        {
                             if !self.send_tcp(&mut stream, bytes).await? {
                                 return Ok(());
                             }
@@ -114,8 +116,8 @@ impl Simulator {
                         }
                         let header = header_of(&pending);
                         pending.drain(..len);
-                        let reply = self.respond(None, Pdu::Unsupported(function));
-                        if let Some(bytes) = encode(self, header, &reply) {
+                        let reply = self.respond(None, Incoming::Unsupported(function));
+                        if let Some(bytes) = reply.encode(Envelope::Tcp(header), shape.exception) {
                             if !self.send_tcp(&mut stream, bytes).await? {
                                 return Ok(());
                             }
@@ -171,33 +173,4 @@ fn header_of(frame: &[u8]) -> tcp::Header {
         },
         _ => tcp::Header::default(),
     }
-}
-
-/// The TCP bytes of `reply` under `header`.
-fn encode(sim: &Simulator, header: tcp::Header, reply: &Reply) -> Option<Vec<u8>> {
-    let shape = sim.device().frame_shape.exception;
-    let mut out = [0u8; tcp::MAX_FRAME_LEN];
-    let bytes: Vec<u8>;
-    let len = match reply {
-        Reply::Read { function, words } => {
-            bytes = words.iter().flat_map(|w| w.to_be_bytes()).collect();
-            let response = Response::Read {
-                function: *function,
-                words: Words::from_bytes(&bytes)?,
-            };
-            tcp::encode_response(&mut out, header, &response).ok()?
-        }
-        Reply::Write { address, value } => {
-            let response = Response::Write {
-                address: *address,
-                value: *value,
-            };
-            tcp::encode_response(&mut out, header, &response).ok()?
-        }
-        Reply::Exception { function, code } => {
-            tcp::encode_exception(&mut out, header, *function, *code, shape).ok()?
-        }
-        Reply::Silent => return None,
-    };
-    out.get(..len).map(<[u8]>::to_vec)
 }

@@ -12,7 +12,9 @@ use tokio_modbus::ProtocolError;
 use tokio_modbus::{Request, Response};
 
 use crate::timing::deadline_after;
-use crate::{Error, ExceptionCode, ReadFunction, Transport, WriteValue, DEFAULT_TIMEOUT};
+use crate::{
+    Error, ExceptionCode, ReadFunction, ReadRequest, Transport, WriteValue, DEFAULT_TIMEOUT,
+};
 
 /// A tokio-modbus client context (TCP or RTU), possibly shared with other Modbus devices.
 ///
@@ -98,13 +100,14 @@ impl ModbusContext {
 }
 
 impl Transport for ModbusContext {
-    async fn read(
-        &mut self,
-        slave: u8,
-        function: ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> Result<Vec<u16>, Error> {
+    async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, Error> {
+        // tokio-modbus makes one attempt: every read is read once.
+        let ReadRequest {
+            function,
+            address,
+            count,
+            ..
+        } = read;
         let request = match function {
             ReadFunction::Holding => Request::ReadHoldingRegisters(address, count),
             ReadFunction::Input => Request::ReadInputRegisters(address, count),

@@ -22,7 +22,7 @@ pub struct RtuConfig {
     /// How long to wait for a reply, counted from the end of the request on the line.
     pub timeout: Duration,
     /// How many times a failed read (timeout, garbled reply) is tried again. Writes and reads
-    /// with a side effect ([`Transport::read_once`]) are never retried.
+    /// that are not [repeatable](crate::ReadRequest::repeatable) are never retried.
     pub read_retries: u8,
     /// The serial line, which sets the silence kept before each request (t3.5) and how long a
     /// request takes to leave; `None` where no line timing applies (an in-memory stream, RTU

@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use tokio::sync::Mutex;
 
-use crate::{Error, ReadFunction, Transport, WriteValue};
+use crate::{Error, ReadRequest, Transport, WriteValue};
 
 /// A cloneable handle to one transport; transactions from all clones are serialised, so
 /// sensors at different slave addresses on one serial line can be used from different tasks.
@@ -31,32 +31,8 @@ impl<T> Shared<T> {
 }
 
 impl<T: Transport> Transport for Shared<T> {
-    async fn read(
-        &mut self,
-        slave: u8,
-        function: ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> Result<Vec<u16>, Error> {
-        self.inner
-            .lock()
-            .await
-            .read(slave, function, address, count)
-            .await
-    }
-
-    async fn read_once(
-        &mut self,
-        slave: u8,
-        function: ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> Result<Vec<u16>, Error> {
-        self.inner
-            .lock()
-            .await
-            .read_once(slave, function, address, count)
-            .await
+    async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, Error> {
+        self.inner.lock().await.read_words(slave, read).await
     }
 
     async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), Error> {

@@ -41,7 +41,8 @@ pub struct TcpConfig {
     /// How long to wait for a reply, and for a connection to open.
     pub timeout: Duration,
     /// How many times a failed read (timeout, garbled reply, lost connection) is tried again.
-    /// Writes and reads with a side effect ([`Transport::read_once`]) are never retried.
+    /// Writes and reads that are not [repeatable](crate::ReadRequest::repeatable) are never
+    /// retried.
     pub read_retries: u8,
     /// Wait before the first reconnection attempt after a failed one; doubled after every
     /// further failure.

@@ -26,7 +26,7 @@ pub fn deadline_from(from: Instant, wait: Duration) -> Instant {
 }
 
 /// Waits until `deadline` and returns within a few microseconds of it: tokio's timer sleeps
-/// the coarse part, and the last [`TIMER_SLACK`] is spent yielding to other tasks while
+/// the coarse part, and the last `TIMER_SLACK` is spent yielding to other tasks while
 /// watching the clock, so the runtime keeps running meanwhile.
 ///
 /// Under tokio's paused test clock the coarse part is skipped by auto-advance and the fine

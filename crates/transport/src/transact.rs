@@ -4,7 +4,7 @@ use std::future::Future;
 
 use optobus_codec::{Request, Response};
 
-use crate::{Error, ReadFunction, Transport, WriteValue};
+use crate::{Error, ReadRequest, Transport, WriteValue};
 
 /// A reply with its data copied out of the receive buffer.
 pub(crate) enum Reply {
@@ -34,53 +34,26 @@ pub(crate) trait Transact: Send {
     fn read_retries(&self) -> u8;
 }
 
-async fn read_words<T: Transact>(
-    client: &mut T,
-    slave: u8,
-    request: Request,
-    retries: u8,
-) -> Result<Vec<u16>, Error> {
-    let mut attempts_left = retries;
-    loop {
-        match client.transact(slave, request).await {
-            Ok(Some(Reply::Words(words))) => return Ok(words),
-            Ok(_) => return Err(Error::Unsupported("a read got no words")),
-            Err(error) if error.is_transient() && attempts_left > 0 => attempts_left -= 1,
-            Err(error) => return Err(error),
-        }
-    }
-}
-
 impl<T: Transact> Transport for T {
-    async fn read(
-        &mut self,
-        slave: u8,
-        function: ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> Result<Vec<u16>, Error> {
-        let retries = self.read_retries();
-        let request = Request::Read {
-            function,
-            address,
-            count,
+    async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, Error> {
+        let mut attempts_left = if read.repeatable {
+            self.read_retries()
+        } else {
+            0
         };
-        read_words(self, slave, request, retries).await
-    }
-
-    async fn read_once(
-        &mut self,
-        slave: u8,
-        function: ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> Result<Vec<u16>, Error> {
         let request = Request::Read {
-            function,
-            address,
-            count,
+            function: read.function,
+            address: read.address,
+            count: read.count,
         };
-        read_words(self, slave, request, 0).await
+        loop {
+            match self.transact(slave, request).await {
+                Ok(Some(Reply::Words(words))) => return Ok(words),
+                Ok(_) => return Err(Error::Unsupported("a read got no words")),
+                Err(error) if error.is_transient() && attempts_left > 0 => attempts_left -= 1,
+                Err(error) => return Err(error),
+            }
+        }
     }
 
     async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), Error> {

@@ -1,4 +1,4 @@
-//! Typed values to and from register words.
+//! The `Decode` and `Encode` traits: typed values to and from register words.
 
 use std::fmt;
 use std::net::Ipv4Addr;
