@@ -8,27 +8,8 @@ use optobus_codec::{
 };
 use optobus_device::DeviceInfo;
 
-use crate::explain::{explain_pdu, function_list, ExplainAs};
+use crate::explain::{explain_pdu, function_list, Context, ExplainAs, Sent};
 use crate::{hex, CrcCheck, Error, ExplainedFrame, Field, FrameKind, Framing};
-
-/// A request seen earlier in the same input, to pair its reply with.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct Sent {
-    /// Slave address, or unit id.
-    pub(crate) slave: u8,
-    /// MBAP transaction id (TCP only).
-    pub(crate) transaction: Option<u16>,
-    pub(crate) request: Request,
-}
-
-/// What decoding a frame knows from outside it.
-#[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct Context {
-    /// The request just before, if the previous frame was one.
-    pub(crate) previous: Option<Sent>,
-    /// Where a lone read reply starts, if the caller knows.
-    pub(crate) address: Option<u16>,
-}
 
 /// Every frame in `bytes`, explained field by field: request, reply or exception, CRC
 /// checked, registers named and values decoded, with notes on anything a device would

@@ -7,10 +7,28 @@ use optobus_codec::{
 };
 use optobus_device::{DeviceInfo, Invalid, LongWrites, RegisterInfo, Table, WordOrder, WriteOrder};
 
-use crate::decode::{Context, Sent};
 use crate::layout::{address_text, guess_start, layout, span_text, Held};
 use crate::value::{decode_value, range_text};
 use crate::{Field, FrameKind, RegisterValue};
+
+/// A request seen earlier in the same input, to pair its reply with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Sent {
+    /// Slave address, or unit id.
+    pub(crate) slave: u8,
+    /// MBAP transaction id (TCP only).
+    pub(crate) transaction: Option<u16>,
+    pub(crate) request: Request,
+}
+
+/// What decoding a frame knows from outside it.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Context {
+    /// The request just before, if the previous frame was one.
+    pub(crate) previous: Option<Sent>,
+    /// Where a lone read reply starts, if the caller knows.
+    pub(crate) address: Option<u16>,
+}
 
 /// How to explain a PDU: what it is, judged from its function code (and length). Not the
 /// codec's request and reply types: a guess that the CRC and the pairing then confirm.
