@@ -21,18 +21,14 @@
 
 mod common;
 
-use std::io;
-use std::pin::Pin;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
-use std::task::{Context, Poll};
 use std::time::{Duration, Instant};
 
 use optobus_p_series::download::MAX_DOWNLOAD;
-use optobus_p_series::transport::{LineFormat, RtuClient, RtuConfig, Transport};
+use optobus_p_series::transport::{Flow, LineFormat, RtuClient, RtuConfig, Tap, Transport};
 use optobus_p_series::{rtu_config, MeasurementSource, PSeries, DEVICE};
 use optobus_simulator::{Line, LineStats, Simulator};
-use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio_modbus::Slave;
 
 /// The device answers as soon as it has seen the end of a request.
@@ -159,54 +155,12 @@ async fn line_speed(baud: u32) {
 
 /// Bytes written and read through a stream.
 #[derive(Clone, Debug, Default)]
-struct Bytes(Arc<[AtomicU64; 2]>);
+struct Bytes(Arc<AtomicU64>);
 
 impl Bytes {
     /// Total bytes written and read so far.
     fn get(&self) -> u64 {
-        self.0.iter().map(|n| n.load(Ordering::Relaxed)).sum()
-    }
-}
-
-/// A stream that counts its bytes both ways.
-struct Counted<S> {
-    inner: S,
-    bytes: Bytes,
-}
-
-impl<S: AsyncRead + Unpin> AsyncRead for Counted<S> {
-    fn poll_read(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &mut ReadBuf<'_>,
-    ) -> Poll<io::Result<()>> {
-        let before = buf.filled().len();
-        let polled = Pin::new(&mut self.inner).poll_read(cx, buf);
-        let read = buf.filled().len().saturating_sub(before);
-        self.bytes.0[1].fetch_add(read as u64, Ordering::Relaxed);
-        polled
-    }
-}
-
-impl<S: AsyncWrite + Unpin> AsyncWrite for Counted<S> {
-    fn poll_write(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &[u8],
-    ) -> Poll<io::Result<usize>> {
-        let polled = Pin::new(&mut self.inner).poll_write(cx, buf);
-        if let Poll::Ready(Ok(written)) = &polled {
-            self.bytes.0[0].fetch_add(*written as u64, Ordering::Relaxed);
-        }
-        polled
-    }
-
-    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        Pin::new(&mut self.inner).poll_flush(cx)
-    }
-
-    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        Pin::new(&mut self.inner).poll_shutdown(cx)
+        self.0.load(Ordering::Relaxed)
     }
 }
 
@@ -238,10 +192,10 @@ async fn download() {
     let stats = line.stats();
     let (stream, _server) = sim.duplex_line(line);
     let bytes = Bytes::default();
-    let stream = Counted {
-        inner: stream,
-        bytes: bytes.clone(),
-    };
+    let counter = bytes.clone();
+    let stream = Tap::new(stream, move |_: Flow, chunk: &[u8]| {
+        counter.0.fetch_add(chunk.len() as u64, Ordering::Relaxed);
+    });
     let mut sensor =
         PSeries::with_default_slave(RtuClient::with_config(stream, our_config(format)));
     sensor

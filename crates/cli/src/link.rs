@@ -2,17 +2,17 @@
 //! `--verbose`, every frame sent and received is printed in hex with a timestamp.
 
 use std::io;
-use std::pin::Pin;
-use std::task::{Context, Poll};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use optobus_device::DeviceInfo;
 use optobus_driver::transport::{
-    Error as WireError, Parity, ReadRequest, RtuClient, SerialStream, TcpClient, WriteValue,
+    self, Error as WireError, Flow, Observe, Parity, ReadRequest, RtuClient, SerialStream,
+    TcpClient, WriteValue,
 };
 use optobus_driver::{rtu_config, serial_settings, tcp_config, Transport};
+use optobus_inspect::hex;
 use optobus_simulator::Simulator;
-use tokio::io::{AsyncRead, AsyncWrite, DuplexStream, ReadBuf};
+use tokio::io::DuplexStream;
 use tokio::net::TcpStream;
 
 use crate::error::CliError;
@@ -32,64 +32,30 @@ pub(crate) fn timestamp() -> String {
     )
 }
 
-pub(crate) fn hex(bytes: &[u8]) -> String {
-    bytes
-        .iter()
-        .map(|b| format!("{b:02X}"))
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
-/// A byte stream that prints what passes through it when `verbose`.
-#[derive(Debug)]
-pub(crate) struct Tap<S> {
-    inner: S,
+/// `--verbose`: every frame sent and received, in hex with a timestamp, on stderr.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FrameLog {
     verbose: bool,
 }
 
-impl<S> Tap<S> {
-    pub(crate) fn new(inner: S, verbose: bool) -> Self {
-        Self { inner, verbose }
+impl Observe for FrameLog {
+    fn observe(&mut self, flow: Flow, bytes: &[u8]) {
+        if self.verbose {
+            let arrow = match flow {
+                Flow::Sent => "->",
+                Flow::Received => "<-",
+            };
+            crate::log::note!("{} {arrow} {}", timestamp(), hex(bytes));
+        }
     }
 }
 
-impl<S: AsyncRead + Unpin> AsyncRead for Tap<S> {
-    fn poll_read(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &mut ReadBuf<'_>,
-    ) -> Poll<io::Result<()>> {
-        let before = buf.filled().len();
-        let polled = Pin::new(&mut self.inner).poll_read(cx, buf);
-        if self.verbose && buf.filled().len() > before {
-            crate::log::note!("{} <- {}", timestamp(), hex(&buf.filled()[before..]));
-        }
-        polled
-    }
-}
+/// A stream whose frames `--verbose` prints.
+pub(crate) type Tap<S> = transport::Tap<S, FrameLog>;
 
-impl<S: AsyncWrite + Unpin> AsyncWrite for Tap<S> {
-    fn poll_write(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        bytes: &[u8],
-    ) -> Poll<io::Result<usize>> {
-        let polled = Pin::new(&mut self.inner).poll_write(cx, bytes);
-        if let Poll::Ready(Ok(written)) = &polled {
-            if self.verbose && *written > 0 {
-                crate::log::note!("{} -> {}", timestamp(), hex(&bytes[..*written]));
-            }
-        }
-        polled
-    }
-
-    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        Pin::new(&mut self.inner).poll_flush(cx)
-    }
-
-    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        Pin::new(&mut self.inner).poll_shutdown(cx)
-    }
+/// `stream`, logged when `verbose`.
+fn tap<S>(stream: S, verbose: bool) -> Tap<S> {
+    transport::Tap::new(stream, FrameLog { verbose })
 }
 
 /// Where requests go.
@@ -113,7 +79,7 @@ impl optobus_driver::transport::Connect for TapConnect {
     async fn connect(&mut self) -> io::Result<Self::Stream> {
         let stream = TcpStream::connect(self.address).await?;
         stream.set_nodelay(true)?;
-        Ok(Tap::new(stream, self.verbose))
+        Ok(tap(stream, self.verbose))
     }
 }
 
@@ -194,7 +160,7 @@ pub(crate) async fn open(
                 .hint("check the path, that no other program holds the port, and your permissions")
         })?;
         return Ok(Link::Serial(RtuClient::with_config(
-            Tap::new(port, target.verbose),
+            tap(port, target.verbose),
             config,
         )));
     }
@@ -230,7 +196,7 @@ pub(crate) async fn open(
     // The line is memory: no serial timing.
     config.line = None;
     Ok(Link::Simulator(RtuClient::with_config(
-        Tap::new(line, target.verbose),
+        tap(line, target.verbose),
         config,
     )))
 }

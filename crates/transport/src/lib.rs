@@ -33,6 +33,7 @@ mod modbus;
 mod rtu;
 mod serial;
 mod shared;
+mod tap;
 mod tcp;
 pub mod timing;
 mod transact;
@@ -41,6 +42,7 @@ pub use modbus::ModbusContext;
 pub use rtu::{RtuClient, RtuConfig};
 pub use serial::{SerialSettings, SerialStream};
 pub use shared::Shared;
+pub use tap::{Flow, Observe, Tap};
 pub use tcp::{Connect, TcpClient, TcpConfig};
 
 /// The default time to wait for a reply.
