@@ -110,24 +110,16 @@ fn ccf_channels_are_one_block() {
     assert_eq!(ccf::Channel::COUNT, 4);
     assert_eq!(ccf::Channel::all().count(), 4);
     assert!(ccf::Channel::new(0).is_none() && ccf::Channel::new(5).is_none());
-    let exposure: Vec<u16> = (1..=4)
-        .map(|n| {
-            ccf::DEVICE
-                .register(&format!("channel_{n}_exposure_time"))
-                .expect("copy")
-                .address
-        })
-        .collect();
-    assert_eq!(exposure, [2, 10, 18, 26]);
-    let peaks: Vec<u16> = (1..=4)
-        .map(|n| {
-            ccf::DEVICE
-                .register(&format!("channel_{n}_peak_1_height"))
-                .expect("copy")
-                .address
-        })
-        .collect();
-    assert_eq!(peaks, [32, 34, 36, 38]);
+    // The address of `member` in each channel's copy.
+    let addresses = |member: &str| -> Vec<u16> {
+        let address = |n| {
+            let name = format!("channel_{n}_{member}");
+            ccf::DEVICE.register(&name).expect("copy").address
+        };
+        (1..=4).map(address).collect()
+    };
+    assert_eq!(addresses("exposure_time"), [2, 10, 18, 26]);
+    assert_eq!(addresses("peak_1_height"), [32, 34, 36, 38]);
 }
 
 #[test]

@@ -57,34 +57,25 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             }
         }
     }
-    for command in &model.commands {
-        if missing(command.doc.as_ref()) {
-            report(
-                format!("command `{}`", command.name),
-                "doc",
-                command.path.key("name"),
-                out,
-            );
-        }
-    }
-    for group in &model.groups {
-        if missing(group.doc.as_ref()) {
-            report(
-                format!("group `{}`", group.name),
-                "doc",
-                group.path.key("name"),
-                out,
-            );
-        }
-    }
-    for repeat in &model.repeats {
-        if missing(repeat.doc.as_ref()) {
-            report(
-                format!("repeat `{}`", repeat.name),
-                "doc",
-                repeat.path.key("name"),
-                out,
-            );
+    let named = model
+        .commands
+        .iter()
+        .map(|c| ("command", &c.name, &c.doc, &c.path))
+        .chain(
+            model
+                .groups
+                .iter()
+                .map(|g| ("group", &g.name, &g.doc, &g.path)),
+        )
+        .chain(
+            model
+                .repeats
+                .iter()
+                .map(|r| ("repeat", &r.name, &r.doc, &r.path)),
+        );
+    for (what, name, doc, path) in named {
+        if missing(doc.as_ref()) {
+            report(format!("{what} `{name}`"), "doc", path.key("name"), out);
         }
     }
 }

@@ -5,6 +5,7 @@ use std::collections::HashMap;
 
 use crate::diagnostic::Diagnostic;
 use crate::model::{Kind, Model};
+use crate::source::Path;
 
 /// Rule name.
 pub const RULE: &str = "enum-codes";
@@ -21,27 +22,25 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         let mut codes = HashMap::new();
         let mut names = HashMap::new();
         for code in &def.codes {
+            // The same `key` a second time: marked here, with the first use labelled.
+            let twice = |key: &str, first: Path, what: String| {
+                Diagnostic::at(
+                    RULE,
+                    &code.path.key(key),
+                    format!("enum `{}` has {what}", def.name),
+                )
+                .label(format!("duplicate {key}"))
+                .also(&first.key(key), "first used here")
+            };
             if let Some(first) = codes.insert(code.code, code.path.clone()) {
-                out.push(
-                    Diagnostic::at(
-                        RULE,
-                        &code.path.key("code"),
-                        format!("enum `{}` has code {} twice", def.name, code.code),
-                    )
-                    .label("duplicate code")
-                    .also(&first.key("code"), "first used here"),
-                );
+                out.push(twice("code", first, format!("code {} twice", code.code)));
             }
             if let Some(first) = names.insert(code.name.as_str(), code.path.clone()) {
-                out.push(
-                    Diagnostic::at(
-                        RULE,
-                        &code.path.key("name"),
-                        format!("enum `{}` has two codes named `{}`", def.name, code.name),
-                    )
-                    .label("duplicate name")
-                    .also(&first.key("name"), "first used here"),
-                );
+                out.push(twice(
+                    "name",
+                    first,
+                    format!("two codes named `{}`", code.name),
+                ));
             }
         }
     }

@@ -91,6 +91,11 @@ pub fn is_snake_case(name: &str) -> bool {
         && !name.ends_with('_')
 }
 
+/// A name with the place of its `name` key.
+fn keyed<'a>(name: &'a str, path: &Path) -> (&'a str, Path) {
+    (name, path.key("name"))
+}
+
 /// Checks that every name becomes a clean Rust identifier.
 pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
     let mut names: Vec<(&str, Path)> = Vec::new();
@@ -107,30 +112,11 @@ pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
         if e.shared {
             names.push((&e.name, e.path.clone()));
         }
-        names.extend(
-            e.codes
-                .iter()
-                .map(|c| (c.name.as_str(), c.path.key("name"))),
-        );
+        names.extend(e.codes.iter().map(|c| keyed(&c.name, &c.path)));
     }
-    names.extend(
-        model
-            .commands
-            .iter()
-            .map(|c| (c.name.as_str(), c.path.key("name"))),
-    );
-    names.extend(
-        model
-            .groups
-            .iter()
-            .map(|g| (g.name.as_str(), g.path.key("name"))),
-    );
-    names.extend(
-        model
-            .repeats
-            .iter()
-            .map(|r| (r.name.as_str(), r.path.key("name"))),
-    );
+    names.extend(model.commands.iter().map(|c| keyed(&c.name, &c.path)));
+    names.extend(model.groups.iter().map(|g| keyed(&g.name, &g.path)));
+    names.extend(model.repeats.iter().map(|r| keyed(&r.name, &r.path)));
     for (name, path) in names {
         if !is_snake_case(name) {
             out.push(

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{fails, json, ok, refused, run, Served, FAILURE};
+use common::{fails, json, ok, refused, run, words, Served, FAILURE};
 
 /// Runs each command line, which must succeed and print the line given.
 fn prints(cases: &[(&[&str], &str)]) {
@@ -119,20 +119,9 @@ fn watch_refreshes_and_stops() {
     assert!(refreshes[1]["values"]["thickness"]["value"].is_number());
     // A device that does not answer: each refresh marks the error and watch carries on.
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
-    let text = ok(&[
-        "--serial",
-        &served.at,
-        "--slave",
-        "9",
-        "--timeout",
-        "50ms",
-        "watch",
-        "distance_1",
-        "--count",
-        "2",
-        "--interval",
-        "10ms",
-    ]);
+    let text = ok(&words(&served.serial(
+        "--slave 9 --timeout 50ms watch distance_1 --count 2 --interval 10ms",
+    )));
     assert_eq!(
         text.lines()
             .filter(|l| l.contains("! no reply within 50 ms") && l.ends_with("retrying"))
@@ -170,22 +159,14 @@ fn set_takes_engineering_units_and_code_names() {
 
 #[test]
 fn invalid_values_are_refused_before_anything_is_sent() {
-    for (args, message) in [
-        (
-            vec!["set", "light_power", "100.1"],
-            "allowed 0.5 % ..= 100.0 %",
-        ),
-        (vec!["set", "light_power", "50.05"], "whole steps of 1e-1 %"),
-        (
-            vec!["set", "sampling_interval", "7us"],
-            "codes are us_6_25 (8)",
-        ),
-        (vec!["set", "distance_1", "1"], "read-only"),
-        (
-            vec!["--model", "ccf", "set", "exposure_time", "1"],
-            "--channel",
-        ),
+    for (line, message) in [
+        ("set light_power 100.1", "allowed 0.5 % ..= 100.0 %"),
+        ("set light_power 50.05", "whole steps of 1e-1 %"),
+        ("set sampling_interval 7us", "codes are us_6_25 (8)"),
+        ("set distance_1 1", "read-only"),
+        ("--model ccf set exposure_time 1", "--channel"),
     ] {
+        let args = words(line);
         refused(&args, FAILURE, message);
     }
 }
@@ -275,16 +256,9 @@ fn connection_errors_are_one_clear_line() {
     );
     // A device at another slave address stays silent: a timeout that says what to check.
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
-    let error = fails(&[
-        "--serial",
-        &served.at,
-        "--slave",
-        "9",
-        "--timeout",
-        "100ms",
-        "read",
-        "laser",
-    ]);
+    let error = fails(&words(
+        &served.serial("--slave 9 --timeout 100ms read laser"),
+    ));
     assert!(
         error.starts_with("optobus: no reply within 100 ms for `laser_enabled"),
         "{error}"

@@ -3,8 +3,13 @@
 
 mod common;
 
-use common::{fails, ok};
+use common::{fails, ok, words};
 use serde_json::Value;
+
+/// Stdout of a successful `optobus frame decode args…`.
+fn decode(args: &[&str]) -> String {
+    ok(&[&["frame", "decode"], args].concat())
+}
 
 /// The hex lines of `frame encode` text output, in order.
 fn hex_lines(stdout: &str) -> Vec<&str> {
@@ -120,22 +125,14 @@ fn encode_writes_as_the_manuals_do() {
 
 #[test]
 fn encode_refuses_invalid_requests() {
-    for (args, message) in [
-        (
-            vec!["p-series", "set", "light_power", "250"],
-            "0.5 % ..= 100.0 %",
-        ),
-        (vec!["p-series", "set", "distance_1", "1"], "read-only"),
-        (
-            vec!["p-series", "read", "no_such_register"],
-            "no_such_register",
-        ),
-        (vec!["p-series", "set", "laser", "1"], "is a group"),
-        (
-            vec!["ccf", "set", "exposure_time", "100us"],
-            "--channel 1 to 4",
-        ),
+    for (line, message) in [
+        ("p-series set light_power 250", "0.5 % ..= 100.0 %"),
+        ("p-series set distance_1 1", "read-only"),
+        ("p-series read no_such_register", "no_such_register"),
+        ("p-series set laser 1", "is a group"),
+        ("ccf set exposure_time 100us", "--channel 1 to 4"),
     ] {
+        let args = words(line);
         let mut command = vec!["frame", "encode"];
         command.extend(&args);
         let stderr = fails(&command);
@@ -206,9 +203,7 @@ fn encode_modbus_tcp_frames() {
 #[test]
 fn decode_names_registers_of_a_golden_reply() {
     // 5.3.1: the request and its reply, as captured on the line.
-    let stdout = ok(&[
-        "frame",
-        "decode",
+    let stdout = decode(&[
         "p-series",
         "01 04 00 00 00 06 70 08",
         "01 04 0C 00 36 B0 BE 00 20 24 5C 00 56 D3 04 41 47",
@@ -226,9 +221,7 @@ fn decode_names_registers_of_a_golden_reply() {
     );
     assert!(stdout.contains("assumed"), "{stdout}");
     // A lone reply, placed with --address, in one string without spaces.
-    let stdout = ok(&[
-        "frame",
-        "decode",
+    let stdout = decode(&[
         "p-series",
         "01040C0036B0BE0020245C0056D3044147",
         "--address",
@@ -245,30 +238,17 @@ fn decode_names_registers_of_a_golden_reply() {
 
 #[test]
 fn decode_flags_a_wrong_crc_and_gives_the_right_one() {
-    let stdout = ok(&[
-        "frame",
-        "decode",
-        "p-series",
-        "0x01 0x04 0x00 0x00 0x00 0x02 0x71 0xCC",
-    ]);
+    let stdout = decode(&["p-series", "0x01 0x04 0x00 0x00 0x00 0x02 0x71 0xCC"]);
     assert!(stdout.contains("CRC wrong"), "{stdout}");
     assert!(stdout.contains("71 CB"), "{stdout}");
-    let value = json(&ok(&[
-        "frame",
-        "decode",
-        "p-series",
-        "01 04 00 00 00 02 71 CC",
-        "--json",
-    ]));
+    let value = json(&decode(&["p-series", "01 04 00 00 00 02 71 CC", "--json"]));
     assert_eq!(value["frames"][0]["crc"]["ok"], false);
     assert_eq!(value["frames"][0]["crc"]["expected"], "71 CB");
 }
 
 #[test]
 fn decode_a_write_and_its_echo() {
-    let stdout = ok(&[
-        "frame",
-        "decode",
+    let stdout = decode(&[
         "p-series",
         "01 06 00 06 00 14 69 C4 01 06 00 06 00 14 69 C4",
     ]);
@@ -281,9 +261,7 @@ fn decode_a_write_and_its_echo() {
 
 #[test]
 fn decode_rangefinder_four_byte_write() {
-    let value = json(&ok(&[
-        "frame",
-        "decode",
+    let value = json(&decode(&[
         "rangefinder",
         "19 06 00 04 01 00 E1 00 5F 01",
         "--json",
@@ -306,9 +284,7 @@ fn decode_lc_rs_seven_byte_exception() {
 #[test]
 fn decode_modbus_tcp_pair() {
     // 5.3.2: request and reply with their MBAP headers.
-    let stdout = ok(&[
-        "frame",
-        "decode",
+    let stdout = decode(&[
         "p-series",
         "--mbap",
         "00 00 00 00 00 06 01 04 00 00 00 06",

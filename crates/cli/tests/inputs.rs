@@ -6,58 +6,49 @@
 
 mod common;
 
-use common::{ok, outcome, refused, Served, FAILURE, USAGE};
+use common::{ok, outcome, refused, words, Served, FAILURE, USAGE};
 
 #[test]
 fn durations_are_bounded_and_strict() {
-    for (args, message) in [
+    for (line, message) in [
         (
-            vec!["--timeout", "9999999999999999999s", "read", "distance_1"],
+            "--timeout 9999999999999999999s read distance_1",
             "--timeout 9999999999999999999s is too long: at most 24 h",
         ),
         (
-            vec!["watch", "distance_1", "--interval", "9223372036854775807s"],
+            "watch distance_1 --interval 9223372036854775807s",
             "--interval 9223372036854775807s is too long: at most 24 h",
         ),
         (
-            vec!["--timeout", "0", "read", "distance_1"],
+            "--timeout 0 read distance_1",
             "--timeout 0 is too short: at least 1 ms",
         ),
         (
-            vec!["watch", "distance_1", "--interval", "0"],
+            "watch distance_1 --interval 0",
             "--interval 0 is too short: at least 1 ms",
         ),
+        ("--timeout 25h read distance_1", "at most 24 h"),
         (
-            vec!["--timeout", "25h", "read", "distance_1"],
-            "at most 24 h",
-        ),
-        (
-            vec!["--timeout", "-1s", "read", "distance_1"],
+            "--timeout -1s read distance_1",
             "--timeout cannot be negative",
         ),
+        ("--timeout NaN read distance_1", "`NaN` is not a duration"),
         (
-            vec!["--timeout", "NaN", "read", "distance_1"],
-            "`NaN` is not a duration",
-        ),
-        (
-            vec!["--timeout", "1e400s", "read", "distance_1"],
+            "--timeout 1e400s read distance_1",
             "unknown time unit `e400s`",
         ),
+        ("--timeout 1.5.2s read distance_1", "is not a duration"),
         (
-            vec!["--timeout", "1.5.2s", "read", "distance_1"],
-            "is not a duration",
-        ),
-        (
-            vec!["buffer", "--count", "10", "--wait", "100000s"],
+            "buffer --count 10 --wait 100000s",
             "--wait 100000s is too long: at most 24 h",
         ),
         (
-            vec!["simulate", "--duration", "2000m"],
+            "simulate --duration 2000m",
             "--duration 2000m is too long: at most 24 h",
         ),
-        (vec!["simulate", "--duration", "-1s"], "cannot be negative"),
+        ("simulate --duration -1s", "cannot be negative"),
     ] {
-        refused(&args, USAGE, message);
+        refused(&words(line), USAGE, message);
     }
     // The bounds themselves are fine.
     ok(&["--timeout", "24h", "read", "distance_1"]);
@@ -187,16 +178,9 @@ fn slave_0_is_for_writes_only() {
 #[test]
 fn broadcast_writes_are_sent_once_and_not_waited_for() {
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
-    let (code, stdout, stderr) = outcome(&[
-        "--serial",
-        &served.at,
-        "--slave",
-        "0",
-        "set",
-        "light_power",
-        "42.5",
-        "--verbose",
-    ]);
+    let (code, stdout, stderr) = outcome(&words(
+        &served.serial("--slave 0 set light_power 42.5 --verbose"),
+    ));
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(
         stdout.trim(),
@@ -206,23 +190,9 @@ fn broadcast_writes_are_sent_once_and_not_waited_for() {
     assert!(stderr.contains(" -> 00 06 00 02 01 A9 E8 35"), "{stderr}");
     assert!(!stderr.contains(" <- "), "no reply read: {stderr}");
     // The device at slave 3 carried it out.
-    let values = common::json(&[
-        "--serial",
-        &served.at,
-        "--slave",
-        "3",
-        "read",
-        "light_power",
-    ]);
+    let values = common::json(&words(&served.serial("--slave 3 read light_power")));
     assert_eq!(values["light_power"]["exact"], "42.5");
-    let (code, stdout, stderr) = outcome(&[
-        "--serial",
-        &served.at,
-        "--slave",
-        "0",
-        "do",
-        "zero_position_1",
-    ]);
+    let (code, stdout, stderr) = outcome(&words(&served.serial("--slave 0 do zero_position_1")));
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(
         stdout.trim(),
@@ -238,44 +208,25 @@ fn broadcast_writes_are_sent_once_and_not_waited_for() {
 fn a_new_slave_address_is_read_back_where_the_device_answers() {
     // P series: the address applies at once; the read-back goes to the new address.
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
-    let (code, stdout, stderr) = outcome(&[
-        "--serial",
-        &served.at,
-        "--slave",
-        "3",
-        "set",
-        "slave_address",
-        "7",
-        "--verbose",
-    ]);
+    let line = format!(
+        "--serial {} --slave 3 set slave_address 7 --verbose",
+        served.at
+    );
+    let (code, stdout, stderr) = outcome(&words(&line));
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(stdout.trim(), "slave_address  7");
     assert!(stderr.contains(" -> 03 06 00 1F 00 07"), "{stderr}");
     assert!(stderr.contains(" -> 07 03 00 1F 00 01"), "{stderr}");
     assert!(stderr.contains("now answers at slave 7"), "{stderr}");
-    let values = common::json(&[
-        "--serial",
-        &served.at,
-        "--slave",
-        "7",
-        "read",
-        "slave_address",
-    ]);
+    let values = common::json(&words(&served.serial("--slave 7 read slave_address")));
     assert_eq!(values["slave_address"], 7);
     // LC-RS: only after save and a power cycle; the read-back goes to the old address.
     let served = Served::start(&["lc-rs", "--pty", "--slave", "3"]);
-    let (code, stdout, stderr) = outcome(&[
-        "--model",
-        "lc-rs",
-        "--serial",
-        &served.at,
-        "--slave",
-        "3",
-        "set",
-        "slave_address",
-        "7",
-        "--verbose",
-    ]);
+    let line = format!(
+        "--model lc-rs --serial {} --slave 3 set slave_address 7 --verbose",
+        served.at
+    );
+    let (code, stdout, stderr) = outcome(&words(&line));
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(stdout.trim(), "slave_address  7");
     assert!(stderr.contains(" -> 03 03 00 85 00 01"), "{stderr}");
@@ -328,45 +279,34 @@ fn set_of_a_drastic_register_needs_yes() {
 fn baud_rates_come_from_the_manual_unless_any_baud() {
     // A port that does not exist: a refusal must come before trying to open it.
     let port = "/dev/nonexistent-port";
-    for (args, message) in [
+    for (line, message) in [
         (
-            vec!["--baud", "1", "read", "distance_1"],
+            "--baud 1 read distance_1",
             "--baud 1 is no baud rate a serial line can use: 50 to 4000000",
         ),
         (
-            vec!["--baud", "0", "--any-baud", "read", "distance_1"],
+            "--baud 0 --any-baud read distance_1",
             "--baud 0 is no baud rate",
         ),
         (
-            vec!["--baud", "5000000", "--any-baud", "read", "distance_1"],
+            "--baud 5000000 --any-baud read distance_1",
             "--baud 5000000 is no baud rate",
         ),
         (
-            vec!["--baud", "14400", "read", "distance_1"],
+            "--baud 14400 read distance_1",
             "its manual lists 9600, 19200, 38400, 57600, 115200; --any-baud",
         ),
         (
-            vec!["--model", "ccf", "--baud", "9600", "dump"],
+            "--model ccf --baud 9600 dump",
             "ccf does not list 9600 baud",
         ),
-        (
-            vec!["--baud", "1", "set", "light_power", "42"],
-            "--baud 1 is no baud rate",
-        ),
-        (
-            vec!["--baud", "1", "buffer", "--count", "10"],
-            "--baud 1 is no baud rate",
-        ),
-        (
-            vec!["scan", "--bauds", "9600,1"],
-            "--bauds 1 is no baud rate",
-        ),
-        (
-            vec!["scan", "--bauds", "14400"],
-            "p_series does not list 14400 baud",
-        ),
-        (vec!["--baud", "1", "scan"], "--baud 1 is no baud rate"),
+        ("--baud 1 set light_power 42", "--baud 1 is no baud rate"),
+        ("--baud 1 buffer --count 10", "--baud 1 is no baud rate"),
+        ("scan --bauds 9600,1", "--bauds 1 is no baud rate"),
+        ("scan --bauds 14400", "p_series does not list 14400 baud"),
+        ("--baud 1 scan", "--baud 1 is no baud rate"),
     ] {
+        let args = words(line);
         let mut args = args.clone();
         args.extend(["--serial", port]);
         refused(&args, FAILURE, message);

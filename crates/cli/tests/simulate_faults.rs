@@ -99,13 +99,17 @@ fn open_pty(path: &str) -> (File, Receiver<(Instant, Vec<u8>)>) {
     (file, receiver)
 }
 
-/// Bytes that arrive until `quiet` passes without any (at most 3 s), and when the last came.
-fn collect(bytes: &Receiver<(Instant, Vec<u8>)>, quiet: Duration) -> (Vec<u8>, Option<Instant>) {
-    let started = Instant::now();
+/// Bytes that arrive while `more` gives how long to wait for the next chunk (it is given the
+/// bytes so far and the deadline, 3 s away), and when the last came.
+fn collect_while(
+    bytes: &Receiver<(Instant, Vec<u8>)>,
+    more: impl Fn(&[u8], Instant) -> Option<Duration>,
+) -> (Vec<u8>, Option<Instant>) {
+    let deadline = Instant::now() + Duration::from_secs(3);
     let mut reply = Vec::new();
     let mut last = None;
-    while started.elapsed() < Duration::from_secs(3) {
-        match bytes.recv_timeout(quiet) {
+    while let Some(wait) = more(&reply, deadline) {
+        match bytes.recv_timeout(wait) {
             Ok((at, chunk)) => {
                 reply.extend_from_slice(&chunk);
                 last = Some(at);
@@ -116,22 +120,18 @@ fn collect(bytes: &Receiver<(Instant, Vec<u8>)>, quiet: Duration) -> (Vec<u8>, O
     (reply, last)
 }
 
+/// Bytes that arrive until `quiet` passes without any (at most 3 s), and when the last came.
+fn collect(bytes: &Receiver<(Instant, Vec<u8>)>, quiet: Duration) -> (Vec<u8>, Option<Instant>) {
+    collect_while(bytes, |_, deadline| {
+        (Instant::now() < deadline).then_some(quiet)
+    })
+}
+
 /// Bytes that arrive until there are `len` of them (at most 3 s), and when the last came.
 fn collect_len(bytes: &Receiver<(Instant, Vec<u8>)>, len: usize) -> (Vec<u8>, Option<Instant>) {
-    let deadline = Instant::now() + Duration::from_secs(3);
-    let mut reply = Vec::new();
-    let mut last = None;
-    while reply.len() < len {
-        let left = deadline.saturating_duration_since(Instant::now());
-        match bytes.recv_timeout(left) {
-            Ok((at, chunk)) => {
-                reply.extend_from_slice(&chunk);
-                last = Some(at);
-            }
-            Err(_) => break,
-        }
-    }
-    (reply, last)
+    collect_while(bytes, |reply, deadline| {
+        (reply.len() < len).then(|| deadline.saturating_duration_since(Instant::now()))
+    })
 }
 
 /// Whether the last two bytes of `frame` are the CRC of the others.

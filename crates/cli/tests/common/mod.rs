@@ -12,6 +12,11 @@ pub fn optobus() -> Command {
     command
 }
 
+/// A command line's words: `words("read distance_1")` is `["read", "distance_1"]`.
+pub fn words(line: &str) -> Vec<&str> {
+    line.split_whitespace().collect()
+}
+
 /// Runs `optobus args…` to completion.
 pub fn run(args: &[&str]) -> Output {
     optobus().args(args).output().expect("run optobus")
@@ -103,6 +108,11 @@ pub struct Served {
 }
 
 impl Served {
+    /// The command line `--serial <where it serves> rest`, for [`words`].
+    pub fn serial(&self, rest: &str) -> String {
+        format!("--serial {} {rest}", self.at)
+    }
+
     pub fn start(args: &[&str]) -> Self {
         let mut child = optobus()
             .arg("simulate")
