@@ -133,12 +133,7 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
             log.line(format!("optobus: {}", stats.summary(faults)));
         }
         if let Some(stats) = line_stats {
-            log.line(format!(
-                "optobus: line: {} requests, {} replies, {} requests sent within t3.5 of a reply",
-                stats.frames(),
-                stats.replies(),
-                stats.gap_violations()
-            ));
+            log.line(format!("optobus: {stats}"));
         }
         Ok(())
     }
