@@ -6,10 +6,10 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use optobus_device::DeviceInfo;
 use optobus_driver::transport::{
-    self, Error as WireError, Flow, Observe, Parity, ReadRequest, RtuClient, SerialStream,
-    TcpClient, WriteValue,
+    self, Error as WireError, Flow, LineFormat, Observe, Parity, ReadRequest, RtuClient,
+    SerialStream, TcpClient, WriteValue,
 };
-use optobus_driver::{rtu_config, serial_settings, tcp_config, Transport};
+use optobus_driver::{line_format, rtu_config, serial_settings, tcp_config, Transport};
 use optobus_inspect::hex;
 use optobus_simulator::Simulator;
 use tokio::io::DuplexStream;
@@ -115,6 +115,20 @@ pub(crate) struct Target {
     pub(crate) verbose: bool,
 }
 
+impl Target {
+    /// The model's factory line format with `--baud` and `--parity` applied.
+    pub(crate) fn line_format(&self, device: &DeviceInfo) -> LineFormat {
+        let mut format = line_format(device);
+        if let Some(baud) = self.baud {
+            format.baud = baud;
+        }
+        if let Some(parity) = self.parity {
+            format.parity = parity;
+        }
+        format
+    }
+}
+
 /// `host`, `host:port` or `[v6]:port`, with the device's port as the default.
 pub(crate) async fn resolve_tcp(
     address: &str,
@@ -148,12 +162,7 @@ pub(crate) async fn open(
     config.timeout = target.timeout;
     if let Some(path) = &target.serial {
         let mut settings = serial_settings(device, path.as_str());
-        if let Some(baud) = target.baud {
-            settings.line.baud = baud;
-        }
-        if let Some(parity) = target.parity {
-            settings.line.parity = parity;
-        }
+        settings.line = target.line_format(device);
         config.line = Some(settings.line);
         let port = settings.open().map_err(|e| {
             CliError::new(format!("cannot open {path}: {e}"))

@@ -471,6 +471,47 @@ impl FaultStats {
     }
 }
 
+/// The run's summary with the faults that were asked for: `faults injected: 3 of 40 replies
+/// (drop 2, delay 1)`, naming every kind asked for or injected.
+#[derive(Clone, Copy, Debug)]
+pub struct FaultSummary<'a> {
+    faults: &'a Faults,
+    stats: &'a FaultStats,
+}
+
+impl FaultStats {
+    /// The one-line summary of these counts for a run with `faults`.
+    pub fn summary<'a>(&'a self, faults: &'a Faults) -> FaultSummary<'a> {
+        FaultSummary {
+            faults,
+            stats: self,
+        }
+    }
+}
+
+impl fmt::Display for FaultSummary<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let Self { faults, stats } = self;
+        write!(
+            f,
+            "faults injected: {} of {} replies",
+            stats.injected(),
+            stats.replies()
+        )?;
+        let mut kinds = FaultKind::ALL
+            .into_iter()
+            .filter(|&kind| faults.probability(kind) > 0.0 || stats.count(kind) > 0);
+        if let Some(first) = kinds.next() {
+            write!(f, " ({first} {}", stats.count(first))?;
+            for kind in kinds {
+                write!(f, ", {kind} {}", stats.count(kind))?;
+            }
+            f.write_str(")")?;
+        }
+        Ok(())
+    }
+}
+
 /// How a reply goes out: pieces, each after a pause, and whether the connection closes.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Plan {

@@ -123,7 +123,7 @@ mod tcp;
 #[cfg(unix)]
 mod pty;
 
-pub use faults::{FaultKind, FaultStats, Faults, FaultsError};
+pub use faults::{FaultKind, FaultStats, FaultSummary, Faults, FaultsError};
 pub use line::{Line, LineStats};
 pub use model::Reply;
 #[cfg(unix)]

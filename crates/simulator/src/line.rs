@@ -114,6 +114,19 @@ impl LineStats {
     }
 }
 
+/// The run's summary: `line: 4 requests, 4 replies, 0 requests sent within t3.5 of a reply`.
+impl std::fmt::Display for LineStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "line: {} requests, {} replies, {} requests sent within t3.5 of a reply",
+            self.frames(),
+            self.replies(),
+            self.gap_violations()
+        )
+    }
+}
+
 fn bump(counter: &AtomicU64) {
     counter.fetch_add(1, Ordering::Relaxed);
 }

@@ -3,7 +3,7 @@
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 
-use optobus_codec::Request;
+use optobus_codec::{Request, WriteValue};
 use optobus_device::{DeviceInfo, RegisterInfo, Table};
 use tokio::time::Instant;
 
@@ -41,6 +41,36 @@ pub struct Exchange<'a> {
     pub request: Option<&'a Request>,
     /// What the device answers (`Reply::Silent` when it does not).
     pub reply: &'a Reply,
+}
+
+/// One log line: `slave 1 read holding 0 x2 -> 2 words` (no slave over TCP).
+impl std::fmt::Display for Exchange<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(slave) = self.slave {
+            write!(f, "slave {slave} ")?;
+        }
+        match self.request {
+            Some(Request::Read {
+                function,
+                address,
+                count,
+            }) => {
+                let table = Table::read_by(*function).as_str();
+                write!(f, "read {table} {address} x{count}")?;
+            }
+            Some(Request::Write { address, value }) => match value {
+                WriteValue::Word(word) => write!(f, "write {address} = {word}")?,
+                WriteValue::DoubleWord(value) => write!(f, "write {address} = {value} (4 bytes)")?,
+            },
+            None => write!(f, "function {:02X}", self.function)?,
+        }
+        match self.reply {
+            Reply::Read { words, .. } => write!(f, " -> {} words", words.len()),
+            Reply::Write { .. } => f.write_str(" -> echo"),
+            Reply::Exception { code, .. } => write!(f, " -> exception {:02X}", code.0),
+            Reply::Silent => f.write_str(" -> no reply"),
+        }
+    }
 }
 
 /// A callback that sees every exchange (for logs).

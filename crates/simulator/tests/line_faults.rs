@@ -614,3 +614,32 @@ async fn the_p_series_driver_keeps_the_gap_and_accepts_split_replies() {
         assert!(elapsed >= least, "{baud}: {elapsed:?} < {least:?}");
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// Log lines
+
+#[tokio::test(start_paused = true)]
+async fn exchanges_and_fault_counts_read_as_log_lines() {
+    let lines = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let sim = Simulator::new(&DEVICE).observe({
+        let lines = std::sync::Arc::clone(&lines);
+        move |exchange| lines.lock().unwrap().push(exchange.to_string())
+    });
+    let (mut stream, _server) = sim.duplex();
+    let slave = sim.address();
+    rtu_exchange(&mut stream, slave).await;
+    let faults = only(FaultKind::Drop);
+    sim.set_faults(Some(faults.clone()));
+    rtu_exchange(&mut stream, slave).await;
+    let line = format!("slave {slave} read holding 0 x8 -> 8 words");
+    assert_eq!(*lines.lock().unwrap(), [line.clone(), line]);
+    let stats = sim.fault_stats().unwrap();
+    assert_eq!(
+        stats.summary(&faults).to_string(),
+        "faults injected: 1 of 1 replies (drop 1)"
+    );
+    assert_eq!(
+        stats.summary(&Faults::new()).to_string(),
+        "faults injected: 1 of 1 replies (drop 1)"
+    );
+}

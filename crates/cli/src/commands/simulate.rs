@@ -4,51 +4,15 @@
 use std::time::Duration;
 
 use clap::Args;
-use optobus_codec::{LineFormat, ReadFunction, Request, WriteValue};
 use optobus_device::DeviceInfo;
-use optobus_driver::{line_format, serial_settings};
-use optobus_simulator::{
-    Exchange, FaultKind, FaultStats, Faults, FaultsError, Line, Reply, Simulator,
-};
+use optobus_driver::serial_settings;
+use optobus_simulator::{Faults, FaultsError, Line, Simulator};
 
 use crate::connect::Global;
 use crate::error::CliError;
 use crate::log::Log;
 use crate::render::{line_text, print};
 use crate::{inputs, link, models};
-
-/// One log line for a request the simulator answered.
-fn describe(exchange: &Exchange<'_>) -> String {
-    let slave = exchange
-        .slave
-        .map(|s| format!("slave {s} "))
-        .unwrap_or_default();
-    let request = match exchange.request {
-        Some(Request::Read {
-            function,
-            address,
-            count,
-        }) => {
-            let table = match function {
-                ReadFunction::Holding => "holding",
-                ReadFunction::Input => "input",
-            };
-            format!("read {table} {address} x{count}")
-        }
-        Some(Request::Write { address, value }) => match value {
-            WriteValue::Word(word) => format!("write {address} = {word}"),
-            WriteValue::DoubleWord(value) => format!("write {address} = {value} (4 bytes)"),
-        },
-        None => format!("function {:02X}", exchange.function),
-    };
-    let reply = match exchange.reply {
-        Reply::Read { words, .. } => format!("{} words", words.len()),
-        Reply::Write { .. } => "echo".to_owned(),
-        Reply::Exception { code, .. } => format!("exception {:02X}", code.0),
-        Reply::Silent => "no reply".to_owned(),
-    };
-    format!("{} {slave}{request} -> {reply}", link::timestamp())
-}
 
 /// `optobus simulate`'s arguments.
 #[derive(Debug, Args)]
@@ -95,42 +59,11 @@ fn faults(args: &SimulateArgs) -> Result<Option<Faults>, CliError> {
 /// The emulated line of `--line-timing`: the model's factory format with `--baud` and
 /// `--parity` applied, and `--turnaround`.
 fn line(device: &DeviceInfo, global: &Global, args: &SimulateArgs) -> Result<Line, CliError> {
-    let format = serial_format(device, global);
+    let format = global.target().line_format(device);
     format
         .check()
         .map_err(|e| CliError::new(format!("--line-timing cannot time this line: {e}")))?;
     Ok(Line::new(format).turnaround(args.turnaround))
-}
-
-/// The model's factory line format with `--baud` and `--parity` applied.
-fn serial_format(device: &DeviceInfo, global: &Global) -> LineFormat {
-    let mut format = line_format(device);
-    if let Some(baud) = global.baud {
-        format.baud = baud;
-    }
-    if let Some(parity) = global.parity {
-        format.parity = parity.parity();
-    }
-    format
-}
-
-/// One line of the faults injected per kind, for the end of a run.
-fn fault_summary(faults: &Faults, stats: &FaultStats) -> String {
-    let kinds: Vec<String> = FaultKind::ALL
-        .into_iter()
-        .filter(|&kind| faults.probability(kind) > 0.0 || stats.count(kind) > 0)
-        .map(|kind| format!("{kind} {}", stats.count(kind)))
-        .collect();
-    let kinds = if kinds.is_empty() {
-        String::new()
-    } else {
-        format!(" ({})", kinds.join(", "))
-    };
-    format!(
-        "optobus: faults injected: {} of {} replies{kinds}",
-        stats.injected(),
-        stats.replies()
-    )
 }
 
 /// `optobus simulate`: serves a virtual device until Ctrl-C or `--duration`, with `--faults`
@@ -173,7 +106,7 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
     let log = Log::start();
     let mut sim = Simulator::new(device).slave(slave).observe({
         let log = log.clone();
-        move |exchange| log.line(describe(exchange))
+        move |exchange| log.line(format!("{} {exchange}", link::timestamp()))
     });
     if let Some(faults) = &faults {
         sim = sim.faults(faults.clone());
@@ -197,15 +130,10 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
         }
         drop(server);
         if let (Some(faults), Some(stats)) = (&faults, sim.fault_stats()) {
-            log.line(fault_summary(faults, &stats));
+            log.line(format!("optobus: {}", stats.summary(faults)));
         }
         if let Some(stats) = line_stats {
-            log.line(format!(
-                "optobus: line: {} requests, {} replies, {} requests sent within t3.5 of a reply",
-                stats.frames(),
-                stats.replies(),
-                stats.gap_violations()
-            ));
+            log.line(format!("optobus: {stats}"));
         }
         Ok(())
     }
@@ -235,7 +163,7 @@ async fn serve(
         (Box::new(pty), format!("RTU at {path}"))
     } else if let Some(path) = &global.serial {
         let mut settings = serial_settings(device, path.as_str());
-        settings.line = serial_format(device, global);
+        settings.line = global.target().line_format(device);
         let port = settings
             .open()
             .map_err(|e| CliError::new(format!("cannot open {path}: {e}")))?;
