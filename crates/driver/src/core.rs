@@ -25,7 +25,19 @@ pub struct Core<T> {
 struct GroupPlan {
     group: &'static str,
     copy: Option<u8>,
-    spans: Arc<[ReadSpan]>,
+    spans: Arc<[PlannedRead]>,
+}
+
+/// A request of a plan, and whether a failed attempt may be repeated (worked out once per
+/// plan, not per read).
+type PlannedRead = (ReadSpan, bool);
+
+/// `spans` with their repeatability.
+fn planned(device: &DeviceInfo, spans: Vec<ReadSpan>) -> Arc<[PlannedRead]> {
+    spans
+        .into_iter()
+        .map(|span| (span, span.is_repeatable(device)))
+        .collect()
 }
 
 /// The words a group read fetched, by request.
@@ -179,7 +191,7 @@ impl<T: Transport> Core<T> {
         &mut self,
         registers: &[&'static RegisterInfo],
     ) -> Result<Readings, Error> {
-        let plan = plan_reads(self.device, registers);
+        let plan = planned(self.device, plan_reads(self.device, registers));
         self.read_plan(&plan).await
     }
 
@@ -224,7 +236,7 @@ impl<T: Transport> Core<T> {
                 self.plans.push(GroupPlan {
                     group: group.name,
                     copy,
-                    spans: plan_reads(device, &registers).into(),
+                    spans: planned(device, plan_reads(device, &registers)),
                 });
                 self.plans.len() - 1
             }
@@ -233,14 +245,13 @@ impl<T: Transport> Core<T> {
         self.read_plan(&spans).await
     }
 
-    async fn read_plan(&mut self, plan: &[ReadSpan]) -> Result<Readings, Error> {
+    async fn read_plan(&mut self, plan: &[PlannedRead]) -> Result<Readings, Error> {
         let mut readings = Readings {
             first: None,
             rest: Vec::new(),
             addressing: self.device.addressing,
         };
-        for &span in plan {
-            let repeatable = span.is_repeatable(self.device);
+        for &(span, repeatable) in plan {
             let words = self
                 .read_span(span.table, span.address, span.count, repeatable)
                 .await?;

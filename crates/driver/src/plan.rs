@@ -90,13 +90,15 @@ pub fn plan_reads(device: &DeviceInfo, registers: &[&RegisterInfo]) -> Vec<ReadS
     spans
 }
 
-/// True when readable registers of `table` cover every address in `from..to`.
+/// True when readable registers of `table` cover every address in `from..to`, none of them
+/// one whose read changes the device (a gap is never bridged over a buffer page).
 fn covered(device: &DeviceInfo, table: Table, from: u32, to: u32) -> bool {
     let mut at = from;
     while at < to {
         let next = device.registers.iter().find(|r| {
             r.table == table
                 && r.access.readable()
+                && r.read_is_repeatable()
                 && u32::from(r.address) <= at
                 && at < u32::from(r.address) + u32::from(r.words)
         });
