@@ -39,29 +39,16 @@ impl std::error::Error for CliError {}
 
 /// Explains a driver error; `register` names the register involved, if any.
 pub(crate) fn driver_error(error: optobus_driver::Error, register: Option<&str>) -> CliError {
-    use optobus_driver::transport::Error as Wire;
-    use optobus_driver::Error;
     let subject = register.map(|r| format!(" for `{r}`")).unwrap_or_default();
-    match error {
-        Error::Transport(Wire::Timeout { after }) => {
-            CliError::new(format!("no reply within {} ms{subject}", after.as_millis()))
-                .hint("check wiring, --slave, --baud and --parity, or raise --timeout")
-        }
-        Error::Transport(Wire::Exception { function, code }) => {
-            let name = match code.0 {
-                1 => " \"illegal function\"",
-                2 => " \"illegal data address\"",
-                3 => " \"illegal data value\"",
-                4 => " \"slave device failure\"",
-                _ => "",
-            };
-            CliError::new(format!(
-                "the device answered exception {:02X}{name} to function {function:02X}{subject}",
-                code.0
-            ))
-        }
-        Error::Transport(Wire::Io(io)) => CliError::new(format!("I/O error{subject}: {io}")),
-        other => CliError::new(format!("{other}")),
+    let timed_out = matches!(
+        error,
+        optobus_driver::Error::Transport(optobus_driver::transport::Error::Timeout { .. })
+    );
+    let error = CliError::new(format!("{error}{subject}"));
+    if timed_out {
+        error.hint("check wiring, --slave, --baud and --parity, or raise --timeout")
+    } else {
+        error
     }
 }
 
@@ -73,19 +60,7 @@ impl From<optobus_driver::Error> for CliError {
 
 impl From<optobus_inspect::ResolveError> for CliError {
     fn from(error: optobus_inspect::ResolveError) -> Self {
-        let hint = match &error {
-            optobus_inspect::ResolveError::Unknown { family, near, .. } if near.is_empty() => {
-                Some(format!("see `optobus registers {family}`"))
-            }
-            optobus_inspect::ResolveError::Unknown { near, .. } => {
-                Some(format!("did you mean {}?", near.join(", ")))
-            }
-            optobus_inspect::ResolveError::NoCopy { .. } => None,
-        };
-        Self {
-            message: error.to_string(),
-            hint,
-        }
+        optobus_inspect::Error::from(error).into()
     }
 }
 

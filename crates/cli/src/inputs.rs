@@ -4,7 +4,8 @@
 use std::time::Duration;
 
 use clap::ValueEnum;
-use optobus_device::{CommandInfo, DeviceInfo, Effect};
+use jiff::SignedDuration;
+use optobus_device::{CommandInfo, DeviceInfo};
 use optobus_driver::transport::Parity;
 
 use crate::error::CliError;
@@ -57,48 +58,23 @@ pub(crate) const RUN_FOR: DurationBound = DurationBound::up_to_a_day("--duration
 pub(crate) const TURNAROUND: DurationBound =
     DurationBound::up_to_a_day("--turnaround", Duration::ZERO);
 
-/// `1 h`, `1.5 s` for messages.
+/// `24h`, `1s 500ms` for messages.
 fn show(duration: Duration) -> String {
-    let ms = duration.as_millis();
-    if ms >= 3_600_000 && ms.is_multiple_of(3_600_000) {
-        format!("{} h", ms / 3_600_000)
-    } else if ms >= 1000 && ms.is_multiple_of(1000) {
-        format!("{} s", ms / 1000)
-    } else {
-        format!("{ms} ms")
-    }
+    SignedDuration::try_from(duration)
+        .map_or_else(|_| format!("{duration:?}"), |d| format!("{d:#}"))
 }
 
-/// `200ms`, `1s`, `1.5s`, `2m`, `1h`, `100us`, or a bare number of milliseconds: digits with
-/// at most one decimal point, exact to the nanosecond, within `bound`.
+/// `200ms`, `1s`, `1.5s`, `2m`, `1h`, `100us`, `1s 500ms` (jiff's friendly format), or a
+/// bare number of milliseconds; exact to the nanosecond and within `bound`.
 pub(crate) fn parse_duration(text: &str, bound: DurationBound) -> Result<Duration, CliError> {
     let option = bound.option;
     let text = text.trim();
     let example = "e.g. 200ms, 1.5s, 2m";
-    if text.starts_with('-') {
-        return Err(CliError::new(format!("{option} cannot be negative")).hint(example));
-    }
-    let split = text
-        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
-        .unwrap_or(text.len());
-    let (number, unit) = text.split_at(split);
-    let (whole, fraction) = number.split_once('.').unwrap_or((number, ""));
-    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
-    if !digits(whole) || (number.contains('.') && !digits(fraction)) {
-        return Err(CliError::new(format!("`{text}` is not a duration")).hint(example));
-    }
-    let unit_ns: u128 = match unit.trim() {
-        "" | "ms" => 1_000_000,
-        "us" | "µs" | "μs" => 1_000,
-        "s" => 1_000_000_000,
-        "m" | "min" => 60_000_000_000,
-        "h" => 3_600_000_000_000,
-        other => {
-            return Err(
-                CliError::new(format!("unknown time unit `{other}` in `{text}`"))
-                    .hint("use us, ms, s, m or h"),
-            )
-        }
+    let bare_ms = !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit());
+    let parsed = if bare_ms {
+        format!("{text}ms").parse::<SignedDuration>()
+    } else {
+        text.parse::<SignedDuration>()
     };
     let too_long = || {
         CliError::new(format!(
@@ -106,30 +82,20 @@ pub(crate) fn parse_duration(text: &str, bound: DurationBound) -> Result<Duratio
             show(bound.max)
         ))
     };
-    // Leading zeros do not count; more digits than a u128 holds are far beyond any bound.
-    let whole = whole.trim_start_matches('0');
-    let whole: u128 = if whole.is_empty() {
-        0
-    } else {
-        whole.parse().map_err(|_| too_long())?
-    };
-    // Nanoseconds of the fraction: 12 digits resolve below a nanosecond for every unit.
-    let fraction = &fraction[..fraction.len().min(12)];
-    let fraction_ns = if fraction.is_empty() {
-        0
-    } else {
-        let scale = 10u128.pow(u32::try_from(fraction.len()).unwrap_or(12));
-        fraction.parse::<u128>().unwrap_or(0) * unit_ns / scale
-    };
-    let nanos = whole
-        .checked_mul(unit_ns)
-        .and_then(|n| n.checked_add(fraction_ns))
-        .ok_or_else(too_long)?;
-    if nanos > bound.max.as_nanos() {
+    let signed = parsed.map_err(|error| {
+        if error.to_string().contains("too big") {
+            too_long()
+        } else {
+            CliError::new(format!("`{text}` is not a duration")).hint(example)
+        }
+    })?;
+    if signed.is_negative() {
+        return Err(CliError::new(format!("{option} cannot be negative")).hint(example));
+    }
+    let duration = Duration::try_from(signed).map_err(|_| too_long())?;
+    if duration > bound.max {
         return Err(too_long());
     }
-    let seconds = u64::try_from(nanos / 1_000_000_000).map_err(|_| too_long())?;
-    let duration = Duration::new(seconds, u32::try_from(nanos % 1_000_000_000).unwrap_or(0));
     if duration < bound.min {
         return Err(CliError::new(format!(
             "{option} {text} is too short: at least {}",
@@ -245,49 +211,39 @@ pub(crate) fn parse_bauds(
 pub(crate) fn parse_slaves(text: &str) -> Result<Vec<u8>, CliError> {
     let example = "e.g. --slaves 1-10,247";
     let (first, last) = SLAVES;
-    let mut slaves: Vec<u8> = Vec::new();
+    let address = |item: &str, part: &str| -> Result<u8, CliError> {
+        let number: u32 = part.trim().parse().map_err(|_| {
+            CliError::new(format!("--slaves: `{item}` is not an address or a range")).hint(example)
+        })?;
+        u8::try_from(number)
+            .ok()
+            .filter(|n| (first..=last).contains(n))
+            .ok_or_else(|| {
+                CliError::new(format!(
+                    "--slaves: {number} is no device address: scan {first} to {last}"
+                ))
+                .hint("0 is the broadcast address, 248 to 255 are reserved")
+            })
+    };
     if text.trim().is_empty() {
         return Err(CliError::new("--slaves is empty").hint(example));
     }
+    let mut slaves: Vec<u8> = Vec::new();
     for item in text.split(',').map(str::trim) {
         if item.is_empty() {
             return Err(
                 CliError::new(format!("--slaves `{text}` has an empty item")).hint(example),
             );
         }
-        let address = |part: &str| -> Result<u8, CliError> {
-            let part = part.trim();
-            let number: u32 = part.parse().map_err(|_| {
-                CliError::new(format!("--slaves: `{item}` is not an address or a range"))
-                    .hint(example)
-            })?;
-            u8::try_from(number)
-                .ok()
-                .filter(|n| (first..=last).contains(n))
-                .ok_or_else(|| {
-                    CliError::new(format!(
-                        "--slaves: {number} is no device address: scan {first} to {last}"
-                    ))
-                    .hint("0 is the broadcast address, 248 to 255 are reserved")
-                })
-        };
-        let range = match item.split_once('-') {
-            Some((from, to)) => {
-                let (from, to) = (address(from)?, address(to)?);
-                if from > to {
-                    return Err(CliError::new(format!(
-                        "--slaves: the range `{item}` runs backwards"
-                    ))
-                    .hint(format!("write {to}-{from}")));
-                }
-                from..=to
-            }
-            None => {
-                let one = address(item)?;
-                one..=one
-            }
-        };
-        for slave in range {
+        let (from, to) = item.split_once('-').unwrap_or((item, item));
+        let (from, to) = (address(item, from)?, address(item, to)?);
+        if from > to {
+            return Err(
+                CliError::new(format!("--slaves: the range `{item}` runs backwards"))
+                    .hint(format!("write {to}-{from}")),
+            );
+        }
+        for slave in from..=to {
             if slaves.contains(&slave) {
                 return Err(CliError::new(format!(
                     "--slaves lists address {slave} twice (in `{item}`)"
@@ -297,14 +253,6 @@ pub(crate) fn parse_slaves(text: &str) -> Result<Vec<u8>, CliError> {
         }
     }
     Ok(slaves)
-}
-
-/// Commands that store, restart or reset the device: `do` and `set` ask for `--yes`.
-pub(crate) fn drastic(command: &CommandInfo) -> bool {
-    matches!(
-        command.effect,
-        Effect::Save | Effect::Reboot | Effect::FactoryReset | Effect::NetworkReset
-    )
 }
 
 /// What a command does, in words for a sentence (`stores the current parameters…`).

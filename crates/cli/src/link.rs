@@ -1,35 +1,24 @@
 //! Connecting to a device: a serial port, a TCP address, or the built-in simulator; with
 //! `--verbose`, every frame sent and received is printed in hex with a timestamp.
 
-use std::io;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::net::SocketAddr;
+use std::time::Duration;
 
 use optobus_device::DeviceInfo;
 use optobus_driver::transport::{
     self, Error as WireError, Flow, LineFormat, Observe, Parity, ReadRequest, RtuClient,
-    SerialStream, TcpClient, WriteValue,
+    SerialStream, TapConnect, TcpClient, WriteValue,
 };
 use optobus_driver::{line_format, rtu_config, serial_settings, tcp_config, Transport};
 use optobus_inspect::hex;
 use optobus_simulator::Simulator;
 use tokio::io::DuplexStream;
-use tokio::net::TcpStream;
 
 use crate::error::CliError;
 
 /// `HH:MM:SS.mmm` (UTC) of now.
 pub(crate) fn timestamp() -> String {
-    let now = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .unwrap_or_default();
-    let day = now.as_secs() % 86_400;
-    format!(
-        "{:02}:{:02}:{:02}.{:03}",
-        day / 3600,
-        day / 60 % 60,
-        day % 60,
-        now.subsec_millis()
-    )
+    jiff::Timestamp::now().strftime("%H:%M:%S%.3f").to_string()
 }
 
 /// `--verbose`: every frame sent and received, in hex with a timestamp, on stderr.
@@ -63,24 +52,7 @@ fn tap<S>(stream: S, verbose: bool) -> Tap<S> {
 pub(crate) enum Link {
     Serial(RtuClient<Tap<SerialStream>>),
     Simulator(RtuClient<Tap<DuplexStream>>),
-    Tcp(TcpClient<TapConnect>),
-}
-
-/// Opens TCP connections (again after one broke) with `--verbose` frames printed.
-#[derive(Debug)]
-pub(crate) struct TapConnect {
-    address: std::net::SocketAddr,
-    verbose: bool,
-}
-
-impl optobus_driver::transport::Connect for TapConnect {
-    type Stream = Tap<TcpStream>;
-
-    async fn connect(&mut self) -> io::Result<Self::Stream> {
-        let stream = TcpStream::connect(self.address).await?;
-        stream.set_nodelay(true)?;
-        Ok(tap(stream, self.verbose))
-    }
+    Tcp(TcpClient<TapConnect<SocketAddr, FrameLog>>),
 }
 
 /// `$call` on the client of whichever link `$link` is.
@@ -130,25 +102,10 @@ impl Target {
 }
 
 /// `host`, `host:port` or `[v6]:port`, with the device's port as the default.
-pub(crate) async fn resolve_tcp(
-    address: &str,
-    default_port: u16,
-) -> Result<std::net::SocketAddr, CliError> {
-    let with_port = if address.parse::<std::net::SocketAddr>().is_ok()
-        || address
-            .rsplit_once(':')
-            .is_some_and(|(host, port)| !host.contains(':') && port.parse::<u16>().is_ok())
-    {
-        address.to_owned()
-    } else {
-        format!("{address}:{default_port}")
-    };
-    let mut found = tokio::net::lookup_host(with_port.as_str())
+pub(crate) async fn resolve_tcp(address: &str, default_port: u16) -> Result<SocketAddr, CliError> {
+    transport::resolve(address, default_port)
         .await
-        .map_err(|e| CliError::new(format!("cannot resolve `{address}`: {e}")))?;
-    found
-        .next()
-        .ok_or_else(|| CliError::new(format!("`{address}` resolves to no address")))
+        .map_err(|e| CliError::new(format!("cannot resolve `{address}`: {e}")))
 }
 
 /// Opens the link `target` describes to `device`; without a serial port or TCP address, the
@@ -178,16 +135,19 @@ pub(crate) async fn open(
         let address = resolve_tcp(address, port).await?;
         let mut config = tcp_config(device);
         config.timeout = target.timeout;
-        let connector = TapConnect {
+        let connector = TapConnect::new(
             address,
-            verbose: target.verbose,
-        };
+            FrameLog {
+                verbose: target.verbose,
+            },
+        );
         let mut client = TcpClient::new(connector, config);
-        client.open().await.map_err(|e| match e {
-            WireError::Connect { source, .. } => {
-                CliError::new(format!("cannot connect to {address}: {source}"))
-            }
-            other => CliError::new(format!("cannot connect to {address}: {other}")),
+        client.open().await.map_err(|e| {
+            let why = match e {
+                WireError::Connect { source, .. } => source.to_string(),
+                other => other.to_string(),
+            };
+            CliError::new(format!("cannot connect to {address}: {why}"))
         })?;
         return Ok(Link::Tcp(client));
     }

@@ -11,7 +11,6 @@ mod inputs;
 mod link;
 mod log;
 mod models;
-mod names;
 mod render;
 
 use std::process::ExitCode;

@@ -3,7 +3,7 @@
 
 use std::io::Write;
 
-use optobus_codec::LineFormat;
+use indicatif::{ProgressBar, ProgressStyle};
 use optobus_device::RegisterInfo;
 use serde_json::{Map, Value as Json};
 
@@ -18,18 +18,6 @@ pub(crate) fn print(text: &str) {
         let _ = out.write_all(b"\n");
     }
     let _ = out.flush();
-}
-
-/// `9600 baud 8E1`.
-pub(crate) fn line_text(format: LineFormat) -> String {
-    let parity = format.parity.name().chars().next().unwrap_or('n');
-    format!(
-        "{} baud {}{}{}",
-        format.baud,
-        format.data_bits,
-        parity.to_ascii_uppercase(),
-        format.stop_bits
-    )
 }
 
 pub(crate) fn pretty(json: &Json) -> String {
@@ -58,4 +46,13 @@ pub(crate) fn values_json(values: &[(&'static RegisterInfo, Value)]) -> Json {
             .map(|(r, v)| (r.name.to_owned(), value_json(v)))
             .collect::<Map<_, _>>(),
     )
+}
+
+/// A progress bar on stderr drawn from `template` (indicatif's), hidden when stderr is not a
+/// terminal.
+pub(crate) fn progress_bar(length: u64, template: &str) -> ProgressBar {
+    let style = ProgressStyle::with_template(template)
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("#-");
+    ProgressBar::new(length).with_style(style)
 }

@@ -13,38 +13,35 @@ fn durations_are_bounded_and_strict() {
     for (line, message) in [
         (
             "--timeout 9999999999999999999s read distance_1",
-            "--timeout 9999999999999999999s is too long: at most 24 h",
+            "--timeout 9999999999999999999s is too long: at most 24h",
         ),
         (
             "watch distance_1 --interval 9223372036854775807s",
-            "--interval 9223372036854775807s is too long: at most 24 h",
+            "--interval 9223372036854775807s is too long: at most 24h",
         ),
         (
             "--timeout 0 read distance_1",
-            "--timeout 0 is too short: at least 1 ms",
+            "--timeout 0 is too short: at least 1ms",
         ),
         (
             "watch distance_1 --interval 0",
-            "--interval 0 is too short: at least 1 ms",
+            "--interval 0 is too short: at least 1ms",
         ),
-        ("--timeout 25h read distance_1", "at most 24 h"),
+        ("--timeout 25h read distance_1", "at most 24h"),
         (
             "--timeout -1s read distance_1",
             "--timeout cannot be negative",
         ),
         ("--timeout NaN read distance_1", "`NaN` is not a duration"),
-        (
-            "--timeout 1e400s read distance_1",
-            "unknown time unit `e400s`",
-        ),
+        ("--timeout 1e400s read distance_1", "is not a duration"),
         ("--timeout 1.5.2s read distance_1", "is not a duration"),
         (
             "buffer --count 10 --wait 100000s",
-            "--wait 100000s is too long: at most 24 h",
+            "--wait 100000s is too long: at most 24h",
         ),
         (
             "simulate --duration 2000m",
-            "--duration 2000m is too long: at most 24 h",
+            "--duration 2000m is too long: at most 24h",
         ),
         ("simulate --duration -1s", "cannot be negative"),
     ] {

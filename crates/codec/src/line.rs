@@ -88,6 +88,21 @@ pub enum LineFormatError {
     StopBits(u8),
 }
 
+/// `9600 baud 8E1`.
+impl fmt::Display for LineFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let parity = self.parity.name().chars().next().unwrap_or('n');
+        write!(
+            f,
+            "{} baud {}{}{}",
+            self.baud,
+            self.data_bits,
+            parity.to_ascii_uppercase(),
+            self.stop_bits
+        )
+    }
+}
+
 impl fmt::Display for LineFormatError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

@@ -405,6 +405,16 @@ pub enum Effect {
     None,
 }
 
+impl Effect {
+    /// Whether the effect stores, restarts or resets the device: what tools ask to confirm.
+    pub const fn is_drastic(self) -> bool {
+        matches!(
+            self,
+            Self::Save | Self::Reboot | Self::FactoryReset | Self::NetworkReset
+        )
+    }
+}
+
 /// A write that acts rather than sets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CommandInfo {

@@ -6,8 +6,10 @@ use optobus_driver::{plan_reads, plan_write, WritePart, WriteStep};
 use serde::Serialize;
 
 use crate::layout::span_text;
+use crate::parse::parse_value;
+use crate::resolve::{resolve_one, resolve_readable};
 use crate::value::decode_value;
-use crate::{serialize_hex, Framing};
+use crate::{serialize_hex, Error, Framing};
 
 /// One request frame to send, and what it does in words.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
@@ -27,6 +29,52 @@ pub struct EncodedFrame {
 struct Planned {
     request: Request,
     description: String,
+}
+
+/// The frames that read `name` (a register, a repeat member or copy `copy` of it, or a
+/// group) from `slave`, as [`encode_read`] gives them; refused when nothing is readable or
+/// `slave` is the broadcast address, which no reply comes from.
+pub fn encode_read_of(
+    device: &'static DeviceInfo,
+    name: &str,
+    copy: Option<u8>,
+    slave: u8,
+    framing: Framing,
+) -> Result<Vec<EncodedFrame>, Error> {
+    if slave == optobus_codec::BROADCAST {
+        return Err(
+            Error::new("a read sent to slave 0, the broadcast address, gets no reply")
+                .hint("give the device's address, 1 to 247"),
+        );
+    }
+    let registers = resolve_readable(device, &[name], copy)?;
+    encode_read(device, &registers, slave, framing).map_err(not_encoded)
+}
+
+/// The frames that write `value` (as people type it, see [`parse_value`]) to the one register
+/// `name` (copy `copy` of a repeat member), validated as the drivers validate it.
+pub fn encode_write_of(
+    device: &'static DeviceInfo,
+    name: &str,
+    copy: Option<u8>,
+    value: &str,
+    slave: u8,
+    framing: Framing,
+) -> Result<Vec<EncodedFrame>, Error> {
+    let register = resolve_one(device, name, copy)?;
+    let words = parse_value(register, value).map_err(|e| Error::new(e.to_string()))?;
+    let frames = encode_write(device, register, &words, slave, framing).map_err(not_encoded)?;
+    if frames.is_empty() {
+        return Err(Error::new(format!(
+            "`{value}` gives no words to write to `{}`",
+            register.name
+        )));
+    }
+    Ok(frames)
+}
+
+fn not_encoded(error: EncodeError) -> Error {
+    Error::new(format!("cannot encode the request: {error}"))
 }
 
 /// The frames that read `registers` (readable ones; write-only registers are left out) in the

@@ -37,11 +37,11 @@ use serde::ser::{SerializeStruct, Serializer};
 use serde::Serialize;
 
 pub use decode::decode;
-pub use encode::{encode_read, encode_write, EncodedFrame};
+pub use encode::{encode_read, encode_read_of, encode_write, encode_write_of, EncodedFrame};
 pub use hex::{hex, parse_hex, HexError};
 pub use optobus_codec::EncodeError;
 pub use parse::{code_list, parse_value, ParseError};
-pub use resolve::{resolve, ResolveError};
+pub use resolve::{resolve, resolve_one, resolve_readable, ResolveError};
 pub use value::{decode_value, range_text, Value};
 
 /// RTU (slave, PDU, CRC) or Modbus TCP (MBAP header, PDU).
@@ -210,7 +210,7 @@ impl fmt::Display for ExplainedFrame {
     }
 }
 
-/// Why the first frame of some bytes could not be decoded at all.
+/// Why bytes could not be decoded, or a name or value not encoded, in a line for people.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Error {
     /// What is wrong.

@@ -5,6 +5,8 @@ use std::fmt;
 
 use optobus_device::{DeviceInfo, RegisterInfo};
 
+use crate::Error;
+
 /// Why [`resolve`] found no register; `Display` gives one line for people.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum ResolveError {
@@ -67,6 +69,73 @@ pub fn resolve(
         registers.extend(members(device, member, copy)?);
     }
     Ok(registers)
+}
+
+/// The readable registers behind `names` (see [`resolve`]), in order, without repeats; a name
+/// that stands for a write-only register is refused.
+pub fn resolve_readable(
+    device: &'static DeviceInfo,
+    names: &[impl AsRef<str>],
+    copy: Option<u8>,
+) -> Result<Vec<&'static RegisterInfo>, Error> {
+    let mut registers: Vec<&'static RegisterInfo> = Vec::new();
+    for name in names {
+        for register in resolve(device, name.as_ref(), copy)? {
+            if !register.access.readable() {
+                return Err(Error::new(format!(
+                    "`{}` is write-only: there is nothing to read",
+                    register.name
+                )));
+            }
+            if !registers.iter().any(|r| r.name == register.name) {
+                registers.push(register);
+            }
+        }
+    }
+    Ok(registers)
+}
+
+/// The one register `name` stands for (with `copy` for a repeat member); a group or a member
+/// without its copy is refused.
+pub fn resolve_one(
+    device: &'static DeviceInfo,
+    name: &str,
+    copy: Option<u8>,
+) -> Result<&'static RegisterInfo, Error> {
+    let registers = resolve(device, name, copy)?;
+    match registers.as_slice() {
+        [register] => Ok(register),
+        many if device.group(name).is_some() => {
+            let names: Vec<&str> = many.iter().map(|r| r.name).collect();
+            Err(Error::new(format!(
+                "`{name}` is a group: set its registers one at a time ({})",
+                names.join(", ")
+            )))
+        }
+        many => Err(Error::new(format!(
+            "`{name}` has {} copies: choose one with --channel 1 to {}",
+            many.len(),
+            many.len()
+        ))),
+    }
+}
+
+impl From<ResolveError> for Error {
+    fn from(error: ResolveError) -> Self {
+        let hint = match &error {
+            ResolveError::Unknown { family, near, .. } if near.is_empty() => {
+                Some(format!("see `optobus registers {family}`"))
+            }
+            ResolveError::Unknown { near, .. } => {
+                Some(format!("did you mean {}?", near.join(", ")))
+            }
+            ResolveError::NoCopy { .. } => None,
+        };
+        Self {
+            message: error.to_string(),
+            hint,
+        }
+    }
 }
 
 /// The register `name`, or the copies (or copy `copy`) of the repeat member `name`.

@@ -43,7 +43,7 @@ pub use rtu::{RtuClient, RtuConfig};
 pub use serial::{SerialSettings, SerialStream};
 pub use shared::Shared;
 pub use tap::{Flow, Observe, Tap};
-pub use tcp::{Connect, TcpClient, TcpConfig};
+pub use tcp::{resolve, Connect, TapConnect, TcpClient, TcpConfig};
 
 /// The default time to wait for a reply.
 pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(1);

@@ -11,6 +11,7 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::TcpStream;
 use tokio::time::{sleep_until, timeout_at, Instant};
 
+use crate::tap::{Observe, Tap};
 use crate::timing::deadline_after;
 use crate::transact::{Reply, Transact};
 use crate::{Error, DEFAULT_TIMEOUT};
@@ -22,6 +23,47 @@ pub trait Connect: Send {
 
     /// Opens a new connection.
     fn connect(&mut self) -> impl Future<Output = io::Result<Self::Stream>> + Send;
+}
+
+/// A connector whose every connection is a [`Tap`]: an observer (a frame log) that outlives
+/// reconnects.
+#[derive(Clone, Debug)]
+pub struct TapConnect<C, O> {
+    connect: C,
+    observer: O,
+}
+
+impl<C: Connect, O: Observe + Clone + Send> TapConnect<C, O> {
+    /// Connections of `connect`, each observed by a clone of `observer`.
+    pub fn new(connect: C, observer: O) -> Self {
+        Self { connect, observer }
+    }
+}
+
+impl<C: Connect, O: Observe + Clone + Send> Connect for TapConnect<C, O> {
+    type Stream = Tap<C::Stream, O>;
+
+    async fn connect(&mut self) -> io::Result<Self::Stream> {
+        let stream = self.connect.connect().await?;
+        Ok(Tap::new(stream, self.observer.clone()))
+    }
+}
+
+/// The first socket address `address` resolves to: `host`, `host:port`, an IP address or
+/// `[v6]:port`, with `default_port` where it names none.
+pub async fn resolve(address: &str, default_port: u16) -> io::Result<SocketAddr> {
+    let names_port = address.parse::<SocketAddr>().is_ok()
+        || address
+            .rsplit_once(':')
+            .is_some_and(|(host, port)| !host.contains(':') && port.parse::<u16>().is_ok());
+    let first = if names_port {
+        tokio::net::lookup_host(address).await?.next()
+    } else {
+        tokio::net::lookup_host((address, default_port))
+            .await?
+            .next()
+    };
+    first.ok_or_else(|| io::Error::new(io::ErrorKind::NotFound, "no address found"))
 }
 
 impl Connect for SocketAddr {

@@ -1,6 +1,5 @@
 //! `optobus buffer`: the P series' buffered download, with a progress bar, as CSV or JSON.
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -9,8 +8,8 @@ use optobus_p_series::{MeasurementSource, PSeries, DEVICE};
 
 use crate::connect::Global;
 use crate::error::{driver_error, CliError};
-use crate::log::{self, note};
-use crate::render::print;
+use crate::log::note;
+use crate::render::{print, progress_bar};
 use crate::{inputs, link, models};
 
 #[derive(Debug, Args)]
@@ -55,32 +54,16 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
         wait.as_millis()
     );
     tokio::time::sleep(wait).await;
-    let terminal = std::io::stderr().is_terminal();
+    let bar = progress_bar(u64::from(count), "[{bar:30}] {pos}/{len} values, {msg}");
     let values = sensor
         .download_buffer(|p| {
-            let width = 30;
-            let done = (p.received * width)
-                .checked_div(p.expected)
-                .unwrap_or(width);
-            let bar = format!(
-                "[{}{}] {}/{} values, {} pages",
-                "#".repeat(done),
-                "-".repeat(width - done.min(width)),
-                p.received,
-                p.expected,
-                p.pages
-            );
-            if terminal {
-                log::stderr(format_args!("\r{bar}"));
-            } else {
-                note!("{bar}");
-            }
+            bar.set_length(p.expected as u64);
+            bar.set_position(p.received as u64);
+            bar.set_message(format!("{} pages", p.pages));
         })
         .await
         .map_err(|e| driver_error(e, Some("buffer")))?;
-    if terminal {
-        note!();
-    }
+    bar.finish();
     if global.json && args.out.is_none() {
         let list: Vec<serde_json::Value> = values
             .iter()

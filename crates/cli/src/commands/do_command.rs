@@ -6,9 +6,9 @@ use serde_json::json;
 
 use crate::connect::Global;
 use crate::error::{driver_error, CliError};
+use crate::inputs;
 use crate::log::note;
 use crate::render::print;
-use crate::{inputs, names};
 
 #[derive(Debug, Args)]
 pub(crate) struct DoArgs {
@@ -31,13 +31,13 @@ pub(crate) async fn run(global: &Global, args: &DoArgs) -> Result<(), CliError> 
         CliError::new(format!("`{command}` is no command of {}", device.family))
             .hint(format!("commands: {}", names.join(", ")))
     })?;
-    if inputs::drastic(info) && !args.yes {
+    if info.effect.is_drastic() && !args.yes {
         return Err(CliError::new(format!(
             "`{command}` {}; add --yes to go ahead",
             inputs::effect_text(info)
         )));
     }
-    let register = names::single(device, info.register, args.channel)?;
+    let register = optobus_inspect::resolve_one(device, info.register, args.channel)?;
     let slave = global.writing_slave(device)?;
     if info.busy_ms > 0 && !global.json {
         note!(

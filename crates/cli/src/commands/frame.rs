@@ -7,7 +7,6 @@
 //! named and values decoded. Nothing here does I/O, and no input makes it panic.
 
 use clap::{Args, Subcommand};
-use optobus_device::{DeviceInfo, RegisterInfo};
 use optobus_inspect::{hex, parse_hex, EncodedFrame, ExplainedFrame, Framing, HexError};
 use serde::Serialize;
 use serde_json::json;
@@ -100,23 +99,25 @@ pub(crate) fn run(global: &Global, command: &FrameCommand) -> Result<(), CliErro
             let device = models::find(family)?;
             let slave = global.slave.unwrap_or(device.default_slave);
             let frames = match request {
-                EncodeRequest::Read { .. } if slave == 0 => {
-                    return Err(CliError::new(
-                        "a read sent to slave 0, the broadcast address, gets no reply",
-                    )
-                    .hint("give the device's address, 1 to 247, with --slave"))
-                }
-                EncodeRequest::Read { name, options } => {
-                    encode_read(device, name, options.channel, slave, framing(options.mbap))?
-                }
+                EncodeRequest::Read { name, options } => optobus_inspect::encode_read_of(
+                    device,
+                    name,
+                    options.channel,
+                    slave,
+                    framing(options.mbap),
+                )?,
                 EncodeRequest::Set {
                     name,
                     value,
                     options,
-                } => {
-                    let register = one_register(device, name, options.channel)?;
-                    encode_write(device, register, value, slave, framing(options.mbap))?
-                }
+                } => optobus_inspect::encode_write_of(
+                    device,
+                    name,
+                    options.channel,
+                    value,
+                    slave,
+                    framing(options.mbap),
+                )?,
             };
             print(&render(&frames, global.json, render_encoded));
         }
@@ -157,75 +158,6 @@ fn hex_refused(error: HexError) -> CliError {
         HexError::Empty => "e.g. `optobus frame decode p-series 01 04 00 00 00 02 71 CB`",
     };
     CliError::new(error.to_string()).hint(hint)
-}
-
-/// The frames that read `name` (a register, a repeat member or a group).
-fn encode_read(
-    device: &'static DeviceInfo,
-    name: &str,
-    channel: Option<u8>,
-    slave: u8,
-    framing: Framing,
-) -> Result<Vec<EncodedFrame>, CliError> {
-    let registers = optobus_inspect::resolve(device, name, channel)?;
-    if !registers.iter().any(|r| r.access.readable()) {
-        return Err(
-            CliError::new(format!("`{name}` is write-only: there is nothing to read")).hint(
-                format!(
-                    "encode a write instead: `optobus frame encode {} set {name} VALUE`",
-                    device.family
-                ),
-            ),
-        );
-    }
-    optobus_inspect::encode_read(device, &registers, slave, framing).map_err(not_encoded)
-}
-
-/// The frames that write `text` to `register`, validated as the drivers do.
-fn encode_write(
-    device: &'static DeviceInfo,
-    register: &'static RegisterInfo,
-    text: &str,
-    slave: u8,
-    framing: Framing,
-) -> Result<Vec<EncodedFrame>, CliError> {
-    let words = optobus_inspect::parse_value(register, text)?;
-    let frames = optobus_inspect::encode_write(device, register, &words, slave, framing)
-        .map_err(not_encoded)?;
-    if frames.is_empty() {
-        return Err(CliError::new(format!(
-            "`{text}` gives no words to write to `{}`",
-            register.name
-        )));
-    }
-    Ok(frames)
-}
-
-/// The one register `name` stands for: not a group, one copy.
-fn one_register(
-    device: &'static DeviceInfo,
-    name: &str,
-    channel: Option<u8>,
-) -> Result<&'static RegisterInfo, CliError> {
-    match optobus_inspect::resolve(device, name, channel)?.as_slice() {
-        [one] => Ok(*one),
-        many if device.group(name).is_some() => {
-            let names: Vec<&str> = many.iter().map(|r| r.name).collect();
-            Err(CliError::new(format!(
-                "`{name}` is a group: set its registers one at a time ({})",
-                names.join(", ")
-            )))
-        }
-        many => Err(CliError::new(format!(
-            "`{name}` has {} copies: choose one with --channel 1 to {}",
-            many.len(),
-            many.len()
-        ))),
-    }
-}
-
-fn not_encoded(error: optobus_inspect::EncodeError) -> CliError {
-    CliError::new(format!("cannot encode the request: {error}"))
 }
 
 /// `{"frames": [...]}` as pretty JSON, or each frame as text.

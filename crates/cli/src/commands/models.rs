@@ -9,7 +9,7 @@ use serde_json::{json, Value as Json};
 use crate::connect::Global;
 use crate::error::CliError;
 use crate::models::{self, MODELS};
-use crate::render::{line_text, pretty, print};
+use crate::render::{pretty, print};
 
 pub(crate) fn run(global: &Global) -> Result<(), CliError> {
     print(&if global.json { json() } else { text() });
@@ -48,7 +48,7 @@ fn text() -> String {
             let bauds: Vec<String> = rtu.bauds.iter().map(u32::to_string).collect();
             out.push_str(&format!(
                 "    RTU  {} (also {}), slave {}\n",
-                line_text(line_format(d)),
+                line_format(d),
                 bauds.join("/"),
                 d.default_slave
             ));

@@ -9,7 +9,6 @@ use serde_json::json;
 use crate::connect::{read_values, Global};
 use crate::error::CliError;
 use crate::log::note;
-use crate::names;
 use crate::render::{pretty, print, values_json, values_text};
 
 #[derive(Debug, Args)]
@@ -25,7 +24,7 @@ pub(crate) struct ReadArgs {
 pub(crate) async fn read(global: &Global, args: &ReadArgs) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
-    let registers = names::readable(device, &args.names, args.channel)?;
+    let registers = optobus_inspect::resolve_readable(device, &args.names, args.channel)?;
     let slave = global.answering_slave(device, "read")?;
     let mut core = global.connect(device, slave).await?;
     let values = read_values(&mut core, &registers).await?;

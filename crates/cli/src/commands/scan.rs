@@ -1,6 +1,5 @@
 //! `optobus scan`: which baud rate and slave address a device answers on.
 
-use std::io::IsTerminal;
 use std::time::Duration;
 
 use clap::Args;
@@ -8,8 +7,7 @@ use optobus_driver::Core;
 
 use crate::connect::Global;
 use crate::error::CliError;
-use crate::log::{self, note};
-use crate::render::print;
+use crate::render::{print, progress_bar};
 use crate::{inputs, link};
 
 #[derive(Debug, Args)]
@@ -51,7 +49,10 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
         .iter()
         .find(|r| r.access.readable())
         .ok_or_else(|| CliError::new("the model has no readable register"))?;
-    let progress = std::io::stderr().is_terminal();
+    let progress = progress_bar(
+        (bauds.len() * slaves.len()) as u64,
+        "scanning {msg} ({pos}/{len})",
+    );
     let mut found = Vec::new();
     for &baud in &bauds {
         let mut target = global.target();
@@ -60,14 +61,9 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
         target.timeout = global.timeout.min(Duration::from_millis(200));
         let link = link::open(device, 0, &target).await?;
         let mut core = Core::with_default_slave(link, device);
-        for (i, &slave) in slaves.iter().enumerate() {
-            if progress {
-                log::stderr(format_args!(
-                    "\rscanning {baud} baud: slave {slave} ({}/{})   ",
-                    i + 1,
-                    slaves.len()
-                ));
-            }
+        for &slave in &slaves {
+            progress.set_message(format!("{baud} baud: slave {slave}"));
+            progress.inc(1);
             core.set_slave(slave)?;
             let answered = match core.read_words(probe).await {
                 Ok(_) => true,
@@ -75,17 +71,12 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
                 Err(e) => e.exception().is_some(),
             };
             if answered {
-                if progress {
-                    note!();
-                }
-                print(&format!("found: slave {slave} at {baud} baud"));
+                progress.suspend(|| print(&format!("found: slave {slave} at {baud} baud")));
                 found.push((baud, slave));
             }
         }
     }
-    if progress {
-        note!();
-    }
+    progress.finish_and_clear();
     if global.json {
         let list: Vec<serde_json::Value> = found
             .iter()

@@ -11,7 +11,7 @@ use optobus_simulator::{Faults, FaultsError, Line, Simulator};
 use crate::connect::Global;
 use crate::error::CliError;
 use crate::log::Log;
-use crate::render::{line_text, print};
+use crate::render::print;
 use crate::{inputs, link, models};
 
 /// `optobus simulate`'s arguments.
@@ -92,17 +92,15 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
     } else {
         None
     };
-    let mut extras = String::new();
-    if let Some(faults) = &faults {
-        extras.push_str(&format!(", faults {faults}"));
-    }
-    if let Some(line) = &line {
-        extras.push_str(&format!(
-            ", line timed at {}, turnaround {:?}",
-            line_text(line.format()),
-            args.turnaround
-        ));
-    }
+    let faulty = faults.as_ref().map(|f| format!(", faults {f}"));
+    let timed = line.as_ref().map(|line| {
+        let turnaround = args.turnaround;
+        format!(
+            ", line timed at {}, turnaround {turnaround:?}",
+            line.format()
+        )
+    });
+    let extras = faulty.unwrap_or_default() + &timed.unwrap_or_default();
     let log = Log::start();
     let mut sim = Simulator::new(device).slave(slave).observe({
         let log = log.clone();

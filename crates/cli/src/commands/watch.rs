@@ -9,7 +9,7 @@ use serde_json::json;
 use crate::connect::{read_values, Global};
 use crate::error::CliError;
 use crate::render::{values_json, values_text};
-use crate::{inputs, link, names};
+use crate::{inputs, link};
 
 #[derive(Debug, Args)]
 pub(crate) struct WatchArgs {
@@ -31,7 +31,7 @@ pub(crate) struct WatchArgs {
 pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
-    let registers = names::readable(device, &args.names, args.channel)?;
+    let registers = optobus_inspect::resolve_readable(device, &args.names, args.channel)?;
     let slave = global.answering_slave(device, "watch")?;
     let mut core = global.connect(device, slave).await?;
     let terminal = std::io::stdout().is_terminal() && !global.json;
