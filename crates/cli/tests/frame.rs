@@ -105,15 +105,9 @@ fn encode_writes_as_the_manuals_do() {
     for (args, frames) in cases {
         encodes(args, frames);
     }
-    let value = json(&ok(&[
-        "frame",
-        "encode",
-        "p-series",
-        "set",
-        "position_1_slope",
-        "2",
-        "--json",
-    ]));
+    let value = json(&ok(&words(
+        "frame encode p-series set position_1_slope 2 --json",
+    )));
     let first = value["frames"][0]["description"]
         .as_str()
         .unwrap_or_default();
@@ -159,17 +153,9 @@ fn encode_slave_and_channel() {
         ],
         &frame,
     );
-    let stdout = ok(&[
-        "--slave",
-        "7",
-        "frame",
-        "encode",
-        "ccf",
-        "read",
-        "exposure_time",
-        "--channel",
-        "3",
-    ]);
+    let stdout = ok(&words(
+        "--slave 7 frame encode ccf read exposure_time --channel 3",
+    ));
     assert_eq!(hex_lines(&stdout), frame);
 }
 
@@ -181,16 +167,9 @@ fn encode_modbus_tcp_frames() {
         &["00 01 00 00 00 06 01 06 00 06 00 14"],
     );
     // The global --tcp HOST implies Modbus TCP framing; transaction ids count up.
-    let stdout = ok(&[
-        "--tcp",
-        "192.0.2.1",
-        "frame",
-        "encode",
-        "p-series",
-        "set",
-        "position_1_slope",
-        "2",
-    ]);
+    let stdout = ok(&words(
+        "--tcp 192.0.2.1 frame encode p-series set position_1_slope 2",
+    ));
     assert_eq!(
         hex_lines(&stdout),
         [
@@ -211,9 +190,9 @@ fn decode_names_registers_of_a_golden_reply() {
     assert!(stdout.contains("distance_1 = 3.584190 mm"), "{stdout}");
     assert!(stdout.contains("thickness = 5.690116 mm"), "{stdout}");
     // The README's example: the reply alone, placed at the first address that fits.
-    let stdout = ok(&[
-        "frame", "decode", "p-series", "01", "04", "0C", "00", "36", "B0", "BE", "00", "20", "24",
-        "5C", "00", "56", "D3", "04", "41", "47",
+    let stdout = decode(&[
+        "p-series", "01", "04", "0C", "00", "36", "B0", "BE", "00", "20", "24", "5C", "00", "56",
+        "D3", "04", "41", "47",
     ]);
     assert!(
         stdout.contains("input 0-1: distance_1 = 3.584190 mm"),
@@ -296,16 +275,18 @@ fn decode_modbus_tcp_pair() {
 
 #[test]
 fn decode_refuses_bad_input_clearly() {
-    assert!(fails(&["frame", "decode", "p-series", "01 0G"]).contains("not hex"));
-    assert!(fails(&["frame", "decode", "p-series", "01 04 00"]).contains("too short"));
-    let stderr = fails(&["frame", "decode", "p-series", "01 04 00 00 00 02"]);
-    assert!(stderr.contains("too short for a read request"), "{stderr}");
-    let stderr = fails(&[
-        "frame",
-        "decode",
-        "p-series",
-        "00 00 00 00 00 06 01 03 00 00 00 03",
-    ]);
-    assert!(stderr.contains("--mbap"), "{stderr}");
-    assert!(fails(&["frame", "decode", "no-such-model", "01"]).contains("unknown model"));
+    for (model, bytes, message) in [
+        ("p-series", "01 0G", "not hex"),
+        ("p-series", "01 04 00", "too short"),
+        (
+            "p-series",
+            "01 04 00 00 00 02",
+            "too short for a read request",
+        ),
+        ("p-series", "00 00 00 00 00 06 01 03 00 00 00 03", "--mbap"),
+        ("no-such-model", "01", "unknown model"),
+    ] {
+        let stderr = fails(&["frame", "decode", model, bytes]);
+        assert!(stderr.contains(message), "{bytes}: {stderr}");
+    }
 }

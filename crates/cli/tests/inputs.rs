@@ -76,30 +76,16 @@ fn slaves_248_to_255_are_refused() {
             "Modbus reserves 248 to 255",
         );
     }
-    refused(
-        &[
-            "--slave",
-            "248",
-            "frame",
-            "encode",
-            "p-series",
-            "set",
-            "light_power",
-            "42",
-        ],
-        USAGE,
-        "Modbus reserves 248 to 255",
-    );
-    refused(
-        &["--slave", "256", "read", "distance_1"],
-        USAGE,
-        "addresses are 0 to 247",
-    );
-    refused(
-        &["--slave", "-1", "read", "distance_1"],
-        USAGE,
-        "`-1` is not a slave address",
-    );
+    for (line, message) in [
+        (
+            "--slave 248 frame encode p-series set light_power 42",
+            "Modbus reserves 248 to 255",
+        ),
+        ("--slave 256 read distance_1", "addresses are 0 to 247"),
+        ("--slave -1 read distance_1", "`-1` is not a slave address"),
+    ] {
+        refused(&words(line), USAGE, message);
+    }
 }
 
 #[test]
@@ -201,31 +187,31 @@ fn broadcast_writes_are_sent_once_and_not_waited_for() {
     refused(&["--slave", "0", "do", "reboot"], FAILURE, "--yes");
 }
 
-#[test]
-fn a_new_slave_address_is_read_back_where_the_device_answers() {
-    // P series: the address applies at once; the read-back goes to the new address.
-    let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
+/// `set slave_address 7 --verbose` on `model` served at slave 3 over a pty: the device
+/// (kept alive) and the tool's stderr, after checking the printed read-back.
+fn set_slave_address_7(model: &str) -> (Served, String) {
+    let served = Served::start(&[model, "--pty", "--slave", "3"]);
     let line = format!(
-        "--serial {} --slave 3 set slave_address 7 --verbose",
+        "--model {model} --serial {} --slave 3 set slave_address 7 --verbose",
         served.at
     );
     let (code, stdout, stderr) = outcome(&words(&line));
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(stdout.trim(), "slave_address  7");
+    (served, stderr)
+}
+
+#[test]
+fn a_new_slave_address_is_read_back_where_the_device_answers() {
+    // P series: the address applies at once; the read-back goes to the new address.
+    let (served, stderr) = set_slave_address_7("p-series");
     assert!(stderr.contains(" -> 03 06 00 1F 00 07"), "{stderr}");
     assert!(stderr.contains(" -> 07 03 00 1F 00 01"), "{stderr}");
     assert!(stderr.contains("now answers at slave 7"), "{stderr}");
     let values = common::json(&words(&served.serial("--slave 7 read slave_address")));
     assert_eq!(values["slave_address"], 7);
     // LC-RS: only after save and a power cycle; the read-back goes to the old address.
-    let served = Served::start(&["lc-rs", "--pty", "--slave", "3"]);
-    let line = format!(
-        "--model lc-rs --serial {} --slave 3 set slave_address 7 --verbose",
-        served.at
-    );
-    let (code, stdout, stderr) = outcome(&words(&line));
-    assert_eq!(code, Some(0), "{stderr}");
-    assert_eq!(stdout.trim(), "slave_address  7");
+    let (_served, stderr) = set_slave_address_7("lc-rs");
     assert!(stderr.contains(" -> 03 03 00 85 00 01"), "{stderr}");
     assert!(
         stderr.contains("the new address 7 applies after save") && stderr.contains("power cycle"),
@@ -308,16 +294,12 @@ fn baud_rates_come_from_the_manual_unless_any_baud() {
         args.extend(["--serial", port]);
         refused(&args, FAILURE, message);
     }
-    refused(
-        &["simulate", "--pty", "--baud", "0"],
-        FAILURE,
-        "--baud 0 is no baud rate",
-    );
-    refused(
-        &["simulate", "--pty", "--baud", "14400"],
-        FAILURE,
-        "does not list 14400 baud",
-    );
+    for (line, message) in [
+        ("simulate --pty --baud 0", "--baud 0 is no baud rate"),
+        ("simulate --pty --baud 14400", "does not list 14400 baud"),
+    ] {
+        refused(&words(line), FAILURE, message);
+    }
     refused(
         &["--baud", "nine", "read", "distance_1"],
         USAGE,

@@ -174,15 +174,21 @@ fn dropped_replies_never_come_over_tcp_and_are_summed_up_at_exit() {
         ),
     }
     let stderr = finish(child);
-    let first = stderr.lines().next().unwrap_or_default();
-    assert!(first.contains("on Modbus TCP at"), "{stderr}");
-    assert!(first.ends_with(", faults drop=1"), "{stderr}");
-    assert!(
-        stderr
-            .lines()
-            .any(|l| l == "optobus: faults injected: 1 of 1 replies (drop 1)"),
-        "{stderr}"
+    let banner = "optobus: simulating p_series (slave 1) on Modbus TCP at";
+    assert!(stderr.starts_with(banner), "{stderr}");
+    logged(
+        &stderr,
+        ", faults drop=1",
+        "faults injected: 1 of 1 replies (drop 1)",
     );
+}
+
+/// The log's first line ends with `banner_end`, and one line is the summary `summary`.
+fn logged(stderr: &str, banner_end: &str, summary: &str) {
+    let first = stderr.lines().next().unwrap_or_default();
+    assert!(first.ends_with(banner_end), "{stderr}");
+    let summary = format!("optobus: {summary}");
+    assert!(stderr.lines().any(|l| l == summary), "{stderr}");
 }
 
 #[test]
@@ -210,18 +216,10 @@ fn corrupted_replies_over_a_pty_fail_their_crc() {
         );
     }
     let stderr = finish(child);
-    assert!(
-        stderr
-            .lines()
-            .next()
-            .is_some_and(|l| l.ends_with(", faults corrupt=1,seed=3")),
-        "{stderr}"
-    );
-    assert!(
-        stderr
-            .lines()
-            .any(|l| l == "optobus: faults injected: 3 of 3 replies (corrupt 3)"),
-        "{stderr}"
+    logged(
+        &stderr,
+        ", faults corrupt=1,seed=3",
+        "faults injected: 3 of 3 replies (corrupt 3)",
     );
 }
 

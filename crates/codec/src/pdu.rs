@@ -478,6 +478,16 @@ pub(crate) struct ExceptionPdu {
     pub(crate) shape: ExceptionShape,
 }
 
+impl ExceptionPdu {
+    pub(crate) const fn new(function: u8, code: ExceptionCode, shape: ExceptionShape) -> Self {
+        Self {
+            function,
+            code,
+            shape,
+        }
+    }
+}
+
 impl OutgoingPdu for ExceptionPdu {
     fn check(&self) -> Result<(), EncodeError> {
         match self.shape {

@@ -73,12 +73,7 @@ pub fn encode_exception(
     code: ExceptionCode,
     shape: ExceptionShape,
 ) -> Result<usize, EncodeError> {
-    let pdu = ExceptionPdu {
-        function,
-        code,
-        shape,
-    };
-    frame(out, slave, &pdu)
+    frame(out, slave, &ExceptionPdu::new(function, code, shape))
 }
 
 pub(crate) fn check_crc(frame: &[u8]) -> Result<(), DecodeError> {

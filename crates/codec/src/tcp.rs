@@ -89,12 +89,7 @@ pub fn encode_exception(
     code: ExceptionCode,
     shape: ExceptionShape,
 ) -> Result<usize, EncodeError> {
-    let pdu = ExceptionPdu {
-        function,
-        code,
-        shape,
-    };
-    frame(out, header, &pdu)
+    frame(out, header, &ExceptionPdu::new(function, code, shape))
 }
 
 /// An MBAP header as it is on the wire, unchecked: what a sniffer shows.

@@ -108,19 +108,6 @@ pub trait Transport: Send {
         self.read_words(slave, ReadRequest::new(function, address, count))
     }
 
-    /// Reads like [`Transport::read`] but makes one attempt whatever the retry setting: for
-    /// registers whose read has a side effect (turns a buffer page), where a second attempt
-    /// would read something else.
-    fn read_once(
-        &mut self,
-        slave: u8,
-        function: ReadFunction,
-        address: u16,
-        count: u16,
-    ) -> impl Future<Output = Result<Vec<u16>, Error>> + Send {
-        self.read_words(slave, ReadRequest::new(function, address, count).once())
-    }
-
     /// Writes one register with FC06 (two or four data bytes). Slave 0 broadcasts: the write
     /// is sent and no reply is awaited.
     fn write(
