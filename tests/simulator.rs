@@ -882,7 +882,7 @@ async fn factory_defaults_follow_the_spec() {
 fn every_family_answers_every_readable_register() {
     for (family, device) in FAMILIES {
         let sim = Simulator::new(device);
-        for register in device.registers.iter().filter(|r| r.access.readable()) {
+        for register in device.readable_registers() {
             let function = match register.table {
                 Table::Holding => ReadFunction::Holding,
                 Table::Input => ReadFunction::Input,

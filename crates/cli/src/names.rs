@@ -15,7 +15,13 @@ pub(crate) fn readable(
     let mut registers: Vec<&'static RegisterInfo> = Vec::new();
     for name in names {
         for register in resolve(device, name, copy)? {
-            if !register.access.readable() {
+            if register.action {
+                return Err(CliError::new(format!(
+                    "`{}` is an action register: the manual defines no read",
+                    register.name
+                )));
+            }
+            if !register.readable() {
                 return Err(CliError::new(format!("`{}` is write-only", register.name)));
             }
             if !registers.iter().any(|r| r.name == register.name) {

@@ -165,11 +165,8 @@ impl<T: Transport> Core<T> {
 
     /// Reads the words of one register.
     pub async fn read_words(&mut self, register: &'static RegisterInfo) -> Result<Vec<u16>, Error> {
-        if !register.access.readable() {
-            return Err(Error::NotAllowed {
-                register: register.name,
-                what: "read (it is write-only)",
-            });
+        if !register.readable() {
+            return Err(Error::unreadable(register));
         }
         self.read_span(
             register.table,
@@ -191,6 +188,9 @@ impl<T: Transport> Core<T> {
         &mut self,
         registers: &[&'static RegisterInfo],
     ) -> Result<Readings, Error> {
+        if let Some(unreadable) = registers.iter().find(|r| !r.readable()) {
+            return Err(Error::unreadable(unreadable));
+        }
         let plan = planned(self.device, plan_reads(self.device, registers));
         self.read_plan(&plan).await
     }
@@ -233,6 +233,9 @@ impl<T: Transport> Core<T> {
                     .flat_map(|name| device.members(name))
                     .filter(|r| copy.is_none() || r.copy.map(|c| c.number) == copy)
                     .collect();
+                if let Some(unreadable) = registers.iter().find(|r| !r.readable()) {
+                    return Err(Error::unreadable(unreadable));
+                }
                 self.plans.push(GroupPlan {
                     group: group.name,
                     copy,
@@ -317,7 +320,7 @@ impl<T: Transport> Core<T> {
             .device
             .registers
             .iter()
-            .find(|r| r.access.readable())
+            .find(|r| r.readable())
             .ok_or(Error::NotAllowed {
                 register: "",
                 what: "polled (the device has no readable register)",

@@ -29,7 +29,7 @@ struct Planned {
     description: String,
 }
 
-/// The frames that read `registers` (readable ones; write-only registers are left out) in the
+/// The frames that read `registers` (readable ones; write-only and action registers are left out) in the
 /// fewest requests, as the driver plans them ([`optobus_driver::plan_reads`]). TCP frames
 /// take transaction ids 1, 2, … and `slave` as unit id.
 pub fn encode_read(
@@ -41,7 +41,7 @@ pub fn encode_read(
     let readable: Vec<&RegisterInfo> = registers
         .iter()
         .copied()
-        .filter(|r| r.access.readable())
+        .filter(|r| r.readable())
         .collect();
     let planned: Vec<Planned> = plan_reads(device, &readable)
         .into_iter()

@@ -168,7 +168,7 @@ fn encode_read(
     framing: Framing,
 ) -> Result<Vec<EncodedFrame>, CliError> {
     let registers = optobus_inspect::resolve(device, name, channel)?;
-    if !registers.iter().any(|r| r.access.readable()) {
+    if !registers.iter().any(|r| r.readable()) {
         return Err(
             CliError::new(format!("`{name}` is write-only: there is nothing to read")).hint(
                 format!(
