@@ -15,11 +15,14 @@ use optobus_tests::generated::{ccf, ccs, lc_rs, p_series, rangefinder};
 /// A read the simulator answered: table, first address, words.
 type Read = (Table, u16, u16);
 
+/// Each exchange as the simulator saw it: the read (`None` for anything else), and whether it
+/// was answered with words.
+type Seen = Arc<Mutex<Vec<(Option<Read>, bool)>>>;
+
 /// Dumps `device` from a simulator and gives the reads it answered, in order; every one
 /// answered with words (no exception).
 async fn dump(device: &'static DeviceInfo) -> Vec<Read> {
-    // Each exchange as the simulator saw it: the read, and whether it was answered with words.
-    let exchanges: Arc<Mutex<Vec<(Option<Read>, bool)>>> = Arc::default();
+    let exchanges: Seen = Arc::default();
     let seen = Arc::clone(&exchanges);
     let sim = Simulator::new(device)
         .sentinel_every(0)

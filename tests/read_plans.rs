@@ -123,7 +123,10 @@ fn ccs_and_ccf_holding_reads_pass_over_their_reserved_rows() {
         &ccf::DEVICE,
         &registers(
             &ccf::DEVICE,
-            &["channel_1_light_source_enabled", "channel_2_light_source_enabled"],
+            &[
+                "channel_1_light_source_enabled",
+                "channel_2_light_source_enabled",
+            ],
         ),
     );
     assert_eq!(plan, [span(Table::Holding, 0, 9)]);

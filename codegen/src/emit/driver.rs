@@ -342,11 +342,7 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
             let method = ident(&setter);
             let ty = value_type(register, names, imports);
             let first = format!("Writes `{name}` after checking the value; an invalid value is refused before anything is sent.");
-            let alias = if register.readable() {
-                quote!()
-            } else {
-                alias
-            };
+            let alias = if register.readable() { quote!() } else { alias };
             let result = imports.result(unit.clone());
             methods.push(quote! {
                 #[doc = #first]

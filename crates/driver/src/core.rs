@@ -316,15 +316,15 @@ impl<T: Transport> Core<T> {
     pub async fn wait_ready(&mut self, limit: Duration) -> Result<Duration, Error> {
         const POLL_INTERVAL: Duration = Duration::from_millis(100);
         let started = tokio::time::Instant::now();
-        let probe = self
-            .device
-            .registers
-            .iter()
-            .find(|r| r.readable())
-            .ok_or(Error::NotAllowed {
-                register: "",
-                what: "polled (the device has no readable register)",
-            })?;
+        let probe =
+            self.device
+                .registers
+                .iter()
+                .find(|r| r.readable())
+                .ok_or(Error::NotAllowed {
+                    register: "",
+                    what: "polled (the device has no readable register)",
+                })?;
         loop {
             match self.read_words(probe).await {
                 Ok(_) => return Ok(started.elapsed()),

@@ -38,11 +38,7 @@ pub fn encode_read(
     slave: u8,
     framing: Framing,
 ) -> Result<Vec<EncodedFrame>, EncodeError> {
-    let readable: Vec<&RegisterInfo> = registers
-        .iter()
-        .copied()
-        .filter(|r| r.readable())
-        .collect();
+    let readable: Vec<&RegisterInfo> = registers.iter().copied().filter(|r| r.readable()).collect();
     let planned: Vec<Planned> = plan_reads(device, &readable)
         .into_iter()
         .map(|span| Planned {

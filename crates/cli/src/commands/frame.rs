@@ -169,14 +169,15 @@ fn encode_read(
 ) -> Result<Vec<EncodedFrame>, CliError> {
     let registers = optobus_inspect::resolve(device, name, channel)?;
     if !registers.iter().any(|r| r.readable()) {
-        return Err(
-            CliError::new(format!("`{name}` is write-only: there is nothing to read")).hint(
-                format!(
-                    "encode a write instead: `optobus frame encode {} set {name} VALUE`",
-                    device.family
-                ),
-            ),
-        );
+        let why = if registers.iter().any(|r| r.action) {
+            "is an action register: the manual defines no read"
+        } else {
+            "is write-only: there is nothing to read"
+        };
+        return Err(CliError::new(format!("`{name}` {why}")).hint(format!(
+            "encode a write instead: `optobus frame encode {} set {name} VALUE`",
+            device.family
+        )));
     }
     optobus_inspect::encode_read(device, &registers, slave, framing).map_err(not_encoded)
 }
