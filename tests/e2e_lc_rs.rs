@@ -1,5 +1,8 @@
 //! LC-RS end to end over our RTU client, which decodes its 7-byte exception replies.
 
+use std::sync::{Arc, Mutex};
+
+use optobus_codec::Request;
 use optobus_device::Table;
 use optobus_driver::transport::{Error as WireError, ReadFunction, WriteValue};
 use optobus_driver::{Error, Transport};
@@ -11,8 +14,8 @@ use optobus_tests::e2e;
 async fn every_register_and_group() {
     let (_sim, client) = e2e::simulated(&DEVICE);
     let mut sensor = LcRs::with_default_slave(client);
-    // Baud rate (range ends and middle), three parities, two work modes.
-    assert_eq!(e2e::sweep(sensor.core()).await, 8);
+    // The six listed baud rates, three parities, two work modes.
+    assert_eq!(e2e::sweep(sensor.core()).await, 11);
     sensor.read_measurements().await.unwrap();
     let serial = sensor.read_serial_settings().await.unwrap();
     assert_eq!(serial.slave_address, DEVICE.default_slave.into());
@@ -92,4 +95,100 @@ async fn seven_byte_exceptions() {
         .unwrap_err()
         .into();
     assert!(error.exception().is_some(), "{error}");
+}
+
+/// A simulator of LC-RS that records every request it is sent.
+fn recording_sim() -> (Simulator, Arc<Mutex<Vec<Request>>>) {
+    let requests: Arc<Mutex<Vec<Request>>> = Arc::default();
+    let seen = Arc::clone(&requests);
+    let sim = Simulator::new(&DEVICE).observe(move |exchange| {
+        if let Some(request) = exchange.request {
+            seen.lock().unwrap().push(*request);
+        }
+    });
+    (sim, requests)
+}
+
+#[tokio::test(start_paused = true)]
+async fn an_unlisted_baud_rate_is_refused_before_anything_is_sent() {
+    let (sim, requests) = recording_sim();
+    let mut sensor = LcRs::with_default_slave(e2e::rtu(&sim));
+    // 57600 lies inside 2400 ..= 115200, but table 1 lists only six rates.
+    let error = sensor.set_baud_rate(57_600).await.unwrap_err();
+    assert!(
+        matches!(
+            error,
+            Error::NotListed {
+                register: "baud_rate",
+                raw: 57_600,
+                allowed: [2400, 4800, 9600, 19200, 38400, 115_200],
+                scale: None,
+            }
+        ),
+        "{error:?}"
+    );
+    assert_eq!(
+        error.to_string(),
+        "57600 is not a value `baud_rate` accepts (only 2400, 4800, 9600, 19200, 38400, 115200)"
+    );
+    assert!(requests.lock().unwrap().is_empty(), "nothing on the wire");
+    assert_eq!(
+        [0x83, 0x84].map(|a| sim.peek(Table::Holding, a)),
+        [Some(vec![0]), Some(vec![0x2580])],
+        "still the factory 9600"
+    );
+    // A listed rate goes out as the two FC06 of 2.3, high word first: 115200 = 0x0001 C200.
+    sensor.set_baud_rate(115_200).await.unwrap();
+    let write = |address, value| Request::Write {
+        address,
+        value: WriteValue::Word(value),
+    };
+    assert_eq!(
+        *requests.lock().unwrap(),
+        [write(0x83, 0x0001), write(0x84, 0xC200)]
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn factory_reset_is_written_but_never_read() {
+    let (sim, requests) = recording_sim();
+    let mut sensor = LcRs::with_default_slave(e2e::rtu(&sim));
+    let register = &optobus_lc_rs::registers::FACTORY_RESET;
+    let error = sensor.core().read_words(register).await.unwrap_err();
+    assert!(
+        matches!(
+            error,
+            Error::NotAllowed {
+                register: "factory_reset",
+                ..
+            }
+        ),
+        "{error:?}"
+    );
+    let error = sensor
+        .core()
+        .read_group(&[&optobus_lc_rs::registers::WORK_MODE, register])
+        .await
+        .unwrap_err();
+    assert!(matches!(error, Error::NotAllowed { .. }), "{error:?}");
+    assert!(requests.lock().unwrap().is_empty(), "nothing on the wire");
+    // Its neighbours are read without it: 0083H-0087H, one read stopping before 0088H.
+    sensor.read_serial_settings().await.unwrap();
+    // The command still writes it (2.3: 01 06 00 89 00 00).
+    sensor.factory_reset().await.unwrap();
+    let requests = requests.lock().unwrap();
+    assert_eq!(
+        *requests,
+        [
+            Request::Read {
+                function: ReadFunction::Holding,
+                address: 0x83,
+                count: 5
+            },
+            Request::Write {
+                address: 0x89,
+                value: WriteValue::Word(0)
+            }
+        ]
+    );
 }

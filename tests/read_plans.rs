@@ -1,9 +1,10 @@
 //! Group read plans against the real device descriptions: the fewest requests, split at each
-//! device's read limit, never across addresses a device may reject.
+//! device's read limit, never across addresses a device may reject or registers whose read
+//! changes the device or is undefined.
 
 use optobus_device::{DeviceInfo, RegisterInfo, Table};
 use optobus_driver::{plan_reads, ReadSpan};
-use optobus_tests::generated::{ccf, lc_rs, p_series, rangefinder};
+use optobus_tests::generated::{ccf, ccs, lc_rs, p_series, rangefinder};
 
 fn registers(device: &'static DeviceInfo, names: &[&str]) -> Vec<&'static RegisterInfo> {
     names
@@ -67,15 +68,68 @@ fn gaps_are_bridged_only_over_readable_registers() {
         &registers(&p_series::DEVICE, &["distance_1", "statistic_2"]),
     );
     assert_eq!(plan, [span(Table::Input, 0, 10)]);
-    // temperature (140) and ip_address (150-153): 141-149 are reserved, two reads.
+    // temperature (140) and ip_address (150-153): the reserved 141-149 may be read (4.2.2
+    // note 1), one read.
     let plan = plan_reads(
         &p_series::DEVICE,
         &registers(&p_series::DEVICE, &["temperature", "ip_address"]),
     );
+    assert_eq!(plan, [span(Table::Input, 140, 14)]);
+    // buffer_valid_count (17) and temperature (140): never over the buffer pages between.
+    let plan = plan_reads(
+        &p_series::DEVICE,
+        &registers(&p_series::DEVICE, &["buffer_valid_count", "temperature"]),
+    );
     assert_eq!(
         plan,
-        [span(Table::Input, 140, 1), span(Table::Input, 150, 4)]
+        [span(Table::Input, 17, 1), span(Table::Input, 140, 1)]
     );
+}
+
+#[test]
+fn gaps_are_never_bridged_over_action_registers() {
+    // The P series with statistic_1_reset (11) made an action register: 10 and 12 apart.
+    let mut copy = p_series::DEVICE.registers.to_vec();
+    let reset = copy
+        .iter_mut()
+        .find(|r| r.name == "statistic_1_reset")
+        .unwrap();
+    reset.action = true;
+    let device: &'static DeviceInfo = Box::leak(Box::new(DeviceInfo {
+        registers: Box::leak(copy.into_boxed_slice()),
+        ..p_series::DEVICE
+    }));
+    let names = ["statistic_1_config", "statistic_2_enabled"];
+    let plan = plan_reads(device, &registers(device, &names));
+    assert_eq!(
+        plan,
+        [span(Table::Holding, 10, 1), span(Table::Holding, 12, 1)]
+    );
+    // As the spec has it, one read.
+    let plan = plan_reads(&p_series::DEVICE, &registers(&p_series::DEVICE, &names));
+    assert_eq!(plan, [span(Table::Holding, 10, 3)]);
+}
+
+#[test]
+fn ccs_and_ccf_holding_reads_pass_over_their_reserved_rows() {
+    // CCS 4.1.1 note 1: position_zero (3) and sampling_interval (8) over the reserved 4-7.
+    let plan = plan_reads(
+        &ccs::DEVICE,
+        &registers(&ccs::DEVICE, &["position_zero", "sampling_interval"]),
+    );
+    assert_eq!(plan, [span(Table::Holding, 3, 6)]);
+    // CCF: channel 1's and channel 2's light sources (0, 8) over the reserved 4-7.
+    let plan = plan_reads(
+        &ccf::DEVICE,
+        &registers(
+            &ccf::DEVICE,
+            &[
+                "channel_1_light_source_enabled",
+                "channel_2_light_source_enabled",
+            ],
+        ),
+    );
+    assert_eq!(plan, [span(Table::Holding, 0, 9)]);
 }
 
 #[test]

@@ -882,7 +882,7 @@ async fn factory_defaults_follow_the_spec() {
 fn every_family_answers_every_readable_register() {
     for (family, device) in FAMILIES {
         let sim = Simulator::new(device);
-        for register in device.registers.iter().filter(|r| r.access.readable()) {
+        for register in device.readable_registers() {
             let function = match register.table {
                 Table::Holding => ReadFunction::Holding,
                 Table::Input => ReadFunction::Input,
@@ -953,4 +953,81 @@ async fn mbpoll_reads_the_simulator_when_installed() {
             "{text}"
         );
     }
+}
+
+// ------------------------------------------------- allowed values, reserved reads, actions
+
+/// `device` with `register` accepting only `allowed` (raw values), leaked for the simulator.
+fn with_allowed(
+    device: &'static DeviceInfo,
+    register: &str,
+    allowed: &'static [i64],
+) -> &'static DeviceInfo {
+    let mut registers = device.registers.to_vec();
+    let target = registers.iter_mut().find(|r| r.name == register).unwrap();
+    target.allowed_values = allowed;
+    Box::leak(Box::new(DeviceInfo {
+        registers: Box::leak(registers.into_boxed_slice()),
+        ..*device
+    }))
+}
+
+#[tokio::test(start_paused = true)]
+async fn an_unlisted_value_earns_exception_03_and_changes_nothing() {
+    // CCS exposure time with a list of values (no real spec lists values for a
+    // standard-frame device yet): 300 lies in 0 ..= 50000 but is not listed.
+    let device = with_allowed(&ccs::DEVICE, "exposure_time", &[100, 200, 400]);
+    let sim = Simulator::new(device);
+    let mut line = Line::new(&sim);
+    let before = line.words(1, &holding(2, 1)).await;
+    let reply = line.ask(1, &write(2, 300)).await;
+    assert_eq!(reply, with_crc(&[0x01, 0x86, 0x03]));
+    assert_eq!(line.words(1, &holding(2, 1)).await, before);
+    // A listed value is taken and echoed.
+    let request = write(2, 200);
+    assert_eq!(line.ask(1, &request).await, rtu_frame(1, &request));
+    assert_eq!(line.words(1, &holding(2, 1)).await, [200]);
+}
+
+#[tokio::test(start_paused = true)]
+async fn lc_rs_refuses_an_unlisted_baud_rate_with_its_value_error() {
+    let sim = Simulator::new(&lc_rs::DEVICE);
+    let mut line = Line::new(&sim);
+    // 57600 = 0x0000 E100, high word first (2.3): the high half is held and echoed, the low
+    // half completes a rate table 1 does not list: 0x0002 in the 7-byte frame.
+    let high = write(0x83, 0x0000);
+    assert_eq!(line.ask(1, &high).await, rtu_frame(1, &high));
+    let reply = line.ask(1, &write(0x84, 0xE100)).await;
+    assert_eq!(reply, with_crc(&[0x01, 0x86, 0x02, 0x00, 0x02]));
+    assert_eq!(line.words(1, &holding(0x83, 2)).await, [0x0000, 0x2580]);
+}
+
+#[tokio::test(start_paused = true)]
+async fn readable_reserved_ranges_answer_zeros_and_action_registers_are_not_read() {
+    // P series 4.2.2 note 1: the 160 input registers may be read, reserved rows included.
+    let sim = Simulator::new(&p_series::DEVICE);
+    let mut line = Line::new(&sim);
+    let words = line.words(1, &input(138, 17)).await;
+    assert_eq!(&words[..2], [0, 0], "reserved 138-139");
+    assert_eq!(&words[3..12], [0; 9], "reserved 141-149");
+    assert_eq!(&words[12..16], [192, 168, 0, 10], "the IP address at 150");
+    // LC-RS: the undefined 0088H is refused (table 2 code 0x0001), and so is factory reset,
+    // whose read the manual leaves undefined.
+    let sim = Simulator::new(&lc_rs::DEVICE);
+    let mut line = Line::new(&sim);
+    assert_eq!(line.exception(1, &holding(0x88, 1)).await, 0x0001);
+    assert_eq!(line.exception(1, &holding(0x89, 1)).await, 0x0001, "action");
+    // A range the spec marks readable answers zeros even on a device that refuses the others.
+    let mut reserved = lc_rs::DEVICE.reserved.to_vec();
+    for range in &mut reserved {
+        range.readable = range.from == 0x88;
+    }
+    let device: &'static DeviceInfo = Box::leak(Box::new(DeviceInfo {
+        reserved: Box::leak(reserved.into_boxed_slice()),
+        ..lc_rs::DEVICE
+    }));
+    let sim = Simulator::new(device);
+    let mut line = Line::new(&sim);
+    assert_eq!(line.words(1, &holding(0x86, 3)).await, [0, 1, 0]);
+    assert_eq!(line.exception(1, &holding(0x81, 1)).await, 0x0001);
 }

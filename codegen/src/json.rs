@@ -2,7 +2,7 @@
 //!
 //! Field names are part of the interface: `family`, `device`, `registers[]` with `name`,
 //! `table`, `address`, `words`, `access`, `type`, `scale`, `unit`, `enum`, `range`,
-//! `sentinel`, `section`, then `commands` and `groups`.
+//! `allowed_values`, `action`, `sentinel`, `section`, then `commands` and `groups`.
 
 use serde_json::{json, Map, Value};
 
@@ -48,6 +48,8 @@ fn register_json(model: &Model, register: &Register) -> Value {
         "unit": register.unit,
         "enum": codes(model, register),
         "range": register.range.map(|(min, max)| vec![min, max]),
+        "allowed_values": register.allowed_values.as_ref().map(|(values, _)| values),
+        "action": register.action,
         "sentinel": register.sentinel,
         "section": register.section,
         "doc": register.doc,

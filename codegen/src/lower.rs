@@ -100,6 +100,7 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
             table: decl.table,
             from: decl.from,
             to: decl.to,
+            readable: decl.readable,
             path: root.key("reserved").index(i),
         })
         .collect();
@@ -370,6 +371,10 @@ impl Lowering<'_> {
             scale: self.scale(decl.scale.as_ref(), path),
             unit: decl.unit.clone(),
             range: decl.range,
+            allowed_values: decl
+                .allowed_values
+                .clone()
+                .map(|values| (values, path.key("allowed_values"))),
             sentinel: decl.sentinel,
             word_order: match decl.word_order {
                 Some(OrderName::LowFirst) => WordOrder::LowFirst,
@@ -381,6 +386,7 @@ impl Lowering<'_> {
             }),
             alias_of: decl.alias_of.clone(),
             read_side_effect: decl.read_side_effect.clone(),
+            action: decl.action,
             repeat: None,
             path: path.clone(),
         }

@@ -199,6 +199,9 @@ pub struct Register {
     pub unit: Option<String>,
     /// Raw range.
     pub range: Option<(i64, i64)>,
+    /// The only raw values a write may give, if the manual lists them, and where they are
+    /// written.
+    pub allowed_values: Option<(Vec<i64>, Path)>,
     /// Raw bits meaning "invalid".
     pub sentinel: Option<u64>,
     /// Which word is at the lower address.
@@ -210,6 +213,8 @@ pub struct Register {
     /// What reading the register changes in the device (a read that turns a buffer page):
     /// such a read is never retried.
     pub read_side_effect: Option<String>,
+    /// Writing it acts and the manual defines no read: it is never read.
+    pub action: bool,
     /// Set for repeat copies.
     pub repeat: Option<RepeatCopy>,
     /// Where it is declared (for copies: the block's entry).
@@ -226,6 +231,11 @@ impl Register {
             _ => None,
         }
     }
+
+    /// Whether the register may be read: not write-only and not an action register.
+    pub fn readable(&self) -> bool {
+        self.access.readable() && !self.action
+    }
 }
 
 /// An address range the device reserves.
@@ -237,6 +247,8 @@ pub struct Reserved {
     pub from: u32,
     /// Last address (inclusive).
     pub to: u32,
+    /// The manual sanctions reading it.
+    pub readable: bool,
     /// Where it is declared.
     pub path: Path,
 }

@@ -179,6 +179,8 @@ pub(crate) struct RegisterDecl {
     pub(crate) scale: Option<serde_yaml::Value>,
     pub(crate) unit: Option<String>,
     pub(crate) range: Option<(i64, i64)>,
+    /// The only raw values a write may give (the manual lists them).
+    pub(crate) allowed_values: Option<Vec<i64>>,
     #[serde(rename = "enum")]
     pub(crate) enum_name: Option<String>,
     pub(crate) codes: Option<Vec<CodeDecl>>,
@@ -187,6 +189,9 @@ pub(crate) struct RegisterDecl {
     pub(crate) write_order: Option<OrderName>,
     pub(crate) alias_of: Option<String>,
     pub(crate) read_side_effect: Option<String>,
+    /// Writing acts and the manual defines no read.
+    #[serde(default)]
+    pub(crate) action: bool,
     pub(crate) note: Option<String>,
     pub(crate) fields: Option<Vec<FieldDecl>>,
     pub(crate) parts: Option<Vec<String>>,
@@ -220,6 +225,9 @@ pub(crate) struct ReservedDecl {
     pub(crate) table: Table,
     pub(crate) from: u32,
     pub(crate) to: u32,
+    /// The manual sanctions reading the range.
+    #[serde(default)]
+    pub(crate) readable: bool,
     pub(crate) section: Option<String>,
     pub(crate) note: Option<String>,
 }

@@ -71,6 +71,12 @@ pub fn valid_values(register: &'static RegisterInfo) -> Vec<Vec<u16>> {
         ValueKind::Enum => {
             values.extend(register.codes.iter().map(|c| encode_code(register, c.code)));
         }
+        // A register that lists its values takes those and no other.
+        ValueKind::Scalar(_) if !register.allowed_values.is_empty() => {
+            for &raw in register.allowed_values {
+                values.push(Fixed::new(raw, scale).encode(register));
+            }
+        }
         ValueKind::Scalar(scalar) => {
             let (type_min, type_max) = scalar.bounds();
             let (min, max) = register.range.unwrap_or((type_min, type_max));
@@ -112,7 +118,7 @@ pub fn valid_values(register: &'static RegisterInfo) -> Vec<Vec<u16>> {
 pub async fn read_every_register<T: Transport>(core: &mut Core<T>) -> usize {
     let device = core.device();
     let mut count = 0;
-    for register in device.registers.iter().filter(|r| r.access.readable()) {
+    for register in device.readable_registers() {
         let words = core
             .read_words(register)
             .await
@@ -169,7 +175,7 @@ pub async fn write_every_register<T: Transport>(core: &mut Core<T>) -> usize {
             core.write(register, &Words(words.clone()))
                 .await
                 .unwrap_or_else(|e| panic!("{} <- {words:04X?}: {e}", register.name));
-            if register.access.readable() {
+            if register.readable() {
                 let back = core
                     .read_words(register)
                     .await

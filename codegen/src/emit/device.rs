@@ -360,6 +360,11 @@ fn register_info(
     let scale = scale_tokens(register.scale.as_ref(), imports);
     let unit = option_str(register.unit.as_deref());
     let range = range_tokens(register.range);
+    let allowed_values = register
+        .allowed_values
+        .iter()
+        .flat_map(|(values, _)| values.iter().map(|v| lit(*v)));
+    let action = register.action;
     let sentinel = sentinel_tokens(register.sentinel);
     let word_order = variant(imports, "optobus_device::WordOrder", register.word_order);
     let write_order = variant(
@@ -394,11 +399,13 @@ fn register_info(
             scale: #scale,
             unit: #unit,
             range: #range,
+            allowed_values: &[#(#allowed_values),*],
             sentinel: #sentinel,
             word_order: #word_order,
             write_order: #write_order,
             copy: #copy,
             read_side_effect: #read_side_effect,
+            action: #action,
         }
     }
 }
@@ -503,7 +510,8 @@ fn device_info(model: &Model, names: &TypeNames, imports: &Imports) -> TokenStre
         let table = variant(imports, "optobus_device::Table", r.table);
         let from = lit(u16::try_from(r.from).unwrap_or(u16::MAX));
         let to = lit(u16::try_from(r.to).unwrap_or(u16::MAX));
-        quote!(#reserved_info { table: #table, from: #from, to: #to })
+        let readable = r.readable;
+        quote!(#reserved_info { table: #table, from: #from, to: #to, readable: #readable })
     });
     let commands = model.commands.iter().map(|c| command_path(&c.name));
     let groups = model.groups.iter().map(|g| group_path(&g.name));

@@ -78,6 +78,14 @@ fn encodable(register: &Register) -> bool {
     !matches!(register.kind, Kind::Version(_) | Kind::Record(_))
 }
 
+/// A raw value in the register's units (its steps applied), as the driver takes it.
+fn shown_raw(register: &Register, raw: i64) -> String {
+    match register.scale.as_ref().and_then(|s| s.value.clone().ok()) {
+        Some(scale) => optobus_codec::value::Fixed::new(raw, scale).to_string(),
+        None => raw.to_string(),
+    }
+}
+
 /// The register-manual table every accessor's documentation ends with.
 fn register_doc(model: &Model, register: &Register, copies: Option<&[&Register]>) -> Vec<String> {
     let mut lines = vec![doc_text(register.doc.as_deref()), String::new()];
@@ -96,9 +104,10 @@ fn register_doc(model: &Model, register: &Register, copies: Option<&[&Register]>
         register.words.0,
         if register.words.0 == 1 { "" } else { "s" }
     ));
-    let access = match (register.access.readable(), register.access.writable()) {
+    let access = match (register.readable(), register.access.writable()) {
         (true, true) => "read-write",
         (true, false) => "read-only",
+        _ if register.action => "write-only (an action: the manual defines no read)",
         _ => "write-only",
     };
     lines.push(format!("| access | {access} |"));
@@ -110,11 +119,12 @@ fn register_doc(model: &Model, register: &Register, copies: Option<&[&Register]>
         lines.push(format!("| unit | {unit} |"));
     }
     if let Some((min, max)) = register.range {
-        let shown = |raw: i64| match register.scale.as_ref().and_then(|s| s.value.clone().ok()) {
-            Some(scale) => optobus_codec::value::Fixed::new(raw, scale).to_string(),
-            None => raw.to_string(),
-        };
+        let shown = |raw| shown_raw(register, raw);
         lines.push(format!("| range | {} ..= {} |", shown(min), shown(max)));
+    }
+    if let Some((values, _)) = &register.allowed_values {
+        let shown: Vec<String> = values.iter().map(|v| shown_raw(register, *v)).collect();
+        lines.push(format!("| allowed values | {} |", shown.join(", ")));
     }
     if let Kind::Enum(reference) = &register.kind {
         lines.push(format!("| codes | see [`{}`] |", camel(&reference.name)));
@@ -314,7 +324,7 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
         let doc = register_doc(model, register, copies);
         let alias = doc_alias(register.zh.as_deref());
         let (param, info) = target.access(&copy_param);
-        if register.access.readable() {
+        if register.readable() {
             taken.insert(name.clone());
             let method = ident(&name);
             let result = imports.result(read_type(register, names, imports));
@@ -332,11 +342,7 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
             let method = ident(&setter);
             let ty = value_type(register, names, imports);
             let first = format!("Writes `{name}` after checking the value; an invalid value is refused before anything is sent.");
-            let alias = if register.access.readable() {
-                quote!()
-            } else {
-                alias
-            };
+            let alias = if register.readable() { quote!() } else { alias };
             let result = imports.result(unit.clone());
             methods.push(quote! {
                 #[doc = #first]

@@ -4,6 +4,8 @@
 use crate::diagnostic::Diagnostic;
 use crate::model::Model;
 
+pub mod action;
+pub mod allowed_values;
 pub mod commands;
 pub mod device;
 pub mod docs;
@@ -69,6 +71,14 @@ pub const RULES: &[Rule] = &[
     Rule {
         name: range::RULE,
         check: range::check,
+    },
+    Rule {
+        name: allowed_values::RULE,
+        check: allowed_values::check,
+    },
+    Rule {
+        name: action::RULE,
+        check: action::check,
     },
     Rule {
         name: sentinel::RULE,

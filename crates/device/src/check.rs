@@ -26,6 +26,14 @@ pub enum Invalid {
         /// The code.
         code: u32,
     },
+    /// A value within the range that is not one of the values the manual lists for the
+    /// register (LC-RS baud rates: 57600 is not one).
+    Unlisted {
+        /// The value, in raw steps.
+        value: i64,
+        /// The values the register accepts, in raw steps.
+        allowed: &'static [i64],
+    },
     /// Bits set outside every field of a packed register (a field value too wide for its
     /// bits).
     StrayBits {
@@ -54,11 +62,28 @@ impl fmt::Display for Invalid {
             Self::UndefinedCode { field, code } => {
                 write!(f, "code {code} is not defined for field `{}`", name(field))
             }
+            Self::Unlisted { value, allowed } => {
+                write!(f, "{value} is not one of ")?;
+                write_list(f, allowed)
+            }
             Self::StrayBits { bits } => {
                 write!(f, "bits {bits:#X} lie outside every field")
             }
         }
     }
+}
+
+/// `a, b or c`.
+fn write_list(f: &mut fmt::Formatter<'_>, values: &[i64]) -> fmt::Result {
+    for (i, value) in values.iter().enumerate() {
+        let separator = match i {
+            0 => "",
+            _ if i + 1 == values.len() => " or ",
+            _ => ", ",
+        };
+        write!(f, "{separator}{value}")?;
+    }
+    Ok(())
 }
 
 fn defined(codes: &[CodeInfo], raw: u32) -> bool {
@@ -124,7 +149,7 @@ impl RegisterInfo {
 
     /// Whether `raw` (the register's bits; one word of a multi-word IPv4 register) may be
     /// written: a defined code, packed fields within their codes and ranges and no bit outside
-    /// them, within the spec's range. (P series, CCS and CCF manuals 4.1.1 note 2: an invalid
+    /// them, within the spec's range and among its allowed values, if it lists them. (P series, CCS and CCF manuals 4.1.1 note 2: an invalid
     /// value is refused and the register keeps its value.)
     pub fn check(&self, raw: u32) -> Result<(), Invalid> {
         match self.kind {
@@ -149,11 +174,16 @@ impl RegisterInfo {
         }
         let value = self.scalar().extend(raw);
         let (min, max) = self.allowed();
-        if (min..=max).contains(&value) {
-            Ok(())
-        } else {
-            Err(self.out_of_range(value))
+        if !(min..=max).contains(&value) {
+            return Err(self.out_of_range(value));
         }
+        if !self.allowed_values.is_empty() && !self.allowed_values.contains(&value) {
+            return Err(Invalid::Unlisted {
+                value,
+                allowed: self.allowed_values,
+            });
+        }
+        Ok(())
     }
 
     /// The raw bits of the integer `value` (a number in raw steps, or a code), checked as
@@ -199,6 +229,8 @@ mod tests {
             write_order: WriteOrder::HighWordFirst,
             copy: None,
             read_side_effect: None,
+            allowed_values: &[],
+            action: false,
         }
     }
 
@@ -265,6 +297,41 @@ mod tests {
             packed.check(0x0100),
             Err(Invalid::StrayBits { bits: 0x0100 })
         );
+    }
+
+    #[test]
+    fn listed_values_only() {
+        let mut baud = register(ValueKind::Scalar(Scalar::U32), 2, Some((2400, 115_200)));
+        baud.allowed_values = &[2400, 4800, 9600, 19200, 38400, 115_200];
+        assert_eq!(baud.check(0x0001_C200), Ok(()));
+        assert_eq!(baud.check_integer(9600), Ok(9600));
+        let unlisted = Invalid::Unlisted {
+            value: 57600,
+            allowed: baud.allowed_values,
+        };
+        assert_eq!(baud.check_integer(57600), Err(unlisted));
+        // No allocator here: the message is written into a fixed buffer.
+        struct Text([u8; 96], usize);
+        impl fmt::Write for Text {
+            fn write_str(&mut self, s: &str) -> fmt::Result {
+                let end = self.1 + s.len();
+                let room = self.0.get_mut(self.1..end).ok_or(fmt::Error)?;
+                room.copy_from_slice(s.as_bytes());
+                self.1 = end;
+                Ok(())
+            }
+        }
+        let mut text = Text([0; 96], 0);
+        fmt::write(&mut text, format_args!("{unlisted}")).unwrap();
+        assert_eq!(
+            &text.0[..text.1],
+            b"57600 is not one of 2400, 4800, 9600, 19200, 38400 or 115200"
+        );
+        // The range is judged first: a value outside it says so.
+        assert!(matches!(
+            baud.check_integer(1200),
+            Err(Invalid::OutOfRange { min: 2400, .. })
+        ));
     }
 
     #[test]

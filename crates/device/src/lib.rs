@@ -304,6 +304,9 @@ pub struct RegisterInfo {
     pub unit: Option<&'static str>,
     /// Raw range a write must respect.
     pub range: Option<(i64, i64)>,
+    /// The only raw values a write may give, when the manual lists them (LC-RS baud rates);
+    /// empty: any value in the range.
+    pub allowed_values: &'static [i64],
     /// Raw bits meaning "invalid reading".
     pub sentinel: Option<u32>,
     /// Which word sits at the lower address.
@@ -315,9 +318,18 @@ pub struct RegisterInfo {
     /// What reading the register changes in the device (it turns a buffer page), if
     /// anything: such a read is made once, never retried.
     pub read_side_effect: Option<&'static str>,
+    /// Writing it acts and the manual defines no read (LC-RS factory reset): it is written,
+    /// never read.
+    pub action: bool,
 }
 
 impl RegisterInfo {
+    /// Whether the register may be read: not write-only, and not an action register whose
+    /// read the manual leaves undefined.
+    pub const fn readable(&self) -> bool {
+        self.access.readable() && !self.action
+    }
+
     /// Whether a failed read may simply be made again: false when reading changes the device.
     pub const fn read_is_repeatable(&self) -> bool {
         self.read_side_effect.is_none()
@@ -364,7 +376,7 @@ pub struct RepeatCopy {
     pub member: &'static str,
 }
 
-/// An address range the device reserves (reads answer zeros).
+/// An address range the device reserves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ReservedInfo {
     /// Table.
@@ -373,6 +385,16 @@ pub struct ReservedInfo {
     pub from: u16,
     /// Last address, inclusive.
     pub to: u16,
+    /// The manual sanctions reading it (it lies inside the table the manual says may be
+    /// read): reads answer zeros, and a read plan may ask for it to join two reads in one.
+    pub readable: bool,
+}
+
+impl ReservedInfo {
+    /// Whether `address` of `table` lies in the range.
+    pub fn contains(&self, table: Table, address: u16) -> bool {
+        self.table == table && (self.from..=self.to).contains(&address)
+    }
 }
 
 /// What a command does (the simulator acts it out).
@@ -568,6 +590,19 @@ impl DeviceInfo {
             .iter()
             .filter(move |r| single.is_none() && r.member_name() == Some(name));
         single.into_iter().chain(copies)
+    }
+
+    /// The registers a full read of the device (a dump) asks for: every register that may be
+    /// read (see [`RegisterInfo::readable`]).
+    pub fn readable_registers(&self) -> impl Iterator<Item = &'static RegisterInfo> {
+        self.registers.iter().filter(|r| r.readable())
+    }
+
+    /// Whether `address` of `table` lies in a reserved range the manual sanctions reading.
+    pub fn reserved_readable(&self, table: Table, address: u16) -> bool {
+        self.reserved
+            .iter()
+            .any(|r| r.readable && r.contains(table, address))
     }
 
     /// The command called `name`.

@@ -165,11 +165,8 @@ impl<T: Transport> Core<T> {
 
     /// Reads the words of one register.
     pub async fn read_words(&mut self, register: &'static RegisterInfo) -> Result<Vec<u16>, Error> {
-        if !register.access.readable() {
-            return Err(Error::NotAllowed {
-                register: register.name,
-                what: "read (it is write-only)",
-            });
+        if !register.readable() {
+            return Err(Error::unreadable(register));
         }
         self.read_span(
             register.table,
@@ -191,6 +188,9 @@ impl<T: Transport> Core<T> {
         &mut self,
         registers: &[&'static RegisterInfo],
     ) -> Result<Readings, Error> {
+        if let Some(unreadable) = registers.iter().find(|r| !r.readable()) {
+            return Err(Error::unreadable(unreadable));
+        }
         let plan = planned(self.device, plan_reads(self.device, registers));
         self.read_plan(&plan).await
     }
@@ -233,6 +233,9 @@ impl<T: Transport> Core<T> {
                     .flat_map(|name| device.members(name))
                     .filter(|r| copy.is_none() || r.copy.map(|c| c.number) == copy)
                     .collect();
+                if let Some(unreadable) = registers.iter().find(|r| !r.readable()) {
+                    return Err(Error::unreadable(unreadable));
+                }
                 self.plans.push(GroupPlan {
                     group: group.name,
                     copy,
@@ -313,15 +316,15 @@ impl<T: Transport> Core<T> {
     pub async fn wait_ready(&mut self, limit: Duration) -> Result<Duration, Error> {
         const POLL_INTERVAL: Duration = Duration::from_millis(100);
         let started = tokio::time::Instant::now();
-        let probe = self
-            .device
-            .registers
-            .iter()
-            .find(|r| r.access.readable())
-            .ok_or(Error::NotAllowed {
-                register: "",
-                what: "polled (the device has no readable register)",
-            })?;
+        let probe =
+            self.device
+                .registers
+                .iter()
+                .find(|r| r.readable())
+                .ok_or(Error::NotAllowed {
+                    register: "",
+                    what: "polled (the device has no readable register)",
+                })?;
         loop {
             match self.read_words(probe).await {
                 Ok(_) => return Ok(started.elapsed()),

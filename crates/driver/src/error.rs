@@ -25,6 +25,18 @@ pub enum Error {
         /// One raw step, for showing the values in units.
         scale: Option<Scale>,
     },
+    /// The value lies within the range but is not one of the values the manual lists for the
+    /// register (LC-RS baud rates).
+    NotListed {
+        /// Register name.
+        register: &'static str,
+        /// The value, in raw steps.
+        raw: i64,
+        /// The values the register accepts, in raw steps.
+        allowed: &'static [i64],
+        /// One raw step, for showing the values in units.
+        scale: Option<Scale>,
+    },
     /// The value is not a whole number of the register's steps, or has too many of them.
     NotRepresentable {
         /// Register name.
@@ -107,6 +119,20 @@ impl fmt::Display for Error {
                 show(*min, *scale),
                 show(*max, *scale)
             ),
+            Self::NotListed {
+                register,
+                raw,
+                allowed,
+                scale,
+            } => {
+                let allowed: Vec<String> = allowed.iter().map(|v| show(*v, *scale)).collect();
+                write!(
+                    f,
+                    "{} is not a value `{register}` accepts (only {})",
+                    show(*raw, *scale),
+                    allowed.join(", ")
+                )
+            }
             Self::NotRepresentable {
                 register,
                 value,
@@ -182,8 +208,27 @@ impl Error {
                 field: field.map(|field| field.name),
                 code,
             },
+            Invalid::Unlisted { value, allowed } => Self::NotListed {
+                register: register.name,
+                raw: value,
+                allowed,
+                scale: register.scale,
+            },
             Invalid::StrayBits { .. } => Self::FieldTooWide {
                 register: register.name,
+            },
+        }
+    }
+
+    /// The refusal to read `register`: write-only, or an action register whose read the
+    /// manual leaves undefined. Nothing is sent.
+    pub(crate) fn unreadable(register: &'static RegisterInfo) -> Self {
+        Self::NotAllowed {
+            register: register.name,
+            what: if register.action {
+                "read (it is an action register: the manual defines no read)"
+            } else {
+                "read (it is write-only)"
             },
         }
     }

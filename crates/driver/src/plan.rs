@@ -48,9 +48,11 @@ impl ReadSpan {
 }
 
 /// The requests that read `registers`: adjacent registers of one table merged, split at the
-/// device's `max_read_words`. A gap between two registers is bridged only when defined,
-/// readable registers cover it, so a plan never asks for an address the device may reject.
-/// With one address per field (the rangefinder) every register is its own request.
+/// device's `max_read_words`. A gap between two registers is bridged only when readable
+/// registers and reserved ranges the manual sanctions reading cover it, so a plan never asks
+/// for an address the device may reject, nor reads a register whose read changes the device
+/// or is undefined. With one address per field (the rangefinder) every register is its own
+/// request.
 pub fn plan_reads(device: &DeviceInfo, registers: &[&RegisterInfo]) -> Vec<ReadSpan> {
     let mut sorted: Vec<&RegisterInfo> = registers.to_vec();
     sorted.sort_by_key(|r| (r.table, r.address));
@@ -90,24 +92,30 @@ pub fn plan_reads(device: &DeviceInfo, registers: &[&RegisterInfo]) -> Vec<ReadS
     spans
 }
 
-/// True when readable registers of `table` cover every address in `from..to`, none of them
-/// one whose read changes the device (a gap is never bridged over a buffer page).
+/// True when every address of `table` in `from..to` may be read in passing: it belongs to a
+/// readable register whose read changes nothing (never a buffer page, never an action
+/// register), or to a reserved range the manual sanctions reading, and to no other register.
 fn covered(device: &DeviceInfo, table: Table, from: u32, to: u32) -> bool {
-    let mut at = from;
-    while at < to {
-        let next = device.registers.iter().find(|r| {
+    (from..to).all(|at| {
+        let Ok(address) = u16::try_from(at) else {
+            return false;
+        };
+        let mut holders = device.registers.iter().filter(|r| {
             r.table == table
-                && r.access.readable()
-                && r.read_is_repeatable()
                 && u32::from(r.address) <= at
                 && at < u32::from(r.address) + u32::from(r.words)
         });
-        match next {
-            Some(r) => at = u32::from(r.address) + u32::from(r.words),
-            None => return false,
+        let mut any = false;
+        let harmless = holders.all(|r| {
+            any = true;
+            r.readable() && r.read_is_repeatable()
+        });
+        if any {
+            harmless
+        } else {
+            device.reserved_readable(table, address)
         }
-    }
-    true
+    })
 }
 
 /// What part of a register's value one FC06 of a write plan carries.

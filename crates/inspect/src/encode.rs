@@ -77,7 +77,8 @@ fn not_encoded(error: EncodeError) -> Error {
     Error::new(format!("cannot encode the request: {error}"))
 }
 
-/// The frames that read `registers` (readable ones; write-only registers are left out) in the
+/// The frames that read `registers` (readable ones; write-only and action registers are left
+/// out) in the
 /// fewest requests, as the driver plans them ([`optobus_driver::plan_reads`]). TCP frames
 /// take transaction ids 1, 2, … and `slave` as unit id.
 pub fn encode_read(
@@ -86,11 +87,7 @@ pub fn encode_read(
     slave: u8,
     framing: Framing,
 ) -> Result<Vec<EncodedFrame>, EncodeError> {
-    let readable: Vec<&RegisterInfo> = registers
-        .iter()
-        .copied()
-        .filter(|r| r.access.readable())
-        .collect();
+    let readable: Vec<&RegisterInfo> = registers.iter().copied().filter(|r| r.readable()).collect();
     let planned: Vec<Planned> = plan_reads(device, &readable)
         .into_iter()
         .map(|span| Planned {

@@ -186,7 +186,19 @@ fn read_request(device: &DeviceInfo, pdu: &[u8]) -> ExplainedPdu {
             function_list(device)
         ));
     }
-    let registers = layout(device, table, address, usize::from(count))
+    let held = layout(device, table, address, usize::from(count));
+    for slot in &held {
+        if let Held::Whole(r) | Held::Part(r, 0) = slot.held {
+            if r.action {
+                notes.push(format!(
+                    "`{}` is an action register: the manual defines no read, so the words it \
+                     answers mean nothing",
+                    r.name
+                ));
+            }
+        }
+    }
+    let registers = held
         .iter()
         .filter_map(|slot| match slot.held {
             Held::Whole(r) | Held::Part(r, _) => Some(RegisterValue::new(r, &[], None)),
@@ -502,6 +514,19 @@ fn write_problem(register: &RegisterInfo, words: &[u16]) -> Option<String> {
             "`{name}.{}` outside its allowed range {min} ..= {max}",
             field.name
         ),
+        Invalid::Unlisted { allowed, .. } => {
+            let shown: Vec<String> = allowed
+                .iter()
+                .map(|&raw| match register.scale {
+                    Some(scale) => optobus_codec::value::Fixed::new(raw, scale).to_string(),
+                    None => raw.to_string(),
+                })
+                .collect();
+            format!(
+                "not a value `{name}` accepts (only {}): the device will refuse this write",
+                shown.join(", ")
+            )
+        }
         Invalid::StrayBits { bits } => {
             format!("bits 0x{bits:X} lie outside every field of `{name}`")
         }

@@ -106,7 +106,7 @@ pub(crate) fn guess_start(device: &DeviceInfo, table: Table, count: usize) -> Op
         device
             .registers
             .iter()
-            .filter(move |r| r.table == table && r.access.readable())
+            .filter(move |r| r.table == table && r.readable())
     };
     if device.addressing == Addressing::Field {
         let field = readable()
@@ -120,7 +120,7 @@ pub(crate) fn guess_start(device: &DeviceInfo, table: Table, count: usize) -> Op
     let mut starts: Vec<u16> = readable().map(|r| r.address).collect();
     starts.sort_unstable();
     starts.dedup();
-    let whole = |slot: &Slot| matches!(slot.held, Held::Whole(r) if r.access.readable());
+    let whole = |slot: &Slot| matches!(slot.held, Held::Whole(r) if r.readable());
     starts
         .into_iter()
         .find(|&start| count > 0 && layout(device, table, start, count).iter().all(whole))

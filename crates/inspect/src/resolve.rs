@@ -81,11 +81,13 @@ pub fn resolve_readable(
     let mut registers: Vec<&'static RegisterInfo> = Vec::new();
     for name in names {
         for register in resolve(device, name.as_ref(), copy)? {
-            if !register.access.readable() {
-                return Err(Error::new(format!(
-                    "`{}` is write-only: there is nothing to read",
-                    register.name
-                )));
+            if !register.readable() {
+                let why = if register.action {
+                    "is an action register: the manual defines no read"
+                } else {
+                    "is write-only: there is nothing to read"
+                };
+                return Err(Error::new(format!("`{}` {why}", register.name)));
             }
             if !registers.iter().any(|r| r.name == register.name) {
                 registers.push(register);

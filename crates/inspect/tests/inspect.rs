@@ -311,3 +311,47 @@ proptest! {
         decode_everywhere(&tcp);
     }
 }
+
+#[test]
+fn an_unlisted_value_gets_a_note_in_units() {
+    // light_power made to accept only 0.5 % and 1.0 % (raw 5 and 10): raw 7 is in range but
+    // not listed.
+    let mut registers = P.registers.to_vec();
+    let power = registers
+        .iter_mut()
+        .find(|r| r.name == "light_power")
+        .expect("light_power");
+    power.allowed_values = &[5, 10];
+    let device: &'static DeviceInfo = Box::leak(Box::new(DeviceInfo {
+        registers: Box::leak(registers.into_boxed_slice()),
+        ..*P
+    }));
+    let frames = rtu(device, "01 06 00 02 00 07 69 C8");
+    let note = frames[0]
+        .notes
+        .iter()
+        .find(|n| n.contains("not a value"))
+        .expect("a note");
+    assert!(
+        note.contains("`light_power` accepts (only 0.5, 1.0)"),
+        "{note}"
+    );
+}
+
+#[test]
+fn reading_an_action_register_gets_a_note() {
+    // LC-RS factory reset (0089H): the manual defines no read.
+    let frames = rtu(LC_RS, "01 03 00 89 00 01 55 E0");
+    assert!(
+        frames[0]
+            .notes
+            .iter()
+            .any(|n| n.contains("`factory_reset` is an action register")),
+        "{:?}",
+        frames[0].notes
+    );
+    // Encoding a read leaves it out.
+    let frames =
+        encode_read(LC_RS, &[register(LC_RS, "factory_reset")], 1, Framing::Rtu).expect("encodes");
+    assert!(frames.is_empty());
+}

@@ -10,8 +10,8 @@ use optobus_device::{CommandInfo, DeviceInfo, GroupInfo, RegisterInfo, Table};
 pub(crate) enum Cell {
     /// Inside the table, but neither a register nor reserved.
     Undefined,
-    /// A reserved address.
-    Reserved,
+    /// A reserved address; `readable` when the manual sanctions reading it.
+    Reserved { readable: bool },
     /// Word `offset` of register `index` (always 0 with field addressing: the whole field).
     Register { index: usize, offset: u16 },
 }
@@ -35,7 +35,9 @@ impl Layout {
             let cells = layout.cells_mut(reserved.table);
             for address in reserved.from..=reserved.to {
                 if let Some(cell) = cells.get_mut(usize::from(address)) {
-                    *cell = Cell::Reserved;
+                    *cell = Cell::Reserved {
+                        readable: reserved.readable,
+                    };
                 }
             }
         }

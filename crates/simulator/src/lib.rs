@@ -72,10 +72,14 @@
 //!   reads of 0 or more than `max_read_words` words (LC-RS 2.2 4): 1 to 8), and writes to
 //!   read-only registers (the manuals' 02 "address outside the device's range" is the nearest
 //!   code: the address holds nothing writable); illegal value for out-of-range values,
-//!   undefined enum codes and packed fields with undefined codes or stray bits, and the
-//!   register keeps its value (P series/CCS/CCF 4.1.1 note 2).
-//! - **Reserved and write-only addresses** read as zeros (spec README), except on LC-RS, whose
-//!   table 2 code 0x0001 "register address error" refuses them (the golden frame lc-2.1.3).
+//!   values outside a register's `allowed_values`, undefined enum codes and packed fields with
+//!   undefined codes or stray bits, and the register keeps its value (P series/CCS/CCF 4.1.1
+//!   note 2).
+//! - **Reserved ranges marked `readable`** (the manual counts them in the table it allows
+//!   reading: P series, CCS, CCF 4.1.1 note 1 and 4.2.2 note) read as zeros on every device.
+//! - **Other reserved addresses, write-only and action registers** read as zeros, except on
+//!   LC-RS, whose table 2 code 0x0001 "register address error" refuses them (the golden frame
+//!   lc-2.1.3).
 //! - **Field addressing** (rangefinder): one address per field; a read names one field and
 //!   asks for exactly its width (a 32-bit field: 2 words, high word first; the 0019H record:
 //!   6 words). Every read in the manual does so (1.2, 3.1-3.38; 3.6's printed count 1 is an

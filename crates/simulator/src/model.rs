@@ -285,7 +285,7 @@ impl Device {
 
     fn readable(&self, index: usize) -> bool {
         self.register(index)
-            .is_some_and(|register| register.access.readable())
+            .is_some_and(|register| register.readable())
     }
 
     /// Reads `count` words (or one field) from `address`.
@@ -321,7 +321,13 @@ impl Device {
                         self.turn_page_if_reading(&[index]);
                         Ok(self.live_words(index, t))
                     }
-                    Some(Cell::Reserved) if count == 1 && !refuse_unreadable => Ok(vec![0]),
+                    Some(Cell::Reserved { readable }) if count == 1 => {
+                        if readable || !refuse_unreadable {
+                            Ok(vec![0])
+                        } else {
+                            Err(Fault::Address)
+                        }
+                    }
                     _ => Err(Fault::Address),
                 }
             }
@@ -333,7 +339,10 @@ impl Device {
                     let cell = self.layout.cell(table, at).ok_or(Fault::Address)?;
                     match cell {
                         Cell::Undefined => return Err(Fault::Address),
-                        Cell::Reserved if refuse_unreadable => return Err(Fault::Address),
+                        // Reading a range the manual sanctions answers zeros on every device.
+                        Cell::Reserved { readable: false } if refuse_unreadable => {
+                            return Err(Fault::Address)
+                        }
                         Cell::Register { index, .. }
                             if refuse_unreadable && !self.readable(index) =>
                         {
@@ -574,7 +583,7 @@ impl Device {
                     Addressing::Word => words.get(usize::from(offset)).map(|&w| vec![w]),
                 }
             }
-            Cell::Reserved => Some(vec![0]),
+            Cell::Reserved { .. } => Some(vec![0]),
             Cell::Undefined => None,
         }
     }

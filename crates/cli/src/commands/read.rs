@@ -1,5 +1,5 @@
 //! `optobus read` (registers and groups by name) and `optobus dump` (every readable
-//! register), both in the fewest requests.
+//! register, action registers left out), both in the fewest requests.
 
 use clap::Args;
 use optobus_device::RegisterInfo;
@@ -39,11 +39,7 @@ pub(crate) async fn read(global: &Global, args: &ReadArgs) -> Result<(), CliErro
 pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
-    let registers: Vec<&'static RegisterInfo> = device
-        .registers
-        .iter()
-        .filter(|r| r.access.readable())
-        .collect();
+    let registers: Vec<&'static RegisterInfo> = device.readable_registers().collect();
     let requests = plan_reads(device, &registers).len();
     let slave = global.answering_slave(device, "dump")?;
     let mut core = global.connect(device, slave).await?;

@@ -47,7 +47,7 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
     let probe = device
         .registers
         .iter()
-        .find(|r| r.access.readable())
+        .find(|r| r.readable())
         .ok_or_else(|| CliError::new("the model has no readable register"))?;
     let progress = progress_bar(
         (bauds.len() * slaves.len()) as u64,

@@ -74,7 +74,7 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
         }
         None => None,
     };
-    if register.access.readable() {
+    if register.readable() {
         let back = core
             .read_words(register)
             .await

@@ -1,0 +1,46 @@
+//! `action`: an action register (writing acts, the manual defines no read) can be written and
+//! is never named where registers are read: in groups or as the continuous-send switch.
+
+use crate::diagnostic::Diagnostic;
+use crate::model::Model;
+
+/// Rule name.
+pub const RULE: &str = "action";
+
+/// Checks action registers.
+pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+    for register in super::declared(model) {
+        if register.action && !register.access.writable() {
+            out.push(
+                Diagnostic::at(
+                    RULE,
+                    &register.path.key("action"),
+                    format!("action register `{}` is read-only", register.name),
+                )
+                .label("an action is written")
+                .help("give it `access: w` or `rw`, or remove `action`"),
+            );
+        }
+    }
+    for group in &model.groups {
+        for (name, path) in &group.registers {
+            let Some(register) = model.resolve(name) else {
+                continue;
+            };
+            if register.action {
+                out.push(
+                    Diagnostic::at(
+                        RULE,
+                        path,
+                        format!(
+                            "group `{}` names action register `{name}`, whose read is undefined",
+                            group.name
+                        ),
+                    )
+                    .label("never read")
+                    .also(&register.path.key("action"), "declared an action here"),
+                );
+            }
+        }
+    }
+}
