@@ -31,6 +31,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     for command in &model.commands {
         let register_path = command.path.key("register");
         match model.resolve(&command.register) {
+            None if model.is_unread(&command.register) => {}
             None => out.push(
                 Diagnostic::at(
                     RULE,
@@ -70,7 +71,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             Some(_) => {}
         }
         for (i, target) in command.targets.iter().enumerate() {
-            if model.resolve(target).is_none() {
+            if model.resolve(target).is_none() && !model.is_unread(target) {
                 out.push(
                     Diagnostic::at(
                         RULE,
