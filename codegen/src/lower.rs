@@ -56,8 +56,25 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
     .collect();
     for (r, (index, block)) in spec.repeats.iter().enumerate() {
         let block_path = root.key("repeats").index(index);
+        // Copies are numbered by a byte; a larger count is not expanded (nor its copies checked).
+        let copies = if block.count > u32::from(u8::MAX) {
+            lowering.diagnostics.push(
+                Diagnostic::at(
+                    "repeat-stride",
+                    &block_path.key("count"),
+                    format!(
+                        "repeat `{}` has {} copies; copies are numbered 1 to 255",
+                        block.name, block.count
+                    ),
+                )
+                .label("count too large"),
+            );
+            0
+        } else {
+            block.count
+        };
         unread.extend(block.registers.unread.iter().cloned());
-        for number in 1..=block.count {
+        for number in 1..=copies {
             unread.extend(
                 block
                     .registers
@@ -89,7 +106,7 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
             }
             // One enum for all copies of an inline-coded register.
             let template = lowering.register(decl, &decl.name, &path);
-            for number in 1..=block.count {
+            for number in 1..=copies {
                 let mut copy = template.clone();
                 copy.name = format!("{}_{}_{}", block.name, number, decl.name);
                 let offset = stride.unwrap_or(0).saturating_mul(number - 1);

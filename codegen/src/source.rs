@@ -36,6 +36,13 @@ impl Path {
         next
     }
 
+    /// This path without its last step.
+    pub fn parent(&self) -> Self {
+        let mut parent = self.clone();
+        parent.0.pop();
+        parent
+    }
+
     /// This path extended by an index.
     pub fn index(&self, index: usize) -> Self {
         let mut next = self.clone();

@@ -9,6 +9,7 @@ pub mod device;
 pub mod docs;
 pub mod enum_codes;
 pub mod groups;
+pub mod name_clash;
 pub mod names;
 pub mod overlap;
 pub mod range;
@@ -38,6 +39,10 @@ pub const RULES: &[Rule] = &[
     Rule {
         name: names::FORMAT_RULE,
         check: names::check_format,
+    },
+    Rule {
+        name: name_clash::RULE,
+        check: name_clash::check,
     },
     Rule {
         name: references::RULE,
