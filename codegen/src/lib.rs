@@ -40,7 +40,12 @@ impl Rejected {
 /// Parses, lowers and checks a spec given as text; `name` is shown in diagnostics.
 pub fn check_source(name: &str, text: &str) -> Result<Model, Box<Rejected>> {
     let source = SourceFile::new(name, text);
-    let reject = |source, diagnostics| Err(Box::new(Rejected { source, diagnostics }));
+    let reject = |source, diagnostics| {
+        Err(Box::new(Rejected {
+            source,
+            diagnostics,
+        }))
+    };
     if let Some(error) = &source.syntax_error {
         let diagnostic = Diagnostic {
             rule: syntax::RULE,
@@ -59,7 +64,10 @@ pub fn check_source(name: &str, text: &str) -> Result<Model, Box<Rejected>> {
     }
     let mut diagnostics = rules::text::check(source.root.as_ref());
     let mut reader = syntax::Reader::default();
-    let spec = source.root.as_ref().and_then(|root| syntax::read(root, &mut reader));
+    let spec = source
+        .root
+        .as_ref()
+        .and_then(|root| syntax::read(root, &mut reader));
     diagnostics.append(&mut reader.diagnostics);
     let Some(spec) = spec else {
         if diagnostics.is_empty() {

@@ -69,6 +69,8 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
                 )
                 .label("count too large"),
             );
+            // References to its copies are not reported again.
+            unread.insert(block.name.clone());
             0
         } else {
             block.count
@@ -126,7 +128,11 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
             holding_stride: block.stride.holding,
             input_stride: block.stride.input,
             doc: block.doc.clone(),
-            members: block.registers.iter().map(|(_, d)| d.name.clone()).collect(),
+            members: block
+                .registers
+                .iter()
+                .map(|(_, d)| d.name.clone())
+                .collect(),
             path: block_path,
         });
     }

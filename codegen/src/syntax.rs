@@ -18,10 +18,10 @@ use std::collections::BTreeMap;
 use serde::de::{value::StrDeserializer, IntoDeserializer};
 use serde::Deserialize;
 
+use crate::diagnostic::{Diagnostic, Label, Location};
 pub(crate) use crate::model::{
     Access, Addressing, Apply, Effect, ExceptionStyle, LongWrites, Parity, Table,
 };
-use crate::diagnostic::{Diagnostic, Label, Location};
 use crate::source::{Node, Path, Span, Value};
 
 /// Rule name of every reading error.
@@ -51,12 +51,7 @@ impl Reader {
 
     /// `node` as a mapping of the given keys: unknown and repeated keys are reported (and
     /// otherwise ignored).
-    fn mapping<'n>(
-        &mut self,
-        node: &'n Node,
-        path: &Path,
-        keys: &[&str],
-    ) -> Option<Mapping<'n>> {
+    fn mapping<'n>(&mut self, node: &'n Node, path: &Path, keys: &[&str]) -> Option<Mapping<'n>> {
         let Value::Mapping(entries) = &node.value else {
             self.error(
                 node.span,
@@ -68,7 +63,11 @@ impl Reader {
         let mut found: BTreeMap<&str, (&Node, &Node)> = BTreeMap::new();
         for (key, value) in entries {
             let Some(name) = key.text().filter(|_| !key.is_null()) else {
-                self.error(key.span, format!("{} has a key that is not a name", what(path)), "expected a name");
+                self.error(
+                    key.span,
+                    format!("{} has a key that is not a name", what(path)),
+                    "expected a name",
+                );
                 continue;
             };
             if !keys.contains(&name) {
@@ -123,7 +122,9 @@ impl Reader {
             None => T::absent().or_else(|| {
                 // Point into the mapping at its first key: a block mapping has no mark of its own.
                 let at = match &map.node.value {
-                    Value::Mapping(entries) => entries.first().map_or(map.node.span, |(k, _)| k.span),
+                    Value::Mapping(entries) => {
+                        entries.first().map_or(map.node.span, |(k, _)| k.span)
+                    }
                     _ => map.node.span,
                 };
                 self.error(
@@ -318,7 +319,11 @@ impl FromNode for (i64, i64) {
         if items.len() != 2 {
             reader.error(
                 node.span,
-                format!("{} must be two numbers `[min, max]`, not {}", what(path), items.len()),
+                format!(
+                    "{} must be two numbers `[min, max]`, not {}",
+                    what(path),
+                    items.len()
+                ),
                 "expected `[min, max]`",
             );
             return None;
@@ -448,7 +453,17 @@ macro_rules! names {
     )*};
 }
 
-names!(Table, Access, Addressing, Effect, LongWrites, ExceptionStyle, Apply, TypeName, OrderName);
+names!(
+    Table,
+    Access,
+    Addressing,
+    Effect,
+    LongWrites,
+    ExceptionStyle,
+    Apply,
+    TypeName,
+    OrderName
+);
 
 /// `none`, `odd` or `even`, exactly as the spec schema spells them.
 impl FromNode for Parity {
@@ -459,7 +474,10 @@ impl FromNode for Parity {
             None => {
                 reader.error(
                     node.span,
-                    format!("{}: unknown parity `{text}`, expected one of `none`, `odd`, `even`", what(path)),
+                    format!(
+                        "{}: unknown parity `{text}`, expected one of `none`, `odd`, `even`",
+                        what(path)
+                    ),
                     "unknown name",
                 );
                 None

@@ -31,15 +31,17 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     if let Some((name, code, path)) = &model.protocol.continuous_send {
         let code_path = path.parent().key("code");
         match model.register(name) {
-            Some(register) if u32::try_from(*code).is_err() || !accepts(model, register, *code) => out.push(
-                Diagnostic::at(
-                    RULE,
-                    &code_path,
-                    format!("continuous send writes {code} to `{name}`, which refuses it"),
+            Some(register) if u32::try_from(*code).is_err() || !accepts(model, register, *code) => {
+                out.push(
+                    Diagnostic::at(
+                        RULE,
+                        &code_path,
+                        format!("continuous send writes {code} to `{name}`, which refuses it"),
+                    )
+                    .label("outside the register's range or codes")
+                    .also(&register.path.key("name"), "register defined here"),
                 )
-                .label("outside the register's range or codes")
-                .also(&register.path.key("name"), "register defined here"),
-            ),
+            }
             _ => {}
         }
     }

@@ -91,9 +91,13 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     }
     if device.functions.is_empty() {
         out.push(
-            Diagnostic::at(RULE, &path.key("functions"), "the device answers no function code")
-                .label("empty")
-                .help("list the codes the manual names, e.g. `[3, 4, 6]`"),
+            Diagnostic::at(
+                RULE,
+                &path.key("functions"),
+                "the device answers no function code",
+            )
+            .label("empty")
+            .help("list the codes the manual names, e.g. `[3, 4, 6]`"),
         );
     }
     for (i, function) in device.functions.iter().enumerate() {
@@ -135,9 +139,13 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     }
     if device.tcp.as_ref().is_some_and(|tcp| tcp.port == 0) {
         out.push(
-            Diagnostic::at(RULE, &path.key("transports").key("tcp").key("port"), "TCP port 0")
-                .label("no server listens on port 0")
-                .help("Modbus TCP uses 502"),
+            Diagnostic::at(
+                RULE,
+                &path.key("transports").key("tcp").key("port"),
+                "TCP port 0",
+            )
+            .label("no server listens on port 0")
+            .help("Modbus TCP uses 502"),
         );
     }
     if device.rtu.is_none() && device.tcp.is_none() {

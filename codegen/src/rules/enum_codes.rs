@@ -25,7 +25,10 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 Diagnostic::at(
                     RULE,
                     &code.path.key("code"),
-                    format!("code {} of `{}` is not a raw register value", code.code, def.name),
+                    format!(
+                        "code {} of `{}` is not a raw register value",
+                        code.code, def.name
+                    ),
                 )
                 .label("outside 0..=4294967295")
                 .help("codes are the unsigned bits the device sends"),
@@ -75,7 +78,11 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             Kind::Packed(fields) => {
                 for field in fields {
                     if let (Some(reference), Some(width)) = (&field.enum_ref, field.width) {
-                        users.push((reference, u32::from(width), format!("`{name}.{}`", field.name)));
+                        users.push((
+                            reference,
+                            u32::from(width),
+                            format!("`{name}.{}`", field.name),
+                        ));
                     }
                 }
             }
@@ -100,7 +107,11 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             } else {
                 (1i64 << bits) - 1
             };
-            for code in def.codes.iter().filter(|c| c.code > max && u32::try_from(c.code).is_ok()) {
+            for code in def
+                .codes
+                .iter()
+                .filter(|c| c.code > max && u32::try_from(c.code).is_ok())
+            {
                 out.push(
                     Diagnostic::at(
                         RULE,

@@ -17,8 +17,8 @@ pub mod references;
 pub mod repeats;
 pub mod scale;
 pub mod sentinel;
-pub mod text;
 pub mod table_bounds;
+pub mod text;
 pub mod type_width;
 pub mod write_order;
 

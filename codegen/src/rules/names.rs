@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use crate::diagnostic::Diagnostic;
-use crate::model::Model;
+use crate::model::{Kind, Model};
 use crate::source::Path;
 
 /// Rule name of the uniqueness check.
@@ -111,6 +111,23 @@ pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
             r.path.key("name"),
         )
     }));
+    for register in super::declared(model) {
+        match &register.kind {
+            Kind::Packed(fields) | Kind::Record(fields) => {
+                names.extend(fields.iter().map(|f| keyed(&f.name, &f.path)));
+            }
+            Kind::Version(parts) => {
+                let at = register.path.key("parts");
+                names.extend(
+                    parts
+                        .iter()
+                        .enumerate()
+                        .map(|(i, p)| (p.as_str(), at.index(i))),
+                );
+            }
+            _ => {}
+        }
+    }
     for e in &model.enums {
         if e.shared {
             names.push((&e.name, e.path.clone()));
@@ -123,9 +140,13 @@ pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
     for (name, path) in names {
         if RESERVED.contains(&name) {
             out.push(
-                Diagnostic::at(FORMAT_RULE, &path, format!("`{name}` is a Rust path keyword"))
-                    .label("cannot name a generated item")
-                    .help("choose a more telling name"),
+                Diagnostic::at(
+                    FORMAT_RULE,
+                    &path,
+                    format!("`{name}` is a Rust path keyword"),
+                )
+                .label("cannot name a generated item")
+                .help("choose a more telling name"),
             );
         } else if !is_snake_case(name) {
             out.push(

@@ -13,11 +13,13 @@ pub const RULE: &str = "scale";
 /// steps with which every raw value prints exactly.
 pub fn parse_scale(text: &str) -> Result<Scale, String> {
     match read_scale(text)? {
-        Scale::Decimal { exponent } if !Scale::DECIMAL_EXPONENTS.contains(&exponent) => Err(format!(
-            "1e{exponent} is beyond the steps a value prints exactly (1e{} to 1e{})",
-            Scale::DECIMAL_EXPONENTS.start(),
-            Scale::DECIMAL_EXPONENTS.end()
-        )),
+        Scale::Decimal { exponent } if !Scale::DECIMAL_EXPONENTS.contains(&exponent) => {
+            Err(format!(
+                "1e{exponent} is beyond the steps a value prints exactly (1e{} to 1e{})",
+                Scale::DECIMAL_EXPONENTS.start(),
+                Scale::DECIMAL_EXPONENTS.end()
+            ))
+        }
         scale => Ok(scale),
     }
 }

@@ -15,9 +15,11 @@ pub const RULE: &str = "text";
 pub fn forbidden(c: char) -> Option<&'static str> {
     match c {
         '\n' | '\t' => None,
-        '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}' | '\u{200E}' | '\u{200F}' | '\u{061C}' => {
-            Some("a text-direction control character")
-        }
+        '\u{202A}'..='\u{202E}'
+        | '\u{2066}'..='\u{2069}'
+        | '\u{200E}'
+        | '\u{200F}'
+        | '\u{061C}' => Some("a text-direction control character"),
         c if c.is_control() => Some("a control character"),
         _ => None,
     }
