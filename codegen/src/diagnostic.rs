@@ -11,6 +11,8 @@ pub enum Location {
     Value(Path),
     /// The key naming the value at a YAML path.
     Key(Path),
+    /// A place in the tree the reader was looking at.
+    Span(Span),
     /// A position reported by the YAML parser.
     Position {
         /// Line, from 1.
@@ -131,6 +133,7 @@ fn resolve(source: &SourceFile, location: &Location) -> Option<Span> {
     match location {
         Location::Value(path) => source.span(path),
         Location::Key(path) => source.key_span(path).or_else(|| source.span(path)),
+        Location::Span(span) => Some(*span),
         Location::Position { line, column } => {
             // Underline the token the parser stopped at.
             let width = source

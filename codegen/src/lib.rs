@@ -1,7 +1,8 @@
 //! The optobus spec compiler.
 //!
-//! A spec goes through three layers: **parse** (`syntax`: serde structs, unknown keys
-//! rejected), **lower and validate** (`lower` builds the [`model::Model`]; [`rules`] is a list
+//! A spec goes through three layers: **parse** ([`source`]: one YAML parse into a tree
+//! that keeps positions; `syntax`: the spec's structs read from that tree, every reading
+//! error reported at once), **lower and validate** (`lower` builds the [`model::Model`]; [`rules`] is a list
 //! of small named checks), and **emit** ([`emit`]: Rust source formatted with prettyplease,
 //! and [`json`]: the checked model for other tools). Every problem is a [`Diagnostic`] that
 //! points at the spec's line and column and is rendered like rustc.
@@ -39,48 +40,52 @@ impl Rejected {
 /// Parses, lowers and checks a spec given as text; `name` is shown in diagnostics.
 pub fn check_source(name: &str, text: &str) -> Result<Model, Box<Rejected>> {
     let source = SourceFile::new(name, text);
-    let spec: syntax::SpecFile = match serde_yaml::from_str(text) {
-        Ok(spec) => spec,
-        Err(error) => {
-            let location = match error.location() {
-                Some(at) => diagnostic::Location::Position {
-                    line: at.line(),
-                    column: at.column(),
-                },
-                None => diagnostic::Location::Value(source::Path::root()),
-            };
-            let message = error.to_string();
-            // serde_yaml appends " at line L column C"; the arrow already says where.
-            let message = message
-                .split(" at line ")
-                .next()
-                .unwrap_or(&message)
-                .to_owned();
-            let diagnostic = Diagnostic {
-                rule: "yaml",
-                message,
-                primary: diagnostic::Label {
-                    location,
-                    text: String::new(),
-                },
-                secondary: Vec::new(),
-                help: Some("see specs/README.md for the keys and forms a spec takes".into()),
-            };
-            return Err(Box::new(Rejected {
-                source,
-                diagnostics: vec![diagnostic],
-            }));
-        }
-    };
-    let (model, mut diagnostics) = lower::lower(spec, &source);
-    diagnostics.extend(rules::check(&model));
-    if diagnostics.is_empty() {
-        Ok(model)
-    } else {
+    let reject = |source, diagnostics| {
         Err(Box::new(Rejected {
             source,
             diagnostics,
         }))
+    };
+    if let Some(error) = &source.syntax_error {
+        let diagnostic = Diagnostic {
+            rule: syntax::RULE,
+            message: error.message.clone(),
+            primary: diagnostic::Label {
+                location: diagnostic::Location::Position {
+                    line: error.line,
+                    column: error.column,
+                },
+                text: String::new(),
+            },
+            secondary: Vec::new(),
+            help: Some("the spec is not valid YAML".into()),
+        };
+        return reject(source, vec![diagnostic]);
+    }
+    let mut diagnostics = rules::text::check(source.root.as_ref());
+    let mut reader = syntax::Reader::default();
+    let spec = source
+        .root
+        .as_ref()
+        .and_then(|root| syntax::read(root, &mut reader));
+    diagnostics.append(&mut reader.diagnostics);
+    let Some(spec) = spec else {
+        if diagnostics.is_empty() {
+            diagnostics.push(Diagnostic::at(
+                syntax::RULE,
+                &source::Path::root(),
+                "the file holds no spec",
+            ));
+        }
+        return reject(source, diagnostics);
+    };
+    let (model, lowering) = lower::lower(spec);
+    diagnostics.extend(lowering);
+    diagnostics.extend(rules::check(&model));
+    if diagnostics.is_empty() {
+        Ok(model)
+    } else {
+        reject(source, diagnostics)
     }
 }
 

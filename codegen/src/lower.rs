@@ -1,5 +1,5 @@
 //! From the spec as written to the model: hoist inline enums, resolve enum references, read
-//! scales from their exact source text, and expand repeat blocks.
+//! scales from their exact text, and expand repeat blocks.
 
 use optobus_codec::value::{WordOrder, WriteOrder};
 
@@ -10,19 +10,20 @@ use crate::model::{
     WordCount,
 };
 use crate::rules::scale::parse_scale;
-use crate::source::{Path, SourceFile};
+use crate::source::Path;
+use std::collections::BTreeSet;
+
 use crate::syntax::{CodeDecl, FieldDecl, OrderName, RegisterDecl, SpecFile, TypeName};
 
 /// Lowers `spec`; problems that stop lowering an item are reported, the rest is left to rules.
-pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnostic>) {
+pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
     let mut lowering = Lowering {
-        source,
         enums: Vec::new(),
         diagnostics: Vec::new(),
     };
     let root = Path::root();
 
-    for (name, decl) in &spec.enums {
+    for (name, decl) in &spec.enums.entries {
         let path = root.key("enums").key(name);
         let codes = lowering.codes(&decl.codes, &path.key("codes"));
         lowering.enums.push(EnumDef {
@@ -36,15 +37,55 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
     }
 
     let mut registers = Vec::new();
-    for (i, decl) in spec.registers.iter().enumerate() {
+    for (i, decl) in spec.registers.iter() {
         let path = root.key("registers").index(i);
         registers.push(lowering.register(decl, &decl.name, &path));
     }
 
     let mut repeats = Vec::new();
-    for (r, block) in spec.repeats.iter().enumerate() {
-        let block_path = root.key("repeats").index(r);
-        for (i, decl) in block.registers.iter().enumerate() {
+    let mut unread: BTreeSet<String> = [
+        &spec.enums.unread,
+        &spec.registers.unread,
+        &spec.commands.unread,
+        &spec.groups.unread,
+        &spec.repeats.unread,
+    ]
+    .into_iter()
+    .flatten()
+    .cloned()
+    .collect();
+    for (r, (index, block)) in spec.repeats.iter().enumerate() {
+        let block_path = root.key("repeats").index(index);
+        // Copies are numbered by a byte; a larger count is not expanded (nor its copies checked).
+        let copies = if block.count > u32::from(u8::MAX) {
+            lowering.diagnostics.push(
+                Diagnostic::at(
+                    "repeat-stride",
+                    &block_path.key("count"),
+                    format!(
+                        "repeat `{}` has {} copies; copies are numbered 1 to 255",
+                        block.name, block.count
+                    ),
+                )
+                .label("count too large"),
+            );
+            // References to its copies are not reported again.
+            unread.insert(block.name.clone());
+            0
+        } else {
+            block.count
+        };
+        unread.extend(block.registers.unread.iter().cloned());
+        for number in 1..=copies {
+            unread.extend(
+                block
+                    .registers
+                    .unread
+                    .iter()
+                    .map(|name| format!("{}_{number}_{name}", block.name)),
+            );
+        }
+        for (i, decl) in block.registers.iter() {
             let path = block_path.key("registers").index(i);
             let stride = decl.stride.or(match decl.table {
                 Table::Holding => block.stride.holding,
@@ -67,7 +108,7 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
             }
             // One enum for all copies of an inline-coded register.
             let template = lowering.register(decl, &decl.name, &path);
-            for number in 1..=block.count {
+            for number in 1..=copies {
                 let mut copy = template.clone();
                 copy.name = format!("{}_{}_{}", block.name, number, decl.name);
                 let offset = stride.unwrap_or(0).saturating_mul(number - 1);
@@ -87,7 +128,11 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
             holding_stride: block.stride.holding,
             input_stride: block.stride.input,
             doc: block.doc.clone(),
-            members: block.registers.iter().map(|d| d.name.clone()).collect(),
+            members: block
+                .registers
+                .iter()
+                .map(|(_, d)| d.name.clone())
+                .collect(),
             path: block_path,
         });
     }
@@ -95,7 +140,6 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
     let reserved = spec
         .reserved
         .iter()
-        .enumerate()
         .map(|(i, decl)| Reserved {
             table: decl.table,
             from: decl.from,
@@ -108,7 +152,6 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
     let commands = spec
         .commands
         .iter()
-        .enumerate()
         .map(|(i, decl)| Command {
             name: decl.name.clone(),
             register: decl.register.clone(),
@@ -125,7 +168,6 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
     let groups = spec
         .groups
         .iter()
-        .enumerate()
         .map(|(i, decl)| {
             let path = root.key("groups").index(i);
             Group {
@@ -182,12 +224,12 @@ pub(crate) fn lower(spec: SpecFile, source: &SourceFile) -> (Model, Vec<Diagnost
         commands,
         groups,
         repeats,
+        unread,
     };
     (model, lowering.diagnostics)
 }
 
-struct Lowering<'a> {
-    source: &'a SourceFile,
+struct Lowering {
     enums: Vec<EnumDef>,
     diagnostics: Vec<Diagnostic>,
 }
@@ -202,7 +244,7 @@ fn scalar_of(kind: TypeName) -> Option<Scalar> {
     }
 }
 
-impl Lowering<'_> {
+impl Lowering {
     fn codes(&self, decls: &[CodeDecl], path: &Path) -> Vec<Code> {
         decls
             .iter()
@@ -259,24 +301,12 @@ impl Lowering<'_> {
         })
     }
 
-    fn scale(&self, value: Option<&serde_yaml::Value>, path: &Path) -> Option<ScaleSpec> {
-        let value = value?;
-        let path = path.key("scale");
-        let text = self
-            .source
-            .scalar(&path)
-            .map(str::to_owned)
-            .unwrap_or_else(|| match value {
-                serde_yaml::Value::String(s) => s.clone(),
-                other => serde_yaml::to_string(other)
-                    .unwrap_or_default()
-                    .trim()
-                    .to_owned(),
-            });
+    fn scale(&self, text: Option<&String>, path: &Path) -> Option<ScaleSpec> {
+        let text = text?.clone();
         Some(ScaleSpec {
             value: parse_scale(&text),
             text,
-            path,
+            path: path.key("scale"),
         })
     }
 

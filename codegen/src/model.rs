@@ -3,6 +3,7 @@
 //! Lowering is lenient (it keeps what was declared so that rules can judge it); a model that
 //! passed every rule is what the emitters and `dump --json` see.
 
+use std::collections::BTreeSet;
 use std::net::Ipv4Addr;
 
 use optobus_codec::value::{Scale, WordOrder, WriteOrder};
@@ -422,6 +423,9 @@ pub struct Model {
     pub groups: Vec<Group>,
     /// Repeat blocks.
     pub repeats: Vec<Repeat>,
+    /// Names of items a reading error left out (already reported): references to them, or
+    /// to names they start (a block's copies), are not reported again.
+    pub unread: BTreeSet<String>,
 }
 
 impl Model {
@@ -446,6 +450,15 @@ impl Model {
             Addressing::Word => register.words.0,
             Addressing::Field => 1,
         }
+    }
+
+    /// True when `name` may be an item a reading error left out.
+    pub fn is_unread(&self, name: &str) -> bool {
+        self.unread.contains(name)
+            || self
+                .unread
+                .iter()
+                .any(|unread| name.starts_with(&format!("{unread}_")))
     }
 
     /// The enum a reference resolves to.

@@ -1,8 +1,8 @@
-//! Where things are in a spec file: a map from each YAML path (`registers[3].address`) to the
-//! line and column of its value and key, built from the YAML event stream.
+//! A spec file parsed once into a tree of [`Node`]s that keep their line and column, and an
+//! index from each YAML path (`registers[3].address`) to the place of its value and key.
 //!
-//! serde reads the spec into types but forgets positions; this map lets a semantic rule point
-//! at the offending text exactly as a syntax error would.
+//! The reader (`syntax`) takes its values from the tree and the diagnostics take their
+//! places from the index, so both come from the same parse.
 
 use std::collections::HashMap;
 use std::fmt;
@@ -34,6 +34,13 @@ impl Path {
         let mut next = self.clone();
         next.0.push(Segment::Key(key.to_owned()));
         next
+    }
+
+    /// This path without its last step.
+    pub fn parent(&self) -> Self {
+        let mut parent = self.clone();
+        parent.0.pop();
+        parent
     }
 
     /// This path extended by an index.
@@ -68,35 +75,135 @@ pub struct Span {
     pub width: usize,
 }
 
-/// What the map knows about one node.
+/// What the index knows about one node.
 #[derive(Clone, Debug)]
-struct Node {
+struct Entry {
     value: Span,
     key: Option<Span>,
     text: Option<String>,
 }
 
-/// A spec file's text and the positions of its nodes.
+/// A parsed YAML node with its position: the one tree both the reader and the diagnostics
+/// work from.
+#[derive(Clone, Debug)]
+pub struct Node {
+    /// Where the node starts (scalars: their whole text).
+    pub span: Span,
+    /// What it holds.
+    pub value: Value,
+}
+
+/// The content of a [`Node`].
+#[derive(Clone, Debug)]
+pub enum Value {
+    /// A scalar exactly as written; `plain` when unquoted (only plain scalars are numbers,
+    /// booleans or null).
+    Scalar {
+        /// The text.
+        text: String,
+        /// Written without quotes or block style.
+        plain: bool,
+    },
+    /// A sequence.
+    Sequence(Vec<Node>),
+    /// A mapping, entries in source order (duplicates kept for the reader to report).
+    Mapping(Vec<(Node, Node)>),
+}
+
+impl Node {
+    /// True for a plain `~`, `null` or empty scalar.
+    pub fn is_null(&self) -> bool {
+        matches!(&self.value, Value::Scalar { text, plain: true } if matches!(text.as_str(), "" | "~" | "null" | "Null" | "NULL"))
+    }
+
+    /// The value under `key`, for a mapping.
+    pub fn get(&self, key: &str) -> Option<&Node> {
+        match &self.value {
+            Value::Mapping(entries) => entries
+                .iter()
+                .find(|(k, _)| matches!(&k.value, Value::Scalar { text, .. } if text == key))
+                .map(|(_, v)| v),
+            _ => None,
+        }
+    }
+
+    /// The scalar's text.
+    pub fn text(&self) -> Option<&str> {
+        match &self.value {
+            Value::Scalar { text, .. } => Some(text),
+            _ => None,
+        }
+    }
+
+    /// What kind of node this is, for messages.
+    pub fn kind(&self) -> &'static str {
+        match &self.value {
+            Value::Scalar { .. } if self.is_null() => "null",
+            Value::Scalar { .. } => "a scalar",
+            Value::Sequence(_) => "a list",
+            Value::Mapping(_) => "a mapping",
+        }
+    }
+}
+
+/// A YAML syntax error: the parser's message and where it stopped.
+#[derive(Clone, Debug)]
+pub struct SyntaxError {
+    /// The parser's words.
+    pub message: String,
+    /// Line, from 1.
+    pub line: usize,
+    /// Column, from 1.
+    pub column: usize,
+}
+
+/// A spec file's text, its parsed tree, and the positions of its nodes by path.
 #[derive(Debug)]
 pub struct SourceFile {
     /// The name to show in diagnostics (the path as given).
     pub name: String,
     /// The whole text.
     pub text: String,
-    nodes: HashMap<Path, Node>,
+    /// The document's root, unless the text is not YAML.
+    pub root: Option<Node>,
+    /// Why the text is not YAML.
+    pub syntax_error: Option<SyntaxError>,
+    nodes: HashMap<Path, Entry>,
 }
 
 impl SourceFile {
-    /// Indexes `text`. A YAML syntax error leaves the map partial; serde reports it.
+    /// Parses `text` once, into a tree and an index of positions by path.
     pub fn new(name: impl Into<String>, text: impl Into<String>) -> Self {
         let text = text.into();
         let mut builder = Builder::default();
         let mut parser = Parser::new_from_str(&text);
-        let _ = parser.load(&mut builder, false);
+        let syntax_error = match parser.load(&mut builder, true) {
+            Ok(()) => builder.problem.take(),
+            Err(error) => Some(SyntaxError {
+                message: error.info().to_owned(),
+                line: error.marker().line(),
+                column: error.marker().col() + 1,
+            }),
+        };
+        let mut nodes = HashMap::new();
+        let syntax_error = syntax_error.or_else(|| {
+            let second = builder.documents.get(1)?;
+            Some(SyntaxError {
+                message: "a spec is one YAML document; this starts another".into(),
+                line: second.span.line,
+                column: second.span.column,
+            })
+        });
+        let root = builder.documents.into_iter().next();
+        if let Some(root) = &root {
+            index(root, Path::root(), None, &mut nodes);
+        }
         Self {
             name: name.into(),
             text,
-            nodes: builder.nodes,
+            root,
+            syntax_error,
+            nodes,
         }
     }
 
@@ -128,21 +235,51 @@ impl SourceFile {
     }
 }
 
-enum Frame {
-    Mapping {
-        path: Path,
-        pending_key: Option<(String, Span)>,
-    },
-    Sequence {
-        path: Path,
-        next: usize,
-    },
+/// Records every node's position under its path; a repeated key keeps its first place.
+fn index(node: &Node, path: Path, key: Option<Span>, out: &mut HashMap<Path, Entry>) {
+    if out.contains_key(&path) {
+        return;
+    }
+    out.insert(
+        path.clone(),
+        Entry {
+            value: node.span,
+            key,
+            text: node.text().map(str::to_owned),
+        },
+    );
+    match &node.value {
+        Value::Scalar { .. } => {}
+        Value::Sequence(items) => {
+            for (i, item) in items.iter().enumerate() {
+                index(item, path.index(i), None, out);
+            }
+        }
+        Value::Mapping(entries) => {
+            for (k, v) in entries {
+                if let Some(text) = k.text() {
+                    index(v, path.key(text), Some(k.span), out);
+                }
+            }
+        }
+    }
+}
+
+/// A container being filled: its node, its anchor, and (for a mapping) a key waiting for its
+/// value.
+struct Open {
+    node: Node,
+    anchor: usize,
+    key: Option<Node>,
 }
 
 #[derive(Default)]
 struct Builder {
-    stack: Vec<Frame>,
-    nodes: HashMap<Path, Node>,
+    stack: Vec<Open>,
+    anchors: HashMap<usize, Node>,
+    documents: Vec<Node>,
+    /// A problem the parser does not see (an alias to an unknown anchor).
+    problem: Option<SyntaxError>,
 }
 
 fn span_at(mark: Marker, width: usize) -> Span {
@@ -154,80 +291,73 @@ fn span_at(mark: Marker, width: usize) -> Span {
 }
 
 impl Builder {
-    /// Where the next value goes, and the key naming it; advances the parent.
-    fn next_value_path(&mut self) -> (Path, Option<Span>) {
-        match self.stack.last_mut() {
-            None => (Path::root(), None),
-            Some(Frame::Mapping { path, pending_key }) => match pending_key.take() {
-                Some((key, key_span)) => (path.key(&key), Some(key_span)),
-                None => (path.key("?"), None),
-            },
-            Some(Frame::Sequence { path, next }) => {
-                *next += 1;
-                (path.index(*next - 1), None)
-            }
+    /// Adds a finished node to its parent (or ends the document).
+    fn push(&mut self, node: Node, anchor: usize) {
+        if anchor != 0 {
+            self.anchors.insert(anchor, node.clone());
         }
-    }
-
-    fn expecting_key(&self) -> bool {
-        matches!(
-            self.stack.last(),
-            Some(Frame::Mapping {
-                pending_key: None,
-                ..
-            })
-        )
+        let Some(open) = self.stack.last_mut() else {
+            self.documents.push(node);
+            return;
+        };
+        match (&mut open.node.value, open.key.take()) {
+            (Value::Sequence(items), _) => items.push(node),
+            (Value::Mapping(entries), Some(key)) => entries.push((key, node)),
+            (Value::Mapping(_), None) => open.key = Some(node),
+            (Value::Scalar { .. }, _) => {}
+        }
     }
 }
 
 impl MarkedEventReceiver for Builder {
     fn on_event(&mut self, event: Event, mark: Marker) {
         match event {
-            Event::Scalar(text, style, ..) => {
+            Event::Scalar(text, style, anchor, _) => {
+                let plain = matches!(style, TScalarStyle::Plain);
                 let quoted = matches!(
                     style,
                     TScalarStyle::SingleQuoted | TScalarStyle::DoubleQuoted
                 );
                 let width = text.chars().count() + if quoted { 2 } else { 0 };
-                if self.expecting_key() {
-                    if let Some(Frame::Mapping { pending_key, .. }) = self.stack.last_mut() {
-                        *pending_key = Some((text, span_at(mark, width)));
-                    }
-                    return;
-                }
-                let (path, key) = self.next_value_path();
-                self.nodes.insert(
-                    path,
-                    Node {
-                        value: span_at(mark, width),
-                        key,
-                        text: Some(text),
-                    },
-                );
+                let node = Node {
+                    span: span_at(mark, width),
+                    value: Value::Scalar { text, plain },
+                };
+                self.push(node, anchor);
             }
-            Event::MappingStart(..) | Event::SequenceStart(..) => {
-                let (path, key) = self.next_value_path();
-                self.nodes.insert(
-                    path.clone(),
-                    Node {
-                        value: span_at(mark, 1),
-                        key,
-                        text: None,
+            Event::MappingStart(anchor, _) | Event::SequenceStart(anchor, _) => {
+                let value = if matches!(event, Event::MappingStart(..)) {
+                    Value::Mapping(Vec::new())
+                } else {
+                    Value::Sequence(Vec::new())
+                };
+                self.stack.push(Open {
+                    node: Node {
+                        span: span_at(mark, 1),
+                        value,
                     },
-                );
-                self.stack
-                    .push(if matches!(event, Event::MappingStart(..)) {
-                        Frame::Mapping {
-                            path,
-                            pending_key: None,
-                        }
-                    } else {
-                        Frame::Sequence { path, next: 0 }
-                    });
+                    anchor,
+                    key: None,
+                });
             }
             Event::MappingEnd | Event::SequenceEnd => {
-                self.stack.pop();
+                if let Some(open) = self.stack.pop() {
+                    self.push(open.node, open.anchor);
+                }
             }
+            Event::Alias(anchor) => match self.anchors.get(&anchor).cloned() {
+                Some(mut node) => {
+                    node.span = span_at(mark, 1);
+                    self.push(node, 0);
+                }
+                None => {
+                    self.problem.get_or_insert(SyntaxError {
+                        message: "alias to an unknown anchor".into(),
+                        line: mark.line(),
+                        column: mark.col() + 1,
+                    });
+                }
+            },
             _ => {}
         }
     }

@@ -76,10 +76,9 @@ fn every_rule_has_a_failing_fixture() {
         missing.is_empty(),
         "rules without a failing fixture: {missing:?}"
     );
-    assert!(
-        fired.contains("yaml"),
-        "no fixture exercises YAML/type errors"
-    );
+    for rule in ["yaml", optobus_codegen::rules::text::RULE] {
+        assert!(fired.contains(rule), "no fixture exercises `{rule}`");
+    }
 }
 
 #[test]
@@ -107,4 +106,25 @@ fn diagnostics_point_at_the_offending_text() {
     let column = lines[source_line].find("0x1FFFFFFFF").expect("value");
     assert_eq!(carets.find('^'), Some(column));
     assert_eq!(carets.matches('^').count(), "0x1FFFFFFFF".len());
+}
+
+#[test]
+fn reading_errors_come_with_rule_errors_and_without_follow_ons() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/errors/yaml_many.yaml");
+    let (rendered, rules) = render(&path);
+    let distinct: BTreeSet<_> = rules.iter().collect();
+    assert!(
+        distinct.contains(&"yaml") && distinct.contains(&"name-format"),
+        "{rules:?}"
+    );
+    assert_eq!(
+        rules.iter().filter(|r| **r == "yaml").count(),
+        7,
+        "{rendered}"
+    );
+    // `light_power` could not be read: the group naming it is not reported again.
+    assert!(
+        !rendered.contains("unknown register `light_power`"),
+        "{rendered}"
+    );
 }

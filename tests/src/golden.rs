@@ -32,7 +32,44 @@ pub struct GoldenFile {
 pub fn load(family: &str) -> Result<GoldenFile, String> {
     let path = directory().join(format!("{family}.yaml"));
     let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    serde_yaml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+    let documents = yaml_rust2::YamlLoader::load_from_str(&text)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let document = documents
+        .into_iter()
+        .next()
+        .ok_or_else(|| format!("{}: empty", path.display()))?;
+    serde_json::from_value(json(document)?).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The YAML tree as JSON, so that the serde types above read it.
+fn json(yaml: yaml_rust2::Yaml) -> Result<serde_json::Value, String> {
+    use yaml_rust2::Yaml;
+    Ok(match yaml {
+        Yaml::String(text) => serde_json::Value::String(text),
+        Yaml::Integer(number) => number.into(),
+        Yaml::Boolean(flag) => flag.into(),
+        Yaml::Null => serde_json::Value::Null,
+        Yaml::Real(text) => text
+            .parse::<f64>()
+            .map_err(|e| format!("{text}: {e}"))?
+            .into(),
+        Yaml::Array(items) => items
+            .into_iter()
+            .map(json)
+            .collect::<Result<Vec<_>, _>>()?
+            .into(),
+        Yaml::Hash(entries) => {
+            let mut map = serde_json::Map::new();
+            for (key, value) in entries {
+                let Yaml::String(key) = key else {
+                    return Err(format!("a key that is not text: {key:?}"));
+                };
+                map.insert(key, json(value)?);
+            }
+            map.into()
+        }
+        other => return Err(format!("unsupported YAML: {other:?}")),
+    })
 }
 
 /// Exception frame shape names used in the files.

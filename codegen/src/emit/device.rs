@@ -11,7 +11,7 @@ use proc_macro2::{Ident, Literal, TokenStream};
 use quote::quote;
 
 use super::names::{Imports, TypeNames};
-use super::{const_ident, doc_alias, doc_text, hex, ident, lit};
+use super::{const_ident, doc_alias, doc_text, exact, hex, ident, lit};
 use crate::model::{
     Apply, ExceptionStyle, Field, Kind, LongWrites, Model, Register, Scalar, ScaleSpec, Table,
 };
@@ -148,7 +148,7 @@ fn commands_module(model: &Model, imports: &Imports) -> TokenStream {
         let doc = doc_text(c.doc.as_deref());
         let const_doc = format!("`{name}`: {doc}");
         let register = &c.register;
-        let value = lit(u32::try_from(c.value).unwrap_or(u32::MAX));
+        let value = exact::<u32, _>(c.value, "command value");
         let busy_ms = lit(c.busy_ms.unwrap_or(0));
         let effect = variant(imports, "optobus_device::Effect", c.effect);
         let targets = &c.targets;
@@ -253,11 +253,12 @@ fn range_tokens(range: Option<(i64, i64)>) -> TokenStream {
 }
 
 fn sentinel_tokens(sentinel: Option<u64>) -> TokenStream {
-    match sentinel.and_then(|s| u32::try_from(s).ok()) {
-        Some(s) => {
+    match sentinel.map(u32::try_from) {
+        Some(Ok(s)) => {
             let s = hex(s);
             quote!(Some(#s))
         }
+        Some(Err(_)) => exact::<u32, _>(sentinel.unwrap_or_default(), "sentinel"),
         None => quote!(None),
     }
 }
@@ -317,8 +318,8 @@ fn register_info(
     let zh = register.zh.as_deref().unwrap_or("");
     let section = register.section.as_deref().unwrap_or("");
     let table = variant(imports, "optobus_device::Table", register.table);
-    let address = lit(u16::try_from(register.address.0).unwrap_or(u16::MAX));
-    let words = lit(u16::try_from(register.words.0).unwrap_or(u16::MAX));
+    let address = exact::<u16, _>(register.address.0, "address");
+    let words = exact::<u16, _>(register.words.0, "word count");
     let access = variant(imports, "optobus_device::Access", register.access);
     let value_kind = || imports.get("optobus_device::ValueKind");
     let mut codes = quote!(&[]);
@@ -377,7 +378,7 @@ fn register_info(
         Some(copy) => {
             let ty = imports.get("optobus_device::RepeatCopy");
             let repeat = &model.repeats[copy.repeat].name;
-            let number = lit(u8::try_from(copy.number).unwrap_or(u8::MAX));
+            let number = exact::<u8, _>(copy.number, "copy number");
             let member = &copy.base;
             quote!(Some(#ty { repeat: #repeat, number: #number, member: #member }))
         }
@@ -455,8 +456,8 @@ fn device_info(model: &Model, names: &TypeNames, imports: &Imports) -> TokenStre
     let functions = device.functions.iter().map(|f| lit(*f));
     let max_read_words = lit(device.max_read_words);
     let power_up_ms = lit(device.power_up_ms.unwrap_or(0));
-    let holding = lit(u16::try_from(device.holding_size).unwrap_or(u16::MAX));
-    let input = lit(u16::try_from(device.input_size).unwrap_or(u16::MAX));
+    let holding = exact::<u16, _>(device.holding_size, "holding table size");
+    let input = exact::<u16, _>(device.input_size, "input table size");
     let addressing = variant(
         imports,
         "optobus_device::Addressing",
@@ -476,13 +477,12 @@ fn device_info(model: &Model, names: &TypeNames, imports: &Imports) -> TokenStre
         },
     );
     let frame_shape = imports.get("optobus_device::FrameShape");
-    let wide: Vec<Literal> = if model.protocol.long_writes == LongWrites::Wide {
+    let wide: Vec<TokenStream> = if model.protocol.long_writes == LongWrites::Wide {
         model
             .registers
             .iter()
             .filter(|r| r.table == Table::Holding && r.access.writable() && r.words.0 == 2)
-            .filter_map(|r| u16::try_from(r.address.0).ok())
-            .map(lit)
+            .map(|r| exact::<u16, _>(r.address.0, "address"))
             .collect()
     } else {
         Vec::new()
@@ -490,7 +490,7 @@ fn device_info(model: &Model, names: &TypeNames, imports: &Imports) -> TokenStre
     let needs_save = model.protocol.apply == Apply::AfterSaveAndPowerCycle;
     let continuous = match &model.protocol.continuous_send {
         Some((register, code, _)) => {
-            let code = lit(u32::try_from(*code).unwrap_or(u32::MAX));
+            let code = exact::<u32, _>(*code, "continuous-send code");
             quote!(Some((#register, #code)))
         }
         None => quote!(None),
@@ -508,8 +508,8 @@ fn device_info(model: &Model, names: &TypeNames, imports: &Imports) -> TokenStre
     let reserved_info = imports.get("optobus_device::ReservedInfo");
     let reserved = model.reserved.iter().map(|r| {
         let table = variant(imports, "optobus_device::Table", r.table);
-        let from = lit(u16::try_from(r.from).unwrap_or(u16::MAX));
-        let to = lit(u16::try_from(r.to).unwrap_or(u16::MAX));
+        let from = exact::<u16, _>(r.from, "reserved address");
+        let to = exact::<u16, _>(r.to, "reserved address");
         let readable = r.readable;
         quote!(#reserved_info { table: #table, from: #from, to: #to, readable: #readable })
     });

@@ -464,7 +464,7 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
     let ready_ms = Literal::u64_unsuffixed(u64::from(model.device.power_up_ms.unwrap_or(0)) + 1000);
     let ready_doc = format!(
         "Polls until the device answers, for up to {} ms (the manual's start-up time plus one second); gives the time it took.",
-        model.device.power_up_ms.unwrap_or(0) + 1000
+        u64::from(model.device.power_up_ms.unwrap_or(0)) + 1000
     );
     let core = imports.get("optobus_driver::Core");
     let transport = imports.get("optobus_driver::Transport");

@@ -4,11 +4,11 @@
 //! `const` matches between variants and codes. Reading, writing (with its checks), names and
 //! `Display` come from `optobus_driver::{RawValue, CodeEnum}`.
 
-use proc_macro2::{Ident, Literal, Span, TokenStream};
+use proc_macro2::{Ident, Span, TokenStream};
 use quote::quote;
 
 use super::names::Imports;
-use super::{camel, doc_text, lit};
+use super::{camel, doc_text, exact, lit};
 use crate::model::{Code, EnumDef};
 
 /// The variant of each code, in order.
@@ -38,8 +38,8 @@ fn code_doc(code: &Code) -> String {
     )
 }
 
-fn code_value(code: &Code) -> u32 {
-    u32::try_from(code.code).unwrap_or(u32::MAX)
+fn code_value(code: &Code) -> TokenStream {
+    exact::<u32, _>(code.code, "enum code")
 }
 
 /// The table of codes that ends the enum's documentation.
@@ -64,7 +64,7 @@ fn code_table(def: &EnumDef) -> Vec<String> {
 pub(super) fn enum_type(def: &EnumDef, ident: &Ident, imports: &Imports) -> TokenStream {
     let variants = variant_idents(def);
     let docs = def.codes.iter().map(code_doc);
-    let raws: Vec<Literal> = def.codes.iter().map(|c| lit(code_value(c))).collect();
+    let raws: Vec<TokenStream> = def.codes.iter().map(code_value).collect();
     let names = def.codes.iter().map(|c| c.name.as_str());
     let meanings = def.codes.iter().map(|c| c.meaning.as_deref().unwrap_or(""));
     let code_docs = def.codes.iter().map(|c| doc_text(c.doc.as_deref()));

@@ -19,7 +19,7 @@ mod names;
 mod values;
 
 use proc_macro2::{Ident, Literal, Span, TokenStream};
-use quote::quote;
+use quote::{quote, ToTokens};
 
 use crate::model::Model;
 use names::{Imports, TypeNames};
@@ -116,6 +116,26 @@ fn lit(value: impl Into<i128>) -> Literal {
         Literal::i128_unsuffixed(value)
     } else {
         Literal::u128_unsuffixed(value.unsigned_abs())
+    }
+}
+
+/// `value` as a literal of type `T`. The checker refuses every value that does not fit; should
+/// one reach the emitter anyway, the output says so with `compile_error!` rather than hold a
+/// clamped or wrapped number.
+fn exact<T, V>(value: V, what: &str) -> TokenStream
+where
+    T: TryFrom<V> + Into<i128>,
+    V: Copy + std::fmt::Display,
+{
+    match T::try_from(value) {
+        Ok(fits) => lit(fits).into_token_stream(),
+        Err(_) => {
+            let message = format!(
+                "{what} {value} does not fit {}: the spec checker should have refused it",
+                std::any::type_name::<T>()
+            );
+            quote::quote!(compile_error!(#message))
+        }
     }
 }
 

@@ -7,7 +7,7 @@ use proc_macro2::{Ident, Literal, TokenStream};
 use quote::{format_ident, quote};
 
 use super::names::{Imports, TypeNames};
-use super::{doc_text, hex, lit, type_ident};
+use super::{doc_text, exact, hex, lit, type_ident};
 use crate::model::{Field, Kind, Model, Register, Scalar};
 
 /// The value structs of every register (once for all copies of a repeat member), then the
@@ -21,9 +21,8 @@ pub(super) fn value_types(model: &Model, names: &TypeNames, imports: &Imports) -
     let repeats = model.repeats.iter().map(|repeat| {
         let ident = type_ident(&repeat.name);
         let doc = doc_text(repeat.doc.as_deref());
-        let count_value = u8::try_from(repeat.count).unwrap_or(u8::MAX);
-        let count_doc = format!("Number of {}s: {count_value}.", repeat.name);
-        let count = lit(count_value);
+        let count_doc = format!("Number of {}s: {}.", repeat.name, repeat.count);
+        let count = exact::<u8, _>(repeat.count, "repeat count");
         let option = imports.prelude("core::option::Option");
         quote! {
             #[doc = #doc]

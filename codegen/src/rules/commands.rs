@@ -1,5 +1,5 @@
 //! `command`: a command writes an existing, writable register with a value it accepts, and its
-//! targets exist.
+//! targets exist; the continuous-send code is a value its register accepts.
 
 use crate::diagnostic::Diagnostic;
 use crate::model::{Kind, Model, Register};
@@ -28,9 +28,27 @@ pub fn accepts(model: &Model, register: &Register, value: i64) -> bool {
 
 /// Checks commands.
 pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+    if let Some((name, code, path)) = &model.protocol.continuous_send {
+        let code_path = path.parent().key("code");
+        match model.register(name) {
+            Some(register) if u32::try_from(*code).is_err() || !accepts(model, register, *code) => {
+                out.push(
+                    Diagnostic::at(
+                        RULE,
+                        &code_path,
+                        format!("continuous send writes {code} to `{name}`, which refuses it"),
+                    )
+                    .label("outside the register's range or codes")
+                    .also(&register.path.key("name"), "register defined here"),
+                )
+            }
+            _ => {}
+        }
+    }
     for command in &model.commands {
         let register_path = command.path.key("register");
         match model.resolve(&command.register) {
+            None if model.is_unread(&command.register) => {}
             None => out.push(
                 Diagnostic::at(
                     RULE,
@@ -55,6 +73,17 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 .also(&register.path.key("access"), "declared read-only here")
                 .help("a command acts through a writable register (access `w` or `rw`)"),
             ),
+            Some(_) if u32::try_from(command.value).is_err() => out.push(
+                Diagnostic::at(
+                    RULE,
+                    &command.path.key("value"),
+                    format!(
+                        "command `{}` writes {}; a command value is 0 to 4294967295",
+                        command.name, command.value
+                    ),
+                )
+                .label("outside 0..=4294967295"),
+            ),
             Some(register) if !accepts(model, register, command.value) => out.push(
                 Diagnostic::at(
                     RULE,
@@ -70,7 +99,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             Some(_) => {}
         }
         for (i, target) in command.targets.iter().enumerate() {
-            if model.resolve(target).is_none() {
+            if model.resolve(target).is_none() && !model.is_unread(target) {
                 out.push(
                     Diagnostic::at(
                         RULE,

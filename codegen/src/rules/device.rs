@@ -1,8 +1,10 @@
-//! `device`: device facts agree with themselves and with Modbus (slave range, bauds, function
-//! codes, read limit).
+//! `device`: device facts agree with themselves and with Modbus (slave range, bauds and line
+//! format, function codes, read limit, table sizes).
 
 use crate::diagnostic::Diagnostic;
-use crate::model::Model;
+use optobus_codec::LineFormatError;
+
+use crate::model::{Model, Table};
 use crate::source::Path;
 
 /// Rule name.
@@ -28,6 +30,41 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         );
     }
     if let Some(rtu) = &device.rtu {
+        let rtu_path = path.key("transports").key("rtu");
+        let line = |baud| optobus_codec::LineFormat {
+            baud,
+            data_bits: rtu.data_bits,
+            parity: rtu.parity,
+            stop_bits: rtu.stop_bits,
+        };
+        for (i, baud) in rtu.bauds.iter().enumerate() {
+            if line(*baud).check() == Err(LineFormatError::ZeroBaud) {
+                out.push(
+                    Diagnostic::at(RULE, &rtu_path.key("bauds").index(i), "a baud rate of 0")
+                        .label("no line runs at 0 baud"),
+                );
+            }
+        }
+        match line(rtu.default_baud).check() {
+            Err(LineFormatError::DataBits(bits)) => out.push(
+                Diagnostic::at(
+                    RULE,
+                    &rtu_path.key("data_bits"),
+                    format!("{bits} data bits: a serial line carries 5 to 8"),
+                )
+                .label("out of range")
+                .help("Modbus RTU uses 8"),
+            ),
+            Err(LineFormatError::StopBits(bits)) => out.push(
+                Diagnostic::at(
+                    RULE,
+                    &rtu_path.key("stop_bits"),
+                    format!("{bits} stop bits: a serial line has 1 or 2"),
+                )
+                .label("out of range"),
+            ),
+            _ => {}
+        }
         if !rtu.bauds.contains(&rtu.default_baud) {
             out.push(
                 Diagnostic::at(
@@ -52,8 +89,28 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             .label("out of range"),
         );
     }
+    if device.functions.is_empty() {
+        out.push(
+            Diagnostic::at(
+                RULE,
+                &path.key("functions"),
+                "the device answers no function code",
+            )
+            .label("empty")
+            .help("list the codes the manual names, e.g. `[3, 4, 6]`"),
+        );
+    }
     for (i, function) in device.functions.iter().enumerate() {
-        if ![3, 4, 6].contains(function) {
+        if device.functions[..i].contains(function) {
+            out.push(
+                Diagnostic::at(
+                    RULE,
+                    &path.key("functions").index(i),
+                    format!("function code {function} is listed twice"),
+                )
+                .label("again here"),
+            );
+        } else if ![3, 4, 6].contains(function) {
             out.push(
                 Diagnostic::at(
                     RULE,
@@ -63,6 +120,33 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 .label("expected 3, 4 or 6"),
             );
         }
+    }
+    for table in [Table::Holding, Table::Input] {
+        let size = device.table_size(table);
+        if size > u32::from(u16::MAX) {
+            out.push(
+                Diagnostic::at(
+                    RULE,
+                    &path.key("tables").key(table.as_str()),
+                    format!(
+                        "a {} table of {size} registers: Modbus addresses end at 65535",
+                        table.as_str()
+                    ),
+                )
+                .label("more registers than 16-bit addresses"),
+            );
+        }
+    }
+    if device.tcp.as_ref().is_some_and(|tcp| tcp.port == 0) {
+        out.push(
+            Diagnostic::at(
+                RULE,
+                &path.key("transports").key("tcp").key("port"),
+                "TCP port 0",
+            )
+            .label("no server listens on port 0")
+            .help("Modbus TCP uses 502"),
+        );
     }
     if device.rtu.is_none() && device.tcp.is_none() {
         out.push(

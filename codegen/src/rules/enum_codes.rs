@@ -1,10 +1,11 @@
 //! `enum-codes`: an enum has codes, no duplicate codes or names, and codes that fit the value
-//! they are stored in.
+//! they are stored in: 0 to 2^32 - 1 for any enum, and the bits of each register, field or
+//! exception reply that uses it.
 
 use std::collections::HashMap;
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{Kind, Model};
+use crate::model::{ExceptionStyle, Kind, Model};
 use crate::source::Path;
 
 /// Rule name.
@@ -17,6 +18,20 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             out.push(
                 Diagnostic::at(RULE, &def.path, format!("enum `{}` has no codes", def.name))
                     .label("empty"),
+            );
+        }
+        for code in def.codes.iter().filter(|c| u32::try_from(c.code).is_err()) {
+            out.push(
+                Diagnostic::at(
+                    RULE,
+                    &code.path.key("code"),
+                    format!(
+                        "code {} of `{}` is not a raw register value",
+                        code.code, def.name
+                    ),
+                )
+                .label("outside 0..=4294967295")
+                .help("codes are the unsigned bits the device sends"),
             );
         }
         let mut codes = HashMap::new();
@@ -45,23 +60,45 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         }
     }
     // Codes fit the storage of every user of the enum.
+    let mut users = Vec::new();
+    if let Some(reference) = &model.protocol.exception_codes {
+        let bits = match model.protocol.exception {
+            ExceptionStyle::Standard => 8,
+            ExceptionStyle::CountedWord => 16,
+        };
+        users.push((reference, bits, "exception replies".to_owned()));
+    }
     for register in super::declared(model) {
-        let mut users = Vec::new();
+        let name = &register.name;
         match &register.kind {
             Kind::Enum(reference) => {
                 let bits = 16 * register.words.0.min(2);
-                users.push((reference, bits));
+                users.push((reference, bits, format!("`{name}`")));
             }
             Kind::Packed(fields) => {
                 for field in fields {
                     if let (Some(reference), Some(width)) = (&field.enum_ref, field.width) {
-                        users.push((reference, u32::from(width)));
+                        users.push((
+                            reference,
+                            u32::from(width),
+                            format!("`{name}.{}`", field.name),
+                        ));
+                    }
+                }
+            }
+            Kind::Record(fields) => {
+                for field in fields {
+                    if let Some(reference) = &field.enum_ref {
+                        let bits = 16 * field.scalar.map_or(1, |s| s.words());
+                        users.push((reference, bits, format!("`{name}.{}`", field.name)));
                     }
                 }
             }
             _ => {}
         }
-        for (reference, bits) in users {
+    }
+    {
+        for (reference, bits, user) in users {
             let Some(def) = model.enum_def(reference) else {
                 continue;
             };
@@ -70,14 +107,18 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             } else {
                 (1i64 << bits) - 1
             };
-            for code in def.codes.iter().filter(|c| c.code < 0 || c.code > max) {
+            for code in def
+                .codes
+                .iter()
+                .filter(|c| c.code > max && u32::try_from(c.code).is_ok())
+            {
                 out.push(
                     Diagnostic::at(
                         RULE,
                         &code.path.key("code"),
                         format!(
-                            "code {} of `{}` does not fit the {bits} bits of `{}`",
-                            code.code, def.name, register.name
+                            "code {} of `{}` does not fit the {bits} bits of {user}",
+                            code.code, def.name
                         ),
                     )
                     .label(format!("outside 0..={max}"))

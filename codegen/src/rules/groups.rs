@@ -22,6 +22,9 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         let mut first: Option<(&str, crate::model::Table, &crate::source::Path)> = None;
         for (name, path) in &group.registers {
             let Some(register) = model.resolve(name) else {
+                if model.is_unread(name) {
+                    continue;
+                }
                 out.push(
                     Diagnostic::at(
                         RULE,

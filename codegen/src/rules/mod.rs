@@ -11,6 +11,7 @@ pub mod device;
 pub mod docs;
 pub mod enum_codes;
 pub mod groups;
+pub mod name_clash;
 pub mod names;
 pub mod overlap;
 pub mod range;
@@ -19,6 +20,7 @@ pub mod repeats;
 pub mod scale;
 pub mod sentinel;
 pub mod table_bounds;
+pub mod text;
 pub mod type_width;
 pub mod write_order;
 
@@ -39,6 +41,10 @@ pub const RULES: &[Rule] = &[
     Rule {
         name: names::FORMAT_RULE,
         check: names::check_format,
+    },
+    Rule {
+        name: name_clash::RULE,
+        check: name_clash::check,
     },
     Rule {
         name: references::RULE,

@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use crate::diagnostic::Diagnostic;
-use crate::model::Model;
+use crate::model::{Kind, Model};
 use crate::source::Path;
 
 /// Rule name of the uniqueness check.
@@ -81,6 +81,9 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     );
 }
 
+/// Keywords no Rust name may be, not even as `r#…`.
+const RESERVED: [&str; 3] = ["self", "super", "crate"];
+
 /// True for `snake_case` starting with a letter.
 pub fn is_snake_case(name: &str) -> bool {
     name.starts_with(|c: char| c.is_ascii_lowercase())
@@ -108,6 +111,23 @@ pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
             r.path.key("name"),
         )
     }));
+    for register in super::declared(model) {
+        match &register.kind {
+            Kind::Packed(fields) | Kind::Record(fields) => {
+                names.extend(fields.iter().map(|f| keyed(&f.name, &f.path)));
+            }
+            Kind::Version(parts) => {
+                let at = register.path.key("parts");
+                names.extend(
+                    parts
+                        .iter()
+                        .enumerate()
+                        .map(|(i, p)| (p.as_str(), at.index(i))),
+                );
+            }
+            _ => {}
+        }
+    }
     for e in &model.enums {
         if e.shared {
             names.push((&e.name, e.path.clone()));
@@ -118,7 +138,17 @@ pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
     names.extend(model.groups.iter().map(|g| keyed(&g.name, &g.path)));
     names.extend(model.repeats.iter().map(|r| keyed(&r.name, &r.path)));
     for (name, path) in names {
-        if !is_snake_case(name) {
+        if RESERVED.contains(&name) {
+            out.push(
+                Diagnostic::at(
+                    FORMAT_RULE,
+                    &path,
+                    format!("`{name}` is a Rust path keyword"),
+                )
+                .label("cannot name a generated item")
+                .help("choose a more telling name"),
+            );
+        } else if !is_snake_case(name) {
             out.push(
                 Diagnostic::at(FORMAT_RULE, &path, format!("`{name}` is not snake_case"))
                     .label("expected lowercase letters, digits and single underscores")

@@ -8,7 +8,7 @@ use crate::model::{EnumRef, Kind, Model};
 pub const RULE: &str = "unknown-reference";
 
 fn check_enum(model: &Model, reference: &EnumRef, out: &mut Vec<Diagnostic>) {
-    if reference.index.is_none() {
+    if reference.index.is_none() && !model.is_unread(&reference.name) {
         let known: Vec<&str> = model
             .enums
             .iter()
@@ -40,7 +40,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             _ => {}
         }
         if let Some(target) = &register.alias_of {
-            if model.register(target).is_none() {
+            if model.register(target).is_none() && !model.is_unread(target) {
                 out.push(
                     Diagnostic::at(
                         RULE,
@@ -56,7 +56,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         }
     }
     if let Some(reference) = &model.protocol.exception_codes {
-        if reference.index.is_none() {
+        if reference.index.is_none() && !model.is_unread(&reference.name) {
             out.push(
                 Diagnostic::at(
                     RULE,
@@ -68,7 +68,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         }
     }
     if let Some((name, _, path)) = &model.protocol.continuous_send {
-        if model.register(name).is_none() {
+        if model.register(name).is_none() && !model.is_unread(name) {
             out.push(
                 Diagnostic::at(
                     RULE,

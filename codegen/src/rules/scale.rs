@@ -9,8 +9,22 @@ use crate::model::{Kind, Model, ScaleSpec};
 /// Rule name.
 pub const RULE: &str = "scale";
 
-/// Reads a scale written in a spec.
+/// Reads a scale written in a spec; a power of ten must lie in [`Scale::DECIMAL_EXPONENTS`], the
+/// steps with which every raw value prints exactly.
 pub fn parse_scale(text: &str) -> Result<Scale, String> {
+    match read_scale(text)? {
+        Scale::Decimal { exponent } if !Scale::DECIMAL_EXPONENTS.contains(&exponent) => {
+            Err(format!(
+                "1e{exponent} is beyond the steps a value prints exactly (1e{} to 1e{})",
+                Scale::DECIMAL_EXPONENTS.start(),
+                Scale::DECIMAL_EXPONENTS.end()
+            ))
+        }
+        scale => Ok(scale),
+    }
+}
+
+fn read_scale(text: &str) -> Result<Scale, String> {
     let text = text.trim();
     if let Some((numerator, denominator)) = text.split_once('/') {
         let numerator: u32 = numerator
@@ -47,17 +61,19 @@ pub fn parse_scale(text: &str) -> Result<Scale, String> {
     if let Some(decimals) = text.strip_prefix("0.") {
         if let Some(zeros) = decimals.strip_suffix('1') {
             if zeros.chars().all(|c| c == '0') {
-                return Ok(Scale::Decimal {
-                    exponent: -(zeros.len() as i8) - 1,
-                });
+                return i8::try_from(zeros.len() + 1)
+                    .map(|decimals| Scale::Decimal {
+                        exponent: -decimals,
+                    })
+                    .map_err(|_| format!("`{text}` has too many decimals"));
             }
         }
     }
     if let Some(zeros) = text.strip_prefix('1') {
-        if !zeros.is_empty() && zeros.chars().all(|c| c == '0') && zeros.len() < 19 {
-            return Ok(Scale::Decimal {
-                exponent: zeros.len() as i8,
-            });
+        if !zeros.is_empty() && zeros.chars().all(|c| c == '0') {
+            return i8::try_from(zeros.len())
+                .map(|exponent| Scale::Decimal { exponent })
+                .map_err(|_| format!("`{text}` has too many digits"));
         }
     }
     Err(format!("`{text}` is not an exact scale"))
@@ -112,5 +128,11 @@ mod tests {
         assert!(parse_scale("1/0").is_err());
         assert!(parse_scale("2e-3").is_err());
         assert!(parse_scale("abc").is_err());
+        assert_eq!(parse_scale("1e-37"), Ok(Scale::Decimal { exponent: -37 }));
+        assert!(parse_scale("1e-38").is_err());
+        assert!(parse_scale("1e127").is_err());
+        assert!(parse_scale("1e20").is_err());
+        assert!(parse_scale(&format!("0.{}1", "0".repeat(300))).is_err());
+        assert!(parse_scale(&format!("1{}", "0".repeat(300))).is_err());
     }
 }

@@ -25,6 +25,11 @@ impl Scale {
     /// One step is one unit.
     pub const ONE: Self = Self::Decimal { exponent: 0 };
 
+    /// The decimal exponents with which every `i64` count of steps prints exactly: up to
+    /// 10^19 steps times `i64::MAX` still fits the 128-bit numerator, and down to 10^-37 the
+    /// printed digits' remainder times ten still fits 128 bits. Specs are held to it.
+    pub const DECIMAL_EXPONENTS: core::ops::RangeInclusive<i8> = -37..=19;
+
     /// `numerator / denominator`; `None` when the denominator is zero.
     pub const fn ratio(numerator: u32, denominator: u32) -> Option<Self> {
         match NonZeroU32::new(denominator) {
@@ -368,7 +373,11 @@ impl fmt::Display for Fixed {
                 // A ratio whose decimal expansion does not end: say so rather than loop.
                 return f.write_str("…");
             }
-            remainder *= 10;
+            // Cannot overflow within `DECIMAL_EXPONENTS`; beyond them, stop rather than wrap.
+            let Some(shifted) = remainder.checked_mul(10) else {
+                return f.write_str("…");
+            };
+            remainder = shifted;
             write!(f, "{}", remainder / den)?;
             remainder %= den;
             written += 1;
@@ -442,6 +451,69 @@ mod tests {
         );
         assert_eq!("12".parse::<Fixed>().unwrap(), Fixed::new(12, Scale::ONE));
         assert!("1e3".parse::<Fixed>().is_err());
+    }
+
+    /// `raw × 10^exponent` written out from `raw`'s own digits.
+    fn digits(raw: i64, exponent: i8) -> std::string::String {
+        use std::format;
+        let digits = raw.unsigned_abs().to_string();
+        let sign = if raw < 0 { "-" } else { "" };
+        let decimals = usize::from(exponent.unsigned_abs());
+        if exponent >= 0 {
+            let zeros = if raw == 0 { 0 } else { decimals };
+            format!("{sign}{digits}{}", "0".repeat(zeros))
+        } else {
+            let padded = format!("{digits:0>width$}", width = decimals + 1);
+            let (whole, fraction) = padded.split_at(padded.len() - decimals);
+            format!("{sign}{whole}.{fraction}")
+        }
+    }
+
+    /// Every decimal scale specs may use prints every `i64` count exactly, digit for digit,
+    /// and nothing overflows.
+    #[test]
+    fn every_accepted_decimal_scale_prints_every_count() {
+        use proptest::prelude::*;
+        let mut runner = proptest::test_runner::TestRunner::default();
+        let exponents = *Scale::DECIMAL_EXPONENTS.start()..=*Scale::DECIMAL_EXPONENTS.end();
+        let raws = prop_oneof![
+            Just(i64::MIN),
+            Just(i64::MAX),
+            Just(0i64),
+            Just(-1i64),
+            any::<i64>(),
+            any::<u32>().prop_map(i64::from),
+            any::<i32>().prop_map(i64::from),
+        ];
+        runner
+            .run(&(exponents, raws), |(exponent, raw)| {
+                let scale = Scale::Decimal { exponent };
+                let text = Fixed::new(raw, scale).to_string();
+                prop_assert_eq!(text, digits(raw, exponent));
+                Ok(())
+            })
+            .unwrap();
+        // Ratios: a u32 over a u32 never overflows; a terminating one reads back.
+        runner
+            .run(
+                &(1u32.., 0u32..=31, any::<i64>()),
+                |(numerator, shift, raw)| {
+                    let scale = Scale::ratio(numerator, 1 << shift).unwrap();
+                    let text = Fixed::new(raw, scale).to_string();
+                    prop_assert!(!text.contains('×'), "{text}");
+                    Ok(())
+                },
+            )
+            .unwrap();
+    }
+
+    #[test]
+    fn scales_beyond_the_bounds_print_without_overflow() {
+        for exponent in [-128, -38, 20, 38, 127] {
+            for raw in [i64::MIN, -1, 1, i64::MAX] {
+                let _ = Fixed::new(raw, Scale::Decimal { exponent }).to_string();
+            }
+        }
     }
 
     #[test]
