@@ -7,6 +7,7 @@
 //! points at the spec's line and column and is rendered like rustc.
 #![forbid(unsafe_code)]
 
+pub mod describe;
 pub mod diagnostic;
 pub mod emit;
 pub mod json;
@@ -16,6 +17,7 @@ pub mod rules;
 pub mod source;
 mod syntax;
 
+pub use describe::describe;
 pub use diagnostic::{render_all, Diagnostic};
 pub use model::Model;
 pub use source::SourceFile;
