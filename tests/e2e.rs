@@ -26,7 +26,12 @@ async fn read_registers<T: Transport>(sim: &Simulator, core: &mut Core<T>) -> us
             .read_words(register)
             .await
             .unwrap_or_else(|e| panic!("{}: {e}", register.name));
-        assert_eq!(words.len(), usize::from(register.words), "{}", register.name);
+        assert_eq!(
+            words.len(),
+            usize::from(register.words),
+            "{}",
+            register.name
+        );
         // A read that turns a buffer page shows the page it turned away from.
         assert_eq!(words, before, "{}", register.name);
         compared += 1;

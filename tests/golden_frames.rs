@@ -6,8 +6,8 @@ use optobus_codec::{
     rtu, tcp, DecodeError, Decoded, ExceptionCode, ExceptionShape, FrameShape, ReadFunction,
     Request, Response, WriteValue,
 };
-use optobus_tests::golden::{self as files,
-    Direction, Entry, Origin, Transport, ValueSpec, ValueType, WordOrderName,
+use optobus_tests::golden::{
+    self as files, Direction, Entry, Origin, Transport, ValueSpec, ValueType, WordOrderName,
 };
 
 /// How many frames each manual prints (and how many we completed from its templates). A
@@ -407,7 +407,10 @@ fn every_golden_file_names_a_spec() {
     let mut checked = 0;
     for path in files.filter_map(|e| e.ok().map(|e| e.path())) {
         if path.extension().is_some_and(|e| e == "yaml") {
-            let family = path.file_stem().and_then(|s| s.to_str()).unwrap_or_default();
+            let family = path
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or_default();
             assert!(
                 optobus_tests::specs::path(family).exists(),
                 "{} has no spec",

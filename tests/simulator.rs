@@ -11,8 +11,8 @@ use optobus_codec::{
 use optobus_device::{DeviceInfo, Table};
 use optobus_simulator::{Bus, Quirks, Reply, Simulator};
 use optobus_tests::generated::{ccf, ccs, lc_rs, mini, p_series, rangefinder};
-use optobus_tests::specs;
 use optobus_tests::golden::{self, Direction, Transport};
+use optobus_tests::specs;
 use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream};
 use tokio::net::TcpStream;
 use tokio::time::{sleep, timeout};

@@ -104,8 +104,7 @@ fn invalid_values_never_reach_the_wire(family: &str) {
                 };
                 if max_code < limit {
                     let bits = (max_code + 1) << field.lsb;
-                    let error =
-                        optobus_driver::encode_packed(register, Some(bits)).unwrap_err();
+                    let error = optobus_driver::encode_packed(register, Some(bits)).unwrap_err();
                     assert!(
                         matches!(error, Error::UndefinedCode { field: Some(f), .. } if f == field.name),
                         "{}: {error}",

@@ -7,7 +7,7 @@
 //! each. The description is leaked to `'static`: a tool describes a handful of specs once.
 
 use optobus_device::{
-    CodeInfo, DeviceInfo, ExceptionShape, FieldInfo, FrameShape, GroupInfo, CommandInfo,
+    CodeInfo, CommandInfo, DeviceInfo, ExceptionShape, FieldInfo, FrameShape, GroupInfo,
     RegisterInfo, RepeatCopy, ReservedInfo, RtuInfo, Scale, TcpInfo, ValueKind,
 };
 
@@ -76,7 +76,9 @@ impl<'m> Describer<'m> {
     }
 
     fn codes(&self, index: Option<usize>) -> &'static [CodeInfo] {
-        index.and_then(|i| self.codes.get(i).copied()).unwrap_or(&[])
+        index
+            .and_then(|i| self.codes.get(i).copied())
+            .unwrap_or(&[])
     }
 
     fn device(&self) -> DeviceInfo {

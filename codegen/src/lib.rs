@@ -14,6 +14,7 @@ pub mod json;
 mod lower;
 pub mod model;
 pub mod rules;
+pub mod scaffold;
 pub mod source;
 mod syntax;
 
