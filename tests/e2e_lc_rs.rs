@@ -15,7 +15,7 @@ async fn every_register_and_group() {
     assert_eq!(e2e::sweep(sensor.core()).await, 8);
     sensor.read_measurements().await.unwrap();
     let serial = sensor.read_serial_settings().await.unwrap();
-    assert_eq!(serial.slave_address, DEVICE.default_slave.into());
+    assert_eq!(serial.slave_address, u16::from(DEVICE.default_slave));
     let version = sensor.firmware_version().await.unwrap();
     assert!(!version.to_string().is_empty());
 }
