@@ -1,15 +1,14 @@
-//! The generator's output for every spec compiles with `#![deny(missing_docs, warnings)]`, and
-//! its description agrees with the spec's JSON dump and the golden frames.
+//! The generator's output for every spec compiles with `#![deny(missing_docs, warnings)]`
+//! (`tests/build.rs` generates each spec of `specs/`), its `DEVICE` is the runtime description
+//! a tool builds from the same file, and it agrees with the spec's JSON dump and the golden
+//! frames.
 
 use optobus_device::{DeviceInfo, Table, ValueKind};
-use optobus_tests::generated::{ccf, ccs, lc_rs, mini, p_series, rangefinder};
+use optobus_tests::generated::{self, ccf, lc_rs, mini, p_series, rangefinder};
+use optobus_tests::specs;
 
 fn spec_json(family: &str) -> serde_json::Value {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../specs")
-        .join(format!("{family}.yaml"));
-    let model = optobus_codegen::check_file(&path).unwrap_or_else(|r| panic!("{}", r.render()));
-    optobus_codegen::json::dump(&model)
+    optobus_codegen::json::dump(&specs::model(family))
 }
 
 /// The static description lists exactly the registers of the JSON dump, with the same table,
@@ -38,17 +37,37 @@ fn matches_dump(device: &DeviceInfo) {
     );
 }
 
+/// `generated_code::<family>`: the compiled `DEVICE` equals the runtime description of the
+/// spec, field for field, and lists what the JSON dump lists.
+fn compiled_and_described_agree(family: &str) {
+    let compiled = generated::device(family).expect("build.rs generated every spec");
+    let described = specs::describe(family);
+    assert_eq!(compiled, described, "{family}");
+    assert!(!described.registers.is_empty(), "{family}: no registers");
+    matches_dump(compiled);
+}
+
+optobus_tests::family_cases!(generated_code, compiled_and_described_agree);
+
 #[test]
-fn descriptions_match_the_specs() {
-    for device in [
-        &p_series::DEVICE,
-        &rangefinder::DEVICE,
-        &ccs::DEVICE,
-        &lc_rs::DEVICE,
-        &ccf::DEVICE,
+fn family_crates_carry_the_runtime_description() {
+    for crate_device in [
+        &optobus_p_series::DEVICE,
+        &optobus_rangefinder::DEVICE,
+        &optobus_ccs::DEVICE,
+        &optobus_lc_rs::DEVICE,
+        &optobus_ccf::DEVICE,
     ] {
-        matches_dump(device);
+        assert_eq!(crate_device, specs::describe(crate_device.family));
     }
+}
+
+#[test]
+fn mini_runtime_description_matches_its_generated_code() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../codegen/tests/fixtures/mini.yaml");
+    let model = optobus_codegen::check_file(&path).unwrap_or_else(|r| panic!("{}", r.render()));
+    assert_eq!(&mini::DEVICE, optobus_codegen::describe(&model));
 }
 
 #[test]

@@ -12,18 +12,10 @@ use optobus_device::{DeviceInfo, Table};
 use optobus_simulator::{Bus, Quirks, Reply, Simulator};
 use optobus_tests::generated::{ccf, ccs, lc_rs, mini, p_series, rangefinder};
 use optobus_tests::golden::{self, Direction, Transport};
+use optobus_tests::specs;
 use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream};
 use tokio::net::TcpStream;
 use tokio::time::{sleep, timeout};
-
-const FAMILIES: [(&str, &DeviceInfo); 6] = [
-    ("p_series", &p_series::DEVICE),
-    ("rangefinder", &rangefinder::DEVICE),
-    ("ccs", &ccs::DEVICE),
-    ("lc_rs", &lc_rs::DEVICE),
-    ("ccf", &ccf::DEVICE),
-    ("mini", &mini::DEVICE),
-];
 
 // ---------------------------------------------------------------------------- helpers
 
@@ -188,17 +180,14 @@ async fn replay_golden(family: &str, device: &'static DeviceInfo, transport: Tra
     replayed
 }
 
-#[tokio::test(start_paused = true)]
-async fn golden_rtu_replies_byte_for_byte() {
-    let mut total = 0;
-    for (family, device) in FAMILIES.iter().filter(|(f, _)| *f != "mini") {
-        let replayed = replay_golden(family, device, Transport::Rtu).await;
-        assert!(replayed > 0, "{family}: no golden reply replayed");
-        total += replayed;
-    }
-    // P series 3, rangefinder 49, CCS 3, LC-RS 10, CCF 3.
-    assert_eq!(total, 68);
+/// `golden_replies::<family>`: the simulator of the spec's runtime description earns every
+/// RTU reply of the family's golden file, byte for byte.
+async fn replays_golden_rtu(family: &str) {
+    let replayed = replay_golden(family, specs::describe(family), Transport::Rtu).await;
+    assert!(replayed > 0, "{family}: no golden reply replayed");
 }
+
+optobus_tests::golden_cases!(golden_replies, async replays_golden_rtu);
 
 #[tokio::test]
 async fn golden_tcp_replies_byte_for_byte() {
@@ -678,33 +667,46 @@ async fn random_bytes_never_break_the_server() {
     assert_eq!(line.words(25, &holding(3, 1)).await, [25]);
 }
 
+/// `simulator::<family>`: the simulator of the spec's runtime description answers a read of
+/// every readable register with its words, and no request panics it.
+fn answers_and_survives(family: &str) {
+    let device = specs::describe(family);
+    answers_every_readable_register(family, device);
+    no_request_panics(family, device);
+}
+
+optobus_tests::family_cases!(simulator, answers_and_survives);
+
 #[test]
-fn no_request_panics_the_engine() {
-    for (family, device) in FAMILIES {
-        let sim = Simulator::new(device);
-        for function in [ReadFunction::Holding, ReadFunction::Input] {
-            for address in (0..=200).chain([u16::MAX - 1, u16::MAX]) {
-                for count in [0, 1, 2, 3, 6, 8, 9, 60, 122, 125, 126, u16::MAX] {
-                    let reply = sim.request(sim.address(), &read(function, address, count));
-                    if let Reply::Read { words, .. } = reply {
-                        assert_eq!(words.len(), usize::from(count), "{family}");
-                    }
+fn mini_answers_and_survives() {
+    answers_every_readable_register("mini", &mini::DEVICE);
+    no_request_panics("mini", &mini::DEVICE);
+}
+
+fn no_request_panics(family: &str, device: &'static DeviceInfo) {
+    let sim = Simulator::new(device);
+    for function in [ReadFunction::Holding, ReadFunction::Input] {
+        for address in (0..=200).chain([u16::MAX - 1, u16::MAX]) {
+            for count in [0, 1, 2, 3, 6, 8, 9, 60, 122, 125, 126, u16::MAX] {
+                let reply = sim.request(sim.address(), &read(function, address, count));
+                if let Reply::Read { words, .. } = reply {
+                    assert_eq!(words.len(), usize::from(count), "{family}");
                 }
             }
         }
-        for address in (0..=200).chain([u16::MAX]) {
-            for value in [0, 1, 2, 170, 0x00FF, 0x7FFF, 0x8000, 0xFFFF] {
-                sim.request(sim.address(), &write(address, value));
-                let wide = Request::Write {
-                    address,
-                    value: WriteValue::DoubleWord(u32::from(value) << 8),
-                };
-                sim.request(sim.address(), &wide);
-            }
-        }
-        // Whatever was written, the device still answers (busy commands aside).
-        sim.power_cycle();
     }
+    for address in (0..=200).chain([u16::MAX]) {
+        for value in [0, 1, 2, 170, 0x00FF, 0x7FFF, 0x8000, 0xFFFF] {
+            sim.request(sim.address(), &write(address, value));
+            let wide = Request::Write {
+                address,
+                value: WriteValue::DoubleWord(u32::from(value) << 8),
+            };
+            sim.request(sim.address(), &wide);
+        }
+    }
+    // Whatever was written, the device still answers (busy commands aside).
+    sim.power_cycle();
 }
 
 // ---------------------------------------------------------------------------- TCP
@@ -878,20 +880,17 @@ async fn factory_defaults_follow_the_spec() {
     assert!(distance.words == [0, 0] || (10_000.0..20_000.0).contains(&millimetres));
 }
 
-#[test]
-fn every_family_answers_every_readable_register() {
-    for (family, device) in FAMILIES {
-        let sim = Simulator::new(device);
-        for register in device.readable_registers() {
-            let function = match register.table {
-                Table::Holding => ReadFunction::Holding,
-                Table::Input => ReadFunction::Input,
-            };
-            let request = read(function, register.address, register.words);
-            match sim.request(sim.address(), &request) {
-                Reply::Read { words, .. } => assert_eq!(words.len(), usize::from(register.words)),
-                other => panic!("{family} {}: {other:?}", register.name),
-            }
+fn answers_every_readable_register(family: &str, device: &'static DeviceInfo) {
+    let sim = Simulator::new(device);
+    for register in device.readable_registers() {
+        let function = match register.table {
+            Table::Holding => ReadFunction::Holding,
+            Table::Input => ReadFunction::Input,
+        };
+        let request = read(function, register.address, register.words);
+        match sim.request(sim.address(), &request) {
+            Reply::Read { words, .. } => assert_eq!(words.len(), usize::from(register.words)),
+            other => panic!("{family} {}: {other:?}", register.name),
         }
     }
 }
@@ -901,11 +900,11 @@ fn every_family_answers_every_readable_register() {
 #[tokio::test(start_paused = true)]
 async fn the_generated_driver_downloads_the_buffer_from_the_simulator() {
     use optobus_transport::RtuClient;
-    let sim = Simulator::new(&p_series::DEVICE).sentinel_every(0);
+    let sim = Simulator::new(&optobus_p_series::DEVICE).sentinel_every(0);
     let (stream, _server) = sim.duplex();
-    let mut sensor = p_series::PSeries::new(RtuClient::new(stream), 1).expect("slave 1");
+    let mut sensor = optobus_p_series::PSeries::new(RtuClient::new(stream), 1).expect("slave 1");
     sensor
-        .start_buffering(p_series::MeasurementSource::Distance1, 1000)
+        .start_buffering(optobus_p_series::MeasurementSource::Distance1, 1000)
         .await
         .unwrap();
     sleep(Duration::from_millis(20)).await;

@@ -8,15 +8,18 @@
 //! points at the spec's line and column and is rendered like rustc.
 #![forbid(unsafe_code)]
 
+pub mod describe;
 pub mod diagnostic;
 pub mod emit;
 pub mod json;
 mod lower;
 pub mod model;
 pub mod rules;
+pub mod scaffold;
 pub mod source;
 mod syntax;
 
+pub use describe::describe;
 pub use diagnostic::{render_all, Diagnostic};
 pub use model::Model;
 pub use source::SourceFile;

@@ -4,6 +4,7 @@
 //! optobus-codegen check specs/*.yaml          diagnostics; exit 1 on any error
 //! optobus-codegen dump --json specs/x.yaml    the checked model as JSON
 //! optobus-codegen generate specs/x.yaml [-o out.rs]
+//! optobus-codegen new specs/x.yaml            the driver crate crates/x/ (never overwrites)
 //! ```
 
 use std::path::PathBuf;
@@ -12,7 +13,8 @@ use std::process::ExitCode;
 const USAGE: &str = "usage:
   optobus-codegen check <spec.yaml>...
   optobus-codegen dump --json <spec.yaml>
-  optobus-codegen generate <spec.yaml> [-o <out.rs>]";
+  optobus-codegen generate <spec.yaml> [-o <out.rs>]
+  optobus-codegen new <specs/family.yaml>";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -27,6 +29,10 @@ fn main() -> ExitCode {
             [path, flag, out] if flag == "-o" || flag == "--out" => {
                 generate(path, Some(out.into()))
             }
+            _ => usage(),
+        },
+        Some("new") => match &args[1..] {
+            [path] => new(path),
             _ => usage(),
         },
         _ => usage(),
@@ -100,6 +106,46 @@ fn generate(path: &str, out: Option<PathBuf>) -> ExitCode {
         None => {
             print!("{code}");
             ExitCode::SUCCESS
+        }
+    }
+}
+
+/// Checks the spec and writes its driver crate next to `specs/`: `<root>/crates/<family>/`.
+fn new(path: &str) -> ExitCode {
+    let spec = std::path::Path::new(path);
+    let model = match optobus_codegen::check_file(spec) {
+        Ok(model) => model,
+        Err(rejected) => {
+            eprint!("{}", rejected.render());
+            return ExitCode::from(1);
+        }
+    };
+    // The crate's build.rs reads `../../specs/<family>.yaml`: the spec must be that file.
+    let expected = format!("{}.yaml", model.family);
+    let folder = spec.parent().and_then(|p| p.file_name());
+    if spec.file_name().is_none_or(|n| *n != *expected) || folder.is_none_or(|f| f != "specs") {
+        eprintln!(
+            "error: the spec of family `{}` must be specs/{expected}",
+            model.family
+        );
+        return ExitCode::from(1);
+    }
+    let root = spec
+        .parent()
+        .and_then(std::path::Path::parent)
+        .unwrap_or(std::path::Path::new(""));
+    match optobus_codegen::scaffold::write(&model, root) {
+        Ok(dir) => {
+            eprintln!(
+                "created {}: cargo build -p optobus-{}",
+                dir.display(),
+                model.family.replace('_', "-")
+            );
+            ExitCode::SUCCESS
+        }
+        Err(error) => {
+            eprintln!("error: {error}");
+            ExitCode::from(1)
         }
     }
 }

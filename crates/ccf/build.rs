@@ -1,6 +1,6 @@
 //! Generates the driver from `specs/ccf.yaml`; editing the spec rebuilds this crate only.
 
 fn main() {
-    let spec = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../specs/ccf.yaml");
-    optobus_codegen::build_script(&spec, "ccf");
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    optobus_codegen::build_script(&root.join("../../specs/ccf.yaml"), "ccf");
 }

@@ -1,6 +1,6 @@
 //! Generates the driver from `specs/ccs.yaml`; editing the spec rebuilds this crate only.
 
 fn main() {
-    let spec = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../specs/ccs.yaml");
-    optobus_codegen::build_script(&spec, "ccs");
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    optobus_codegen::build_script(&root.join("../../specs/ccs.yaml"), "ccs");
 }

@@ -6,9 +6,6 @@ use std::path::{Path, PathBuf};
 use optobus_codec::{ExceptionShape, ReadFunction, Request, WriteValue};
 use serde::{Deserialize, Deserializer};
 
-/// The families, in manual order, with their golden file names.
-pub const FAMILIES: [&str; 5] = ["p_series", "rangefinder", "ccs", "lc_rs", "ccf"];
-
 /// The directory holding the golden YAML files.
 pub fn directory() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("golden")

@@ -1,9 +1,9 @@
 //! Typed async driver for the CCF series four-channel spectral confocal sensor.
 //!
-//! Everything in this crate is generated at build time from
-//! `specs/ccf.yaml`, the transcription of the vendor manual: [`Ccf`] has one async
-//! method per readable register, one `set_…` per writable one, one per command and one
-//! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
+//! The driver is generated at build time from `specs/ccf.yaml`, the transcription of the
+//! vendor manual: [`Ccf`] has one async method per readable register, one `set_…` per
+//! writable one, one per command and one `read_…` per register group; [`DEVICE`] describes
+//! the device as data for generic tools.
 //!
 //! A driver wraps any [`Transport`]: our RTU client on a serial port (settings from the
 //! manual's defaults), our Modbus TCP client, an existing `tokio_modbus` context, or, as
@@ -12,18 +12,16 @@
 //! ```
 //! # #[tokio::main(flavor = "current_thread")]
 //! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! use optobus_ccf::{Ccf, DEVICE};
 //! use optobus_ccf::transport::RtuClient;
+//! use optobus_ccf::{Ccf, DEVICE};
 //!
 //! let sim = optobus_simulator::Simulator::new(&DEVICE);
 //! let (line, _server) = sim.duplex();
 //! // A real sensor: `optobus_ccf::serial_settings(&DEVICE, "/dev/ttyUSB0").open()?`.
 //! let client = RtuClient::with_config(line, optobus_ccf::rtu_config(&DEVICE));
 //! let mut sensor = Ccf::with_default_slave(client);
-//! for channel in optobus_ccf::Channel::all() {
-//!     let readings = sensor.read_measurements(channel).await?;
-//!     println!("channel {}: {:?}", channel.number(), readings.distance_1);
-//! }
+//! let readings = sensor.read_math().await?;
+//! println!("{readings:?}");
 //! # Ok(())
 //! # }
 //! ```

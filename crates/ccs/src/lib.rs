@@ -1,9 +1,9 @@
 //! Typed async driver for the CCS single-channel spectral confocal sensor.
 //!
-//! Everything in this crate is generated at build time from
-//! `specs/ccs.yaml`, the transcription of the vendor manual: [`Ccs`] has one async
-//! method per readable register, one `set_…` per writable one, one per command and one
-//! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
+//! The driver is generated at build time from `specs/ccs.yaml`, the transcription of the
+//! vendor manual: [`Ccs`] has one async method per readable register, one `set_…` per
+//! writable one, one per command and one `read_…` per register group; [`DEVICE`] describes
+//! the device as data for generic tools.
 //!
 //! A driver wraps any [`Transport`]: our RTU client on a serial port (settings from the
 //! manual's defaults), our Modbus TCP client, an existing `tokio_modbus` context, or, as
@@ -12,17 +12,16 @@
 //! ```
 //! # #[tokio::main(flavor = "current_thread")]
 //! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! use optobus_ccs::{Ccs, DEVICE};
 //! use optobus_ccs::transport::RtuClient;
+//! use optobus_ccs::{Ccs, DEVICE};
 //!
 //! let sim = optobus_simulator::Simulator::new(&DEVICE);
 //! let (line, _server) = sim.duplex();
 //! // A real sensor: `optobus_ccs::serial_settings(&DEVICE, "/dev/ttyUSB0").open()?`.
 //! let client = RtuClient::with_config(line, optobus_ccs::rtu_config(&DEVICE));
 //! let mut sensor = Ccs::with_default_slave(client);
-//! sensor.set_exposure_time("1234.5".parse()?).await?;
 //! let readings = sensor.read_measurements().await?;
-//! println!("thickness: {:?}", readings.thickness);
+//! println!("{readings:?}");
 //! # Ok(())
 //! # }
 //! ```

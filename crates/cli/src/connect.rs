@@ -18,6 +18,10 @@ pub(crate) struct Global {
     /// Sensor family (help and default from the models, at startup).
     #[arg(long, short, global = true)]
     pub(crate) model: String,
+    /// A spec file to use as the model instead of a built-in one (checked like
+    /// `optobus-codegen check`).
+    #[arg(long, global = true, value_name = "SPEC.yaml")]
+    pub(crate) spec: Option<std::path::PathBuf>,
     /// Serial port of the device (e.g. /dev/ttyUSB0); default settings from the manual.
     #[arg(long, global = true, conflicts_with = "tcp")]
     pub(crate) serial: Option<String>,
@@ -49,9 +53,19 @@ pub(crate) struct Global {
 }
 
 impl Global {
-    /// The model `--model` names.
+    /// The model `--spec` describes, or else the one `--model` names.
     pub(crate) fn device(&self) -> Result<&'static DeviceInfo, CliError> {
-        models::find(&self.model)
+        self.device_or(None)
+    }
+
+    /// The model `--spec` describes, or else the one a command names itself (`simulate ccs`),
+    /// or else the one `--model` names. (A command's own model argument shares `--model`'s
+    /// id, so it also carries `--model`'s value.)
+    pub(crate) fn device_or(&self, named: Option<&str>) -> Result<&'static DeviceInfo, CliError> {
+        match &self.spec {
+            Some(spec) => models::load(spec),
+            None => models::find(named.unwrap_or(&self.model)),
+        }
     }
 
     pub(crate) fn target(&self) -> Target {

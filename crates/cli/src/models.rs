@@ -1,17 +1,15 @@
-//! The sensor families the tool knows, by family id or an alias the spec declares.
+//! The sensor models the tool knows: every spec of `specs/` at build time (embedded by
+//! `build.rs`), described at startup through the same checks as a `--spec` file, and found by
+//! family id or an alias the spec declares.
+
+use std::path::Path;
+use std::sync::OnceLock;
 
 use optobus_device::DeviceInfo;
 
 use crate::error::CliError;
 
-/// Every family, in the order of the manuals.
-pub(crate) const MODELS: [&DeviceInfo; 5] = [
-    &optobus_p_series::DEVICE,
-    &optobus_rangefinder::DEVICE,
-    &optobus_ccs::DEVICE,
-    &optobus_lc_rs::DEVICE,
-    &optobus_ccf::DEVICE,
-];
+include!(concat!(env!("OUT_DIR"), "/specs.rs"));
 
 /// Lower case without `-`, `_` and spaces, so `P-Series`, `p_series` and `pseries` agree.
 fn normalise(name: &str) -> String {
@@ -21,16 +19,53 @@ fn normalise(name: &str) -> String {
         .collect()
 }
 
+/// The runtime description of a spec's text; a spec that does not pass gives the checker's
+/// located diagnostics, rendered like rustc.
+pub(crate) fn describe(name: &str, text: &str) -> Result<&'static DeviceInfo, CliError> {
+    match optobus_codegen::check_source(name, text) {
+        Ok(model) => Ok(optobus_codegen::describe(&model)),
+        Err(rejected) => Err(CliError::new(format!(
+            "{name} does not pass the spec checks:\n{}",
+            rejected.render().trim_end()
+        ))),
+    }
+}
+
+/// The model a spec file describes (read and described once per run).
+pub(crate) fn load(path: &Path) -> Result<&'static DeviceInfo, CliError> {
+    static LOADED: OnceLock<Result<&'static DeviceInfo, String>> = OnceLock::new();
+    let loaded = LOADED.get_or_init(|| {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {name}: {e}"))?;
+        describe(&name, &text).map_err(|e| e.to_string())
+    });
+    loaded.clone().map_err(CliError::new)
+}
+
+/// Every built-in model, in the order of their manuals.
+pub(crate) fn all() -> &'static [&'static DeviceInfo] {
+    static MODELS: OnceLock<Vec<&'static DeviceInfo>> = OnceLock::new();
+    MODELS.get_or_init(|| {
+        let mut models: Vec<&'static DeviceInfo> = SPECS
+            .iter()
+            // build.rs refuses to build with a spec that fails its checks.
+            .filter_map(|(name, text)| describe(name, text).ok())
+            .collect();
+        models.sort_by_key(|d| d.manual);
+        models
+    })
+}
+
 /// The family called `name` (its id or one of its aliases).
 pub(crate) fn find(name: &str) -> Result<&'static DeviceInfo, CliError> {
     let wanted = normalise(name);
-    MODELS
+    all()
         .iter()
         .copied()
         .find(|d| normalise(d.family) == wanted || d.aliases.iter().any(|a| normalise(a) == wanted))
         .ok_or_else(|| {
             CliError::new(format!("unknown model `{name}`")).hint(format!(
-                "known models: {}; see `optobus models`",
+                "known models: {}; or give a spec file with --spec; see `optobus models`",
                 names().join(", ")
             ))
         })
@@ -43,5 +78,5 @@ pub(crate) fn name(device: &DeviceInfo) -> String {
 
 /// The models' names as users type them.
 pub(crate) fn names() -> Vec<String> {
-    MODELS.iter().map(|d| name(d)).collect()
+    all().iter().map(|d| name(d)).collect()
 }

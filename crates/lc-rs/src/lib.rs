@@ -1,9 +1,9 @@
 //! Typed async driver for the LC-RS series distance sensor (Modbus RTU).
 //!
-//! Everything in this crate is generated at build time from
-//! `specs/lc_rs.yaml`, the transcription of the vendor manual: [`LcRs`] has one async
-//! method per readable register, one `set_…` per writable one, one per command and one
-//! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
+//! The driver is generated at build time from `specs/lc_rs.yaml`, the transcription of the
+//! vendor manual: [`LcRs`] has one async method per readable register, one `set_…` per
+//! writable one, one per command and one `read_…` per register group; [`DEVICE`] describes
+//! the device as data for generic tools.
 //!
 //! A driver wraps any [`Transport`]: our RTU client on a serial port (settings from the
 //! manual's defaults), our Modbus TCP client, an existing `tokio_modbus` context, or, as
@@ -12,17 +12,16 @@
 //! ```
 //! # #[tokio::main(flavor = "current_thread")]
 //! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! use optobus_lc_rs::{LcRs, DEVICE};
 //! use optobus_lc_rs::transport::RtuClient;
+//! use optobus_lc_rs::{LcRs, DEVICE};
 //!
 //! let sim = optobus_simulator::Simulator::new(&DEVICE);
 //! let (line, _server) = sim.duplex();
 //! // A real sensor: `optobus_lc_rs::serial_settings(&DEVICE, "/dev/ttyUSB0").open()?`.
 //! let client = RtuClient::with_config(line, optobus_lc_rs::rtu_config(&DEVICE));
 //! let mut sensor = LcRs::with_default_slave(client);
-//! sensor.set_parity(optobus_lc_rs::Parity::Even).await?; // applies after save + power cycle
-//! sensor.save_parameters().await?;
-//! println!("firmware {}", sensor.firmware_version().await?);
+//! let readings = sensor.read_measurements().await?;
+//! println!("{readings:?}");
 //! # Ok(())
 //! # }
 //! ```

@@ -1,9 +1,9 @@
 //! Typed async driver for the P series (TS-LTP-E) laser displacement sensor.
 //!
-//! Everything in this crate but the [`download`] procedure is generated at build time from
-//! `specs/p_series.yaml`, the transcription of the vendor manual: [`PSeries`] has one async
-//! method per readable register, one `set_…` per writable one, one per command and one
-//! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
+//! The driver is generated at build time from `specs/p_series.yaml`, the transcription of the
+//! vendor manual: [`PSeries`] has one async method per readable register, one `set_…` per
+//! writable one, one per command and one `read_…` per register group; [`DEVICE`] describes
+//! the device as data for generic tools.
 //!
 //! A driver wraps any [`Transport`]: our RTU client on a serial port (settings from the
 //! manual's defaults), our Modbus TCP client, an existing `tokio_modbus` context, or, as
@@ -12,19 +12,16 @@
 //! ```
 //! # #[tokio::main(flavor = "current_thread")]
 //! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! use optobus_p_series::{PSeries, DEVICE};
 //! use optobus_p_series::transport::RtuClient;
+//! use optobus_p_series::{PSeries, DEVICE};
 //!
 //! let sim = optobus_simulator::Simulator::new(&DEVICE);
 //! let (line, _server) = sim.duplex();
 //! // A real sensor: `optobus_p_series::serial_settings(&DEVICE, "/dev/ttyUSB0").open()?`.
 //! let client = RtuClient::with_config(line, optobus_p_series::rtu_config(&DEVICE));
 //! let mut sensor = PSeries::with_default_slave(client);
-//! sensor.set_light_power("42.5".parse()?).await?;
 //! let readings = sensor.read_measurements().await?;
-//! if let Some(distance) = readings.distance_1 {
-//!     println!("distance 1: {distance}"); // exact: "5.012345 mm"
-//! }
+//! println!("{readings:?}");
 //! # Ok(())
 //! # }
 //! ```

@@ -1,9 +1,9 @@
 //! Typed async driver for the Industrial laser rangefinder (Modbus RTU, DAC / switch / CAN outputs).
 //!
-//! Everything in this crate is generated at build time from
-//! `specs/rangefinder.yaml`, the transcription of the vendor manual: [`Rangefinder`] has one async
-//! method per readable register, one `set_…` per writable one, one per command and one
-//! `read_…` per register group; [`DEVICE`] describes the device as data for generic tools.
+//! The driver is generated at build time from `specs/rangefinder.yaml`, the transcription of the
+//! vendor manual: [`Rangefinder`] has one async method per readable register, one `set_…` per
+//! writable one, one per command and one `read_…` per register group; [`DEVICE`] describes
+//! the device as data for generic tools.
 //!
 //! A driver wraps any [`Transport`]: our RTU client on a serial port (settings from the
 //! manual's defaults), our Modbus TCP client, an existing `tokio_modbus` context, or, as
@@ -12,17 +12,16 @@
 //! ```
 //! # #[tokio::main(flavor = "current_thread")]
 //! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! use optobus_rangefinder::{Rangefinder, DEVICE};
 //! use optobus_rangefinder::transport::RtuClient;
+//! use optobus_rangefinder::{Rangefinder, DEVICE};
 //!
 //! let sim = optobus_simulator::Simulator::new(&DEVICE);
 //! let (line, _server) = sim.duplex();
 //! // A real sensor: `optobus_rangefinder::serial_settings(&DEVICE, "/dev/ttyUSB0").open()?`.
 //! let client = RtuClient::with_config(line, optobus_rangefinder::rtu_config(&DEVICE));
 //! let mut sensor = Rangefinder::with_default_slave(client);
-//! sensor.set_dac_range_max(654_321).await?; // one 4-byte FC06
-//! let status = sensor.read_status().await?;
-//! println!("{:?} at {:?}", status.run_state, status.distance);
+//! let readings = sensor.read_status().await?;
+//! println!("{readings:?}");
 //! # Ok(())
 //! # }
 //! ```

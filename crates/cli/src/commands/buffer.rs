@@ -32,7 +32,7 @@ pub(crate) struct BufferArgs {
 pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliError> {
     let device = global.device()?;
     // The download is the P-series driver's own procedure: only its model has it.
-    if !std::ptr::eq(device, &DEVICE) {
+    if *device != DEVICE {
         return Err(CliError::new(format!(
             "`buffer` is the P series' buffered download; {} has no data buffer",
             device.family

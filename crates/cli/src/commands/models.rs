@@ -8,7 +8,7 @@ use serde_json::{json, Value as Json};
 
 use crate::connect::Global;
 use crate::error::CliError;
-use crate::models::{self, MODELS};
+use crate::models;
 use crate::render::{pretty, print};
 
 pub(crate) fn run(global: &Global) -> Result<(), CliError> {
@@ -22,7 +22,7 @@ fn factory_ip(tcp: &TcpInfo) -> Option<String> {
 }
 
 fn json() -> String {
-    let list: Vec<Json> = MODELS
+    let list: Vec<Json> = models::all()
         .iter()
         .map(|d| {
             json!({
@@ -42,7 +42,7 @@ fn json() -> String {
 
 fn text() -> String {
     let mut out = String::new();
-    for d in MODELS {
+    for d in models::all() {
         out.push_str(&format!("{}  {}\n", models::name(d), d.title));
         if let Some(rtu) = d.rtu {
             let bauds: Vec<String> = rtu.bauds.iter().map(u32::to_string).collect();

@@ -7,7 +7,7 @@ use serde_json::{json, Value as Json};
 
 use crate::connect::Global;
 use crate::error::CliError;
-use crate::models;
+
 use crate::render::{pretty, print};
 
 #[derive(Debug, Args)]
@@ -17,7 +17,7 @@ pub(crate) struct RegistersArgs {
 }
 
 pub(crate) fn run(global: &Global, args: &RegistersArgs) -> Result<(), CliError> {
-    let device = models::find(args.model.as_deref().unwrap_or(&global.model))?;
+    let device = global.device_or(args.model.as_deref())?;
     print(&text(device, global.json));
     Ok(())
 }

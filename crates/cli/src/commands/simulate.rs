@@ -12,7 +12,7 @@ use crate::connect::Global;
 use crate::error::CliError;
 use crate::log::Log;
 use crate::render::print;
-use crate::{inputs, link, models};
+use crate::{inputs, link};
 
 /// `optobus simulate`'s arguments.
 #[derive(Debug, Args)]
@@ -70,7 +70,7 @@ fn line(device: &DeviceInfo, global: &Global, args: &SimulateArgs) -> Result<Lin
 /// in its replies and, on RTU, `--line-timing`. Every exchange is logged on stderr by a
 /// thread of its own ([`Log`]), so a slow or closed stderr never holds up a reply.
 pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliError> {
-    let device = models::find(args.model.as_deref().unwrap_or(&global.model))?;
+    let device = global.device_or(args.model.as_deref())?;
     global.check_line(device)?;
     let slave = global.slave.unwrap_or(device.default_slave);
     if slave == 0 {

@@ -1,0 +1,274 @@
+//! The runtime description of a checked model: the same [`DeviceInfo`] a family crate's
+//! generated `DEVICE` holds, built while the program runs, so that a tool can load a spec
+//! file without compiling a crate for it.
+//!
+//! This mirrors `emit/device.rs` value for value (the suites compare the two for every spec):
+//! a field added to the runtime types is added in both places, and the compiler points at
+//! each. The description is leaked to `'static`: a tool describes a handful of specs once.
+
+use optobus_device::{
+    CodeInfo, CommandInfo, DeviceInfo, ExceptionShape, FieldInfo, FrameShape, GroupInfo,
+    RegisterInfo, RepeatCopy, ReservedInfo, RtuInfo, Scale, TcpInfo, ValueKind,
+};
+
+use crate::model::{
+    Apply, ExceptionStyle, Field, Kind, LongWrites, Model, Register, Scalar, ScaleSpec, Table,
+};
+
+/// The runtime description of `model`, which must have passed every rule
+/// ([`crate::check_source`] gives only such models).
+pub fn describe(model: &Model) -> &'static DeviceInfo {
+    let describer = Describer::new(model);
+    leak(describer.device())
+}
+
+fn leak<T>(value: T) -> &'static T {
+    Box::leak(Box::new(value))
+}
+
+fn leak_slice<T>(values: Vec<T>) -> &'static [T] {
+    Box::leak(values.into_boxed_slice())
+}
+
+fn text(text: &str) -> &'static str {
+    Box::leak(text.to_owned().into_boxed_str())
+}
+
+/// A doc comment's text as the generated code carries it (trimmed; empty when absent).
+fn doc(doc: Option<&str>) -> &'static str {
+    text(doc.map(str::trim).unwrap_or(""))
+}
+
+fn option_text(value: Option<&str>) -> Option<&'static str> {
+    value.map(text)
+}
+
+fn u16_of(value: u32) -> u16 {
+    u16::try_from(value).unwrap_or(u16::MAX)
+}
+
+struct Describer<'m> {
+    model: &'m Model,
+    /// The codes of each enum of the model, leaked once and shared by every user.
+    codes: Vec<&'static [CodeInfo]>,
+}
+
+impl<'m> Describer<'m> {
+    fn new(model: &'m Model) -> Self {
+        let codes = model
+            .enums
+            .iter()
+            .map(|def| {
+                leak_slice(
+                    def.codes
+                        .iter()
+                        .map(|c| CodeInfo {
+                            code: u32::try_from(c.code).unwrap_or(u32::MAX),
+                            name: text(&c.name),
+                            meaning: text(c.meaning.as_deref().unwrap_or("")),
+                            doc: doc(c.doc.as_deref()),
+                        })
+                        .collect(),
+                )
+            })
+            .collect();
+        Self { model, codes }
+    }
+
+    fn codes(&self, index: Option<usize>) -> &'static [CodeInfo] {
+        index
+            .and_then(|i| self.codes.get(i).copied())
+            .unwrap_or(&[])
+    }
+
+    fn device(&self) -> DeviceInfo {
+        let model = self.model;
+        let device = &model.device;
+        let rtu = device.rtu.as_ref().map(|rtu| RtuInfo {
+            default_baud: rtu.default_baud,
+            bauds: leak_slice(rtu.bauds.clone()),
+            parity: rtu.parity,
+            data_bits: rtu.data_bits,
+            stop_bits: rtu.stop_bits,
+        });
+        let tcp = device.tcp.as_ref().map(|tcp| TcpInfo {
+            port: tcp.port,
+            default_ip: tcp.default_ip.map(|ip| ip.octets()),
+        });
+        let wide = if model.protocol.long_writes == LongWrites::Wide {
+            model
+                .registers
+                .iter()
+                .filter(|r| r.table == Table::Holding && r.access.writable() && r.words.0 == 2)
+                .filter_map(|r| u16::try_from(r.address.0).ok())
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let exception = match model.protocol.exception {
+            ExceptionStyle::Standard => ExceptionShape::Standard,
+            ExceptionStyle::CountedWord => ExceptionShape::CountedWord,
+        };
+        let continuous_send = model
+            .protocol
+            .continuous_send
+            .as_ref()
+            .map(|(register, code, _)| (text(register), u32::try_from(*code).unwrap_or(u32::MAX)));
+        let exception_codes = self.codes(
+            model
+                .protocol
+                .exception_codes
+                .as_ref()
+                .and_then(|r| r.index),
+        );
+        DeviceInfo {
+            family: text(&model.family),
+            title: text(&model.title),
+            aliases: leak_slice(model.aliases.iter().map(|a| text(a)).collect()),
+            manual: text(&model.manual.file),
+            rtu,
+            tcp,
+            default_slave: device.default_slave,
+            slaves: (device.min_slave, device.max_slave),
+            functions: leak_slice(device.functions.clone()),
+            max_read_words: device.max_read_words,
+            power_up_ms: device.power_up_ms.unwrap_or(0),
+            holding_registers: u16_of(device.holding_size),
+            input_registers: u16_of(device.input_size),
+            addressing: model.protocol.addressing,
+            long_writes: model.protocol.long_writes,
+            frame_shape: FrameShape {
+                exception,
+                four_byte_writes: leak_slice(wide),
+            },
+            needs_save_and_power_cycle: model.protocol.apply == Apply::AfterSaveAndPowerCycle,
+            exception_codes,
+            continuous_send,
+            registers: leak_slice(model.registers.iter().map(|r| self.register(r)).collect()),
+            reserved: leak_slice(
+                model
+                    .reserved
+                    .iter()
+                    .map(|r| ReservedInfo {
+                        table: r.table,
+                        from: u16_of(r.from),
+                        to: u16_of(r.to),
+                        readable: r.readable,
+                    })
+                    .collect(),
+            ),
+            commands: leak_slice(
+                model
+                    .commands
+                    .iter()
+                    .map(|c| CommandInfo {
+                        name: text(&c.name),
+                        doc: doc(c.doc.as_deref()),
+                        register: text(&c.register),
+                        value: u32::try_from(c.value).unwrap_or(u32::MAX),
+                        busy_ms: c.busy_ms.unwrap_or(0),
+                        effect: c.effect,
+                        targets: leak_slice(c.targets.iter().map(|t| text(t)).collect()),
+                    })
+                    .collect(),
+            ),
+            groups: leak_slice(
+                model
+                    .groups
+                    .iter()
+                    .map(|g| GroupInfo {
+                        name: text(&g.name),
+                        doc: doc(g.doc.as_deref()),
+                        registers: leak_slice(g.registers.iter().map(|(n, _)| text(n)).collect()),
+                    })
+                    .collect(),
+            ),
+        }
+    }
+
+    fn register(&self, register: &Register) -> RegisterInfo {
+        let mut codes: &'static [CodeInfo] = &[];
+        let kind = match &register.kind {
+            Kind::Bool => ValueKind::Bool,
+            Kind::Scalar(scalar) => ValueKind::Scalar(*scalar),
+            Kind::Enum(reference) => {
+                codes = self.codes(reference.index);
+                ValueKind::Enum
+            }
+            Kind::Packed(fields) => ValueKind::Packed(self.fields(fields)),
+            Kind::Record(fields) => ValueKind::Record(self.fields(fields)),
+            Kind::Ipv4 => ValueKind::Ipv4,
+            Kind::Version(parts) => {
+                let part = |i: usize| text(parts.get(i).map_or("ignore", String::as_str));
+                ValueKind::Version(leak([part(0), part(1), part(2), part(3)]))
+            }
+        };
+        let copy = register.repeat.as_ref().map(|copy| RepeatCopy {
+            repeat: text(&self.model.repeats[copy.repeat].name),
+            number: u8::try_from(copy.number).unwrap_or(u8::MAX),
+            member: text(&copy.base),
+        });
+        RegisterInfo {
+            name: text(&register.name),
+            doc: doc(register.doc.as_deref()),
+            zh: text(register.zh.as_deref().unwrap_or("")),
+            section: text(register.section.as_deref().unwrap_or("")),
+            table: register.table,
+            address: u16_of(register.address.0),
+            words: u16_of(register.words.0),
+            access: register.access,
+            kind,
+            codes,
+            scale: scale(register.scale.as_ref()),
+            unit: option_text(register.unit.as_deref()),
+            range: register.range,
+            sentinel: sentinel(register.sentinel),
+            word_order: register.word_order,
+            write_order: register.write_order.unwrap_or_default(),
+            copy,
+            read_side_effect: option_text(register.read_side_effect.as_deref()),
+            allowed_values: leak_slice(
+                register
+                    .allowed_values
+                    .as_ref()
+                    .map(|(values, _)| values.clone())
+                    .unwrap_or_default(),
+            ),
+            action: register.action,
+        }
+    }
+
+    fn fields(&self, fields: &[Field]) -> &'static [FieldInfo] {
+        leak_slice(
+            fields
+                .iter()
+                .map(|field| {
+                    let scalar = field.scalar.unwrap_or(Scalar::unsigned(1));
+                    FieldInfo {
+                        name: text(&field.name),
+                        doc: doc(field.doc.as_deref()),
+                        lsb: field.lsb.unwrap_or(0),
+                        width: field
+                            .width
+                            .unwrap_or(if scalar.words() == 2 { 32 } else { 16 }),
+                        scalar,
+                        codes: self.codes(field.enum_ref.as_ref().and_then(|r| r.index)),
+                        range: field.range,
+                        scale: scale(field.scale.as_ref()),
+                        unit: option_text(field.unit.as_deref()),
+                        sentinel: sentinel(field.sentinel),
+                    }
+                })
+                .collect(),
+        )
+    }
+}
+
+/// The exact step, when the spec's scale is well formed (a checked model's always is).
+fn scale(scale: Option<&ScaleSpec>) -> Option<Scale> {
+    scale.and_then(|s| s.value.as_ref().ok()).copied()
+}
+
+fn sentinel(sentinel: Option<u64>) -> Option<u32> {
+    sentinel.and_then(|s| u32::try_from(s).ok())
+}

@@ -1,0 +1,65 @@
+//! `--spec FILE`: a spec file is a model, with the same checks and the same output as a
+//! built-in one; a broken spec is refused with the checker's located diagnostics.
+
+mod common;
+
+use std::path::Path;
+
+use common::{fails, json, ok, outcome, Served, FAILURE};
+
+fn repo_file(path: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(path)
+        .display()
+        .to_string()
+}
+
+#[test]
+fn a_spec_file_describes_like_its_built_in_model() {
+    let spec = repo_file("specs/ccs.yaml");
+    for command in [&["registers"][..], &["models"], &["--json", "registers"]] {
+        let built_in = ok(&[&["--model", "ccs"], command].concat());
+        let from_file = ok(&[&["--spec", spec.as_str()], command].concat());
+        assert_eq!(from_file, built_in, "{command:?}");
+    }
+    // `read` against the built-in simulator of the file's model.
+    let values = json(&["--spec", &spec, "read", "exposure_time"]);
+    assert!(values["exposure_time"]["exact"].is_string(), "{values}");
+}
+
+#[test]
+fn a_new_spec_is_read_from_its_own_simulator() {
+    // The codegen test spec is a device no built-in model describes.
+    let spec = repo_file("codegen/tests/fixtures/mini.yaml");
+    let served = Served::start(&["--spec", &spec, "--tcp", "127.0.0.1:0"]);
+    let at = served.at.as_str();
+    ok(&["--spec", &spec, "--tcp", at, "set", "light_power", "42.5"]);
+    let values = json(&["--spec", &spec, "--tcp", at, "read", "light_power"]);
+    assert_eq!(values["light_power"]["exact"], "42.5", "{values}");
+    let list = ok(&["--spec", &spec, "registers"]);
+    assert!(list.contains("statistic_config"), "{list}");
+    assert!(!list.contains("distance_1"), "{list}");
+}
+
+#[test]
+fn a_broken_spec_prints_the_checkers_diagnostics() {
+    let spec = repo_file("codegen/tests/fixtures/errors/range.yaml");
+    for command in [&["registers"][..], &["simulate", "--duration", "1s"]] {
+        let (code, stdout, stderr) = outcome(&[&["--spec", spec.as_str()], command].concat());
+        assert_eq!(code, Some(FAILURE), "{stderr}");
+        assert!(stdout.is_empty(), "{stdout}");
+        assert!(
+            stderr.contains("error[range]: range of `light_power` has min 1000 > max 5"),
+            "{stderr}"
+        );
+        assert!(stderr.contains("range.yaml:41:12"), "{stderr}");
+        assert!(stderr.contains("^ empty range"), "{stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+    let missing = fails(&["--spec", "/nonexistent/spec.yaml", "registers"]);
+    assert!(
+        missing.contains("cannot read /nonexistent/spec.yaml"),
+        "{missing}"
+    );
+}
