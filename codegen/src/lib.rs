@@ -2,15 +2,21 @@
 //!
 //! A spec goes through three layers: **parse** ([`source`]: one YAML parse into a tree
 //! that keeps positions; `syntax`: the spec's structs read from that tree, every reading
-//! error reported at once), **lower and validate** (`lower` builds the [`model::Model`]; [`rules`] is a list
-//! of small named checks), and **emit** ([`emit`]: Rust source formatted with prettyplease,
-//! and [`json`]: the checked model for other tools). Every problem is a [`Diagnostic`] that
-//! points at the spec's line and column and is rendered like rustc.
+//! error reported at once), **lower and validate** (`lower` builds the [`model::Model`];
+//! [`rules`] is a list of small named checks), and **emit** ([`emit`]: Rust source, formatted
+//! with prettyplease under feature `pretty`; `json`, feature `json`: the checked model for
+//! other tools). Every problem is a [`Diagnostic`] that points at the spec's line and column
+//! and is rendered like rustc. [`describe`] turns a checked model into the runtime
+//! description the generated crates carry; [`scaffold`] writes a driver crate.
+//!
+//! Features: none for a driver's `build.rs` (the fewest dependencies); `cli` (default) builds
+//! the `optobus-codegen` binary and turns on `json` and `pretty`.
 #![forbid(unsafe_code)]
 
 pub mod describe;
 pub mod diagnostic;
 pub mod emit;
+#[cfg(feature = "json")]
 pub mod json;
 mod lower;
 pub mod model;

@@ -15,6 +15,20 @@ const TEMPLATES: [(&str, &str); 4] = [
     ("README.md", include_str!("../templates/README.md.in")),
 ];
 
+/// The links a driver crate holds, as `(path inside the crate, target)`: its spec (so that the
+/// package carries it while `specs/` stays the one place to edit) and the licence texts.
+pub fn links(model: &Model) -> Vec<(String, String)> {
+    let family = &model.family;
+    vec![
+        (
+            format!("specs/{family}.yaml"),
+            format!("../../../specs/{family}.yaml"),
+        ),
+        ("LICENSE-MIT".into(), "../../LICENSE-MIT".into()),
+        ("LICENSE-APACHE".into(), "../../LICENSE-APACHE".into()),
+    ]
+}
+
 /// `crates/<family-with-dashes>`, relative to the workspace root.
 pub fn crate_dir(model: &Model) -> PathBuf {
     Path::new("crates").join(model.family.replace('_', "-"))
@@ -30,6 +44,7 @@ pub fn files(model: &Model) -> Vec<(&'static str, String)> {
         ("{lib}", format!("optobus_{family}")),
         ("{driver}", camel(family)),
         ("{title}", model.title.clone()),
+        ("{model}", dashed.clone()),
         ("{example}", example(model)),
     ];
     TEMPLATES
@@ -98,5 +113,25 @@ pub fn write(model: &Model, root: &Path) -> Result<PathBuf, ScaffoldError> {
             .and_then(|()| std::fs::write(&path, text));
         written.map_err(|e| ScaffoldError::Io(path, e))?;
     }
+    for (file, target) in links(model) {
+        let path = dir.join(&file);
+        let linked = path
+            .parent()
+            .map_or(Ok(()), std::fs::create_dir_all)
+            .and_then(|()| link(&target, &path));
+        linked.map_err(|e| ScaffoldError::Io(path, e))?;
+    }
     Ok(dir)
+}
+
+#[cfg(unix)]
+fn link(target: &str, path: &Path) -> std::io::Result<()> {
+    std::os::unix::fs::symlink(target, path)
+}
+
+/// Where links are not to be had, a copy (to be refreshed by hand when the spec changes).
+#[cfg(not(unix))]
+fn link(target: &str, path: &Path) -> std::io::Result<()> {
+    let source = path.parent().unwrap_or(path).join(target);
+    std::fs::copy(source, path).map(|_| ())
 }

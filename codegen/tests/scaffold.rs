@@ -57,6 +57,20 @@ fn family_crates_are_what_the_scaffold_writes() {
 }
 
 #[test]
+fn family_crates_link_their_spec_and_the_licences() {
+    for spec in specs() {
+        let model = model(&spec);
+        let dir = root().join(optobus_codegen::scaffold::crate_dir(&model));
+        for (file, target) in optobus_codegen::scaffold::links(&model) {
+            let path = dir.join(&file);
+            let found = std::fs::read_link(&path).unwrap_or_default();
+            assert_eq!(found, Path::new(&target), "{}", path.display());
+            assert!(path.is_file(), "{} leads nowhere", path.display());
+        }
+    }
+}
+
+#[test]
 fn new_writes_a_crate_once_and_never_overwrites() {
     let spec = root().join("codegen/tests/fixtures/mini.yaml");
     let model = model(&spec);
@@ -75,6 +89,13 @@ fn new_writes_a_crate_once_and_never_overwrites() {
     assert!(lib.contains("Simulator::new(&DEVICE)"), "{lib}");
     for file in ["Cargo.toml", "build.rs", "README.md"] {
         assert!(dir.join(file).is_file(), "{file}");
+    }
+    for (file, target) in optobus_codegen::scaffold::links(&model) {
+        assert_eq!(
+            std::fs::read_link(dir.join(&file)).ok(),
+            Some(target.into()),
+            "{file}"
+        );
     }
     let error = optobus_codegen::scaffold::write(&model, &scratch).unwrap_err();
     assert!(error.to_string().contains("never overwrites"), "{error}");

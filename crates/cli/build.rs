@@ -6,8 +6,9 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 fn main() {
-    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../specs");
-    // A directory: cargo reruns when a spec is added, removed or edited.
+    // A link to the workspace's `specs/`, so that the package carries the specs.
+    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("specs");
+    // The directory for a spec added or removed, each file for an edit.
     println!("cargo::rerun-if-changed={}", specs.display());
     let mut paths: Vec<_> = std::fs::read_dir(&specs)
         .expect("specs/ is readable")
@@ -20,6 +21,7 @@ fn main() {
          pub(crate) const SPECS: &[(&str, &str)] = &[\n",
     );
     for path in paths {
+        println!("cargo::rerun-if-changed={}", path.display());
         // A built-in spec passes the checks, or the tool does not build.
         if let Err(rejected) = optobus_codegen::check_file(&path) {
             eprint!("{}", rejected.render());

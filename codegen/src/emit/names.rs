@@ -207,9 +207,11 @@ impl Imports {
             .into_iter()
             .filter(|lines| !lines.is_empty())
             .map(|lines| {
-                // Long lines wrapped as rustfmt would.
                 let text = lines.join("\n");
-                syn::parse_file(&text).map_or(text, |file| prettyplease::unparse(&file))
+                // Long lines wrapped as rustfmt would.
+                #[cfg(feature = "pretty")]
+                let text = syn::parse_file(&text).map_or(text, |file| prettyplease::unparse(&file));
+                text
             })
             .collect::<Vec<_>>()
             .join("\n")

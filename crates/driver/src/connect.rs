@@ -1,7 +1,9 @@
 //! Transport settings taken from a device description (its serial defaults and frame shapes).
 
 use optobus_device::DeviceInfo;
-use optobus_transport::{LineFormat, RtuConfig, SerialSettings, TcpConfig};
+#[cfg(feature = "tcp")]
+use optobus_transport::TcpConfig;
+use optobus_transport::{LineFormat, RtuConfig, SerialSettings};
 
 /// The factory line format of `device` (115200 8N1 for a device without serial settings).
 pub fn line_format(device: &DeviceInfo) -> LineFormat {
@@ -27,7 +29,8 @@ pub fn rtu_config(device: &DeviceInfo) -> RtuConfig {
 }
 
 /// Settings for our Modbus TCP client to `device`: its exception frame shape, the default
-/// timeout and reconnection backoff, no retries.
+/// timeout and reconnection backoff, no retries (feature `tcp`).
+#[cfg(feature = "tcp")]
 pub fn tcp_config(device: &DeviceInfo) -> TcpConfig {
     TcpConfig {
         exception: device.frame_shape.exception,

@@ -22,7 +22,9 @@ mod error;
 mod plan;
 pub mod units;
 
-pub use crate::connect::{line_format, rtu_config, serial_settings, tcp_config};
+#[cfg(feature = "tcp")]
+pub use crate::connect::tcp_config;
+pub use crate::connect::{line_format, rtu_config, serial_settings};
 pub use crate::core::{Core, Readings};
 pub use convert::{
     encode_code, encode_integer, encode_packed, raw_bits, word_array, CodeEnum, Decode, Encode,

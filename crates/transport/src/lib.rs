@@ -14,6 +14,9 @@
 //!   optobus driver can share a connection with other Modbus devices; see its docs for what it
 //!   cannot recover from.
 //!
+//! Cargo features: `serial` (default) opens serial ports with tokio-serial, `tcp` (default)
+//! is the TCP client, `tokio-modbus` the bridge; the RTU client over a stream is always there.
+//!
 //! Every request has a timeout (a huge one means "wait forever", never an overflow);
 //! repeatable reads may be retried, writes and reads with a side effect never are. [`Shared`]
 //! serialises transactions of several drivers (several slaves on one port) used from
@@ -29,20 +32,26 @@ pub use optobus_codec::{
     ReadFunction, WriteValue,
 };
 
+#[cfg(feature = "tokio-modbus")]
 mod modbus;
 mod rtu;
 mod serial;
 mod shared;
 mod tap;
+#[cfg(feature = "tcp")]
 mod tcp;
 pub mod timing;
 mod transact;
 
+#[cfg(feature = "tokio-modbus")]
 pub use modbus::ModbusContext;
 pub use rtu::{RtuClient, RtuConfig};
-pub use serial::{SerialSettings, SerialStream};
+pub use serial::SerialSettings;
+#[cfg(feature = "serial")]
+pub use serial::SerialStream;
 pub use shared::Shared;
 pub use tap::{Flow, Observe, Tap};
+#[cfg(feature = "tcp")]
 pub use tcp::{resolve, Connect, TapConnect, TcpClient, TcpConfig};
 
 /// The default time to wait for a reply.

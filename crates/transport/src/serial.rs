@@ -1,9 +1,13 @@
 //! Opening a serial port for the RTU client.
 
+#[cfg(feature = "serial")]
 pub use tokio_serial::SerialStream;
+#[cfg(feature = "serial")]
 use tokio_serial::{DataBits, FlowControl, SerialPortBuilderExt, StopBits};
 
-use crate::{Error, LineFormat, Parity};
+use crate::LineFormat;
+#[cfg(feature = "serial")]
+use crate::{Error, Parity};
 
 /// How to open a serial port: its path and line format, no flow control.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -23,7 +27,9 @@ impl SerialSettings {
         }
     }
 
-    /// Opens the port; a format no line can have is refused before the port is touched.
+    /// Opens the port; a format no line can have is refused before the port is touched
+    /// (feature `serial`).
+    #[cfg(feature = "serial")]
     pub fn open(&self) -> Result<SerialStream, Error> {
         self.line.check().map_err(Error::Line)?;
         let data_bits = match self.line.data_bits {

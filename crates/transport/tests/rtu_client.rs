@@ -398,6 +398,8 @@ fn frame_gap_is_t3_5_of_the_actual_character_format() {
     assert_eq!(forever.recovery(), Duration::from_secs(10));
 }
 
+// The bridge exists with the `tokio-modbus` feature only.
+#[cfg(feature = "tokio-modbus")]
 #[tokio::test]
 async fn tokio_modbus_backend_reads_writes_and_maps_exceptions() {
     use optobus_transport::ModbusContext;
