@@ -20,7 +20,7 @@ fn held(sim: &Simulator, register: &RegisterInfo) -> Vec<u16> {
 async fn read_registers<T: Transport>(sim: &Simulator, core: &mut Core<T>) -> usize {
     let device = core.device();
     let mut compared = 0;
-    for register in device.registers.iter().filter(|r| r.access.readable()) {
+    for register in device.readable_registers() {
         let before = held(sim, register);
         let words = core
             .read_words(register)

@@ -13,7 +13,6 @@ use serde_json::json;
 
 use crate::connect::Global;
 use crate::error::CliError;
-use crate::models;
 use crate::render::{pretty, print};
 
 /// `optobus frame …`.
@@ -96,7 +95,7 @@ pub(crate) fn run(global: &Global, command: &FrameCommand) -> Result<(), CliErro
     };
     match command {
         FrameCommand::Encode { family, request } => {
-            let device = models::find(family)?;
+            let device = global.device_or(Some(family))?;
             let slave = global.slave.unwrap_or(device.default_slave);
             let frames = match request {
                 EncodeRequest::Read { name, options } => optobus_inspect::encode_read_of(
@@ -127,7 +126,7 @@ pub(crate) fn run(global: &Global, command: &FrameCommand) -> Result<(), CliErro
             mbap,
             address,
         } => {
-            let device = models::find(family)?;
+            let device = global.device_or(Some(family))?;
             let bytes = parse_hex(&hex.join(" ")).map_err(hex_refused)?;
             let frames = optobus_inspect::decode(device, &bytes, framing(*mbap), *address)?;
             print(&render(&frames, global.json, render_decoded));
