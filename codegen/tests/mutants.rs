@@ -140,7 +140,7 @@ fn mutate(text: &mut String, rng: &mut Rng) -> String {
     let slots = slots(text);
     let slot = rng.pick(&slots);
     let old = text[slot.value.clone()].to_owned();
-    let (what, new) = match rng.below(8) {
+    let (what, new) = match rng.below(9) {
         0 | 1 => {
             let new = if slot.key == "scale" {
                 rng.pick(SCALES)
@@ -208,6 +208,28 @@ fn mutate(text: &mut String, rng: &mut Rng) -> String {
                 text.insert_str(at, &format!("{indent}{key}: 3\n"));
                 return format!("added `{key}` after line {}", slot.line + 1);
             }
+        }
+        7 => {
+            // Empty a whole list section: a spec may have no reserved range, command, group.
+            let sections = ["reserved", "commands", "groups", "repeats", "enums"];
+            let present: Vec<&str> = sections
+                .iter()
+                .copied()
+                .filter(|s| text.starts_with(&format!("{s}:")) || text.contains(&format!("\n{s}:")))
+                .collect();
+            if let Some(section) = present.get(rng.below(present.len().max(1))) {
+                let start = text.find(&format!("\n{section}:")).map_or(0, |i| i + 1);
+                // The section runs to the next top-level key (or the end).
+                let end = text[start + 1..]
+                    .match_indices('\n')
+                    .map(|(i, _)| start + 1 + i + 1)
+                    .find(|&i| text[i..].starts_with(|c: char| c.is_ascii_lowercase()))
+                    .unwrap_or(text.len());
+                let empty = if *section == "enums" { "{}" } else { "[]" };
+                text.replace_range(start..end, &format!("{section}: {empty}\n"));
+                return format!("emptied `{section}`");
+            }
+            ("empty", String::new())
         }
         _ => ("empty", String::new()),
     };

@@ -141,8 +141,8 @@ fn registers_module(model: &Model, names: &TypeNames, imports: &Imports) -> Toke
 }
 
 fn commands_module(model: &Model, imports: &Imports) -> TokenStream {
-    let command_info = imports.get("optobus_device::CommandInfo");
     let constants = model.commands.iter().map(|c| {
+        let command_info = imports.get("optobus_device::CommandInfo");
         let ident = const_ident(&c.name);
         let name = &c.name;
         let doc = doc_text(c.doc.as_deref());
@@ -166,10 +166,16 @@ fn commands_module(model: &Model, imports: &Imports) -> TokenStream {
         }
     });
     let doc = format!("Every command of `specs/{}.yaml`, by name.", model.family);
+    // An empty module imports nothing: a spec may declare no command.
+    let parent = (!model.commands.is_empty()).then(|| {
+        quote!(
+            use super::*;
+        )
+    });
     quote! {
         #[doc = #doc]
         pub mod commands {
-            use super::*;
+            #parent
 
             #(#constants)*
         }
@@ -177,8 +183,8 @@ fn commands_module(model: &Model, imports: &Imports) -> TokenStream {
 }
 
 fn groups_module(model: &Model, imports: &Imports) -> TokenStream {
-    let group_info = imports.get("optobus_device::GroupInfo");
     let constants = model.groups.iter().map(|g| {
+        let group_info = imports.get("optobus_device::GroupInfo");
         let ident = const_ident(&g.name);
         let name = &g.name;
         let doc = doc_text(g.doc.as_deref());
@@ -197,10 +203,15 @@ fn groups_module(model: &Model, imports: &Imports) -> TokenStream {
         "Every register group of `specs/{}.yaml`, by name.",
         model.family
     );
+    let parent = (!model.groups.is_empty()).then(|| {
+        quote!(
+            use super::*;
+        )
+    });
     quote! {
         #[doc = #doc]
         pub mod groups {
-            use super::*;
+            #parent
 
             #(#constants)*
         }
@@ -274,8 +285,8 @@ fn codes_tokens(reference: Option<usize>, names: &TypeNames) -> TokenStream {
 }
 
 fn fields_tokens(fields: &[Field], names: &TypeNames, imports: &Imports) -> TokenStream {
-    let field_info = imports.get("optobus_device::FieldInfo");
     let fields = fields.iter().map(|field| {
+        let field_info = imports.get("optobus_device::FieldInfo");
         let name = &field.name;
         let doc = doc_text(field.doc.as_deref());
         let scalar = field.scalar.unwrap_or(Scalar::unsigned(1));
@@ -505,8 +516,9 @@ fn device_info(model: &Model, names: &TypeNames, imports: &Imports) -> TokenStre
     );
     let aliases = &model.aliases;
     let registers = model.registers.iter().map(|r| register_path(&r.name));
-    let reserved_info = imports.get("optobus_device::ReservedInfo");
     let reserved = model.reserved.iter().map(|r| {
+        // Imported only where used: a spec may declare no reserved range.
+        let reserved_info = imports.get("optobus_device::ReservedInfo");
         let table = variant(imports, "optobus_device::Table", r.table);
         let from = exact::<u16, _>(r.from, "reserved address");
         let to = exact::<u16, _>(r.to, "reserved address");
