@@ -11,10 +11,8 @@ pub use optobus_codec::Parity;
 
 use crate::source::Path;
 pub use optobus_device::{Access, Addressing, Effect, LongWrites, Scalar, Table};
-use serde::Deserialize;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 /// How the device frames exception replies.
 pub enum ExceptionStyle {
     /// `fc|0x80 code`.
@@ -23,8 +21,7 @@ pub enum ExceptionStyle {
     CountedWord,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 /// When written settings take effect.
 pub enum Apply {
     /// As soon as they are written.

@@ -15,9 +15,6 @@
 
 use std::collections::BTreeMap;
 
-use serde::de::{value::StrDeserializer, IntoDeserializer};
-use serde::Deserialize;
-
 use crate::diagnostic::{Diagnostic, Label, Location};
 pub(crate) use crate::model::{
     Access, Addressing, Apply, Effect, ExceptionStyle, LongWrites, Parity, Table,
@@ -434,36 +431,72 @@ impl<T: FromNode> FromNode for Entries<T> {
     }
 }
 
-/// Names read through the type's own serde names (one spelling for specs and JSON).
+/// Name-valued keys: each value of the type and the one way a spec spells it.
 macro_rules! names {
-    ($($ty:ty),*) => {$(
+    ($($ty:ty { $($spelling:literal => $value:expr),* $(,)? })*) => {$(
         impl FromNode for $ty {
             fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+                const SPELLINGS: &[(&str, $ty)] = &[$(($spelling, $value)),*];
                 let text = reader.scalar(node, path, "a name")?;
-                let name: StrDeserializer<'_, serde::de::value::Error> = text.into_deserializer();
-                match <$ty>::deserialize(name) {
-                    Ok(value) => Some(value),
-                    Err(error) => {
-                        reader.error(node.span, format!("{}: {error}", what(path)), "unknown name");
-                        None
-                    }
+                if let Some((_, value)) = SPELLINGS.iter().find(|(name, _)| *name == text) {
+                    return Some(*value);
                 }
+                let expected: Vec<String> =
+                    SPELLINGS.iter().map(|(name, _)| format!("`{name}`")).collect();
+                reader.error(
+                    node.span,
+                    format!(
+                        "{}: unknown name `{text}`, expected one of {}",
+                        what(path),
+                        expected.join(", ")
+                    ),
+                    "unknown name",
+                );
+                None
             }
         }
     )*};
 }
 
-names!(
-    Table,
-    Access,
-    Addressing,
-    Effect,
-    LongWrites,
-    ExceptionStyle,
-    Apply,
-    TypeName,
-    OrderName
-);
+names! {
+    Table { "holding" => Table::Holding, "input" => Table::Input }
+    Access { "r" => Access::Read, "rw" => Access::ReadWrite, "w" => Access::Write }
+    Addressing { "word" => Addressing::Word, "field" => Addressing::Field }
+    Effect {
+        "zero" => Effect::Zero,
+        "clear_zero" => Effect::ClearZero,
+        "reset" => Effect::Reset,
+        "save" => Effect::Save,
+        "reboot" => Effect::Reboot,
+        "factory_reset" => Effect::FactoryReset,
+        "network_reset" => Effect::NetworkReset,
+        "buffer_lock" => Effect::BufferLock,
+        "buffer_unlock" => Effect::BufferUnlock,
+        "none" => Effect::None,
+    }
+    LongWrites { "split" => LongWrites::Split, "wide" => LongWrites::Wide }
+    ExceptionStyle {
+        "standard" => ExceptionStyle::Standard,
+        "counted_word" => ExceptionStyle::CountedWord,
+    }
+    Apply {
+        "immediately" => Apply::Immediately,
+        "after_save_and_power_cycle" => Apply::AfterSaveAndPowerCycle,
+    }
+    TypeName {
+        "bool" => TypeName::Bool,
+        "u16" => TypeName::U16,
+        "i16" => TypeName::I16,
+        "u32" => TypeName::U32,
+        "i32" => TypeName::I32,
+        "enum" => TypeName::Enum,
+        "packed" => TypeName::Packed,
+        "ipv4" => TypeName::Ipv4,
+        "version" => TypeName::Version,
+        "record" => TypeName::Record,
+    }
+    OrderName { "high_first" => OrderName::HighFirst, "low_first" => OrderName::LowFirst }
+}
 
 /// `none`, `odd` or `even`, exactly as the spec schema spells them.
 impl FromNode for Parity {
@@ -648,8 +681,7 @@ record! {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum TypeName {
     Bool,
     U16,
@@ -663,8 +695,7 @@ pub(crate) enum TypeName {
     Record,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum OrderName {
     HighFirst,
     LowFirst,

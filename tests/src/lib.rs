@@ -25,7 +25,7 @@ pub mod specs {
     /// `specs/<family>.yaml`.
     pub fn path(family: &str) -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../specs")
+            .join("specs")
             .join(format!("{family}.yaml"))
     }
 

@@ -13,7 +13,7 @@ fn prints(cases: &[(&[&str], &str)]) {
 }
 
 #[test]
-fn models_lists_the_five_families() {
+fn models_lists_every_spec() {
     let text = ok(&["models"]);
     for family in ["p-series", "rangefinder", "ccs", "lc-rs", "ccf"] {
         assert!(text.contains(family), "{text}");
@@ -21,7 +21,14 @@ fn models_lists_the_five_families() {
     assert!(text.contains("115200"), "P-series default baud: {text}");
     let list = json(&["models"]);
     let list = list.as_array().expect("array");
-    assert_eq!(list.len(), 5);
+    let specs = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../../specs"))
+        .expect("specs/")
+        .filter(|e| {
+            e.as_ref()
+                .is_ok_and(|e| e.path().extension().is_some_and(|x| x == "yaml"))
+        })
+        .count();
+    assert_eq!(list.len(), specs);
     assert_eq!(list[0]["model"], "p_series");
     assert_eq!(list[0]["tcp"]["port"], 502);
 }

@@ -63,3 +63,24 @@ fn a_broken_spec_prints_the_checkers_diagnostics() {
         "{missing}"
     );
 }
+
+#[test]
+fn a_trial_spec_of_another_sensor_works_before_any_build() {
+    // specs/trials/sgf.yaml: a sixth sensor, from a public register table, not built in.
+    let spec = repo_file("specs/trials/sgf.yaml");
+    let values = json(&["--spec", &spec, "read", "measurement", "settings"]);
+    assert_eq!(values["working_mode"]["name"], "high_precision", "{values}");
+    assert_eq!(values["baud_rate"]["name"], "baud_115200", "{values}");
+    assert!(values["distance"]["exact"].is_string(), "{values}");
+    // Its simulator keeps reads to the two words the source reads at most.
+    let (code, stdout, stderr) = outcome(&["--spec", &spec, "--verbose", "dump"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stdout.contains("baud_rate"), "{stdout}");
+    assert!(stderr.contains("-> 01 03 00 00 00 02 C4 0B"), "{stderr}");
+    assert!(stderr.contains("15 registers in 8 requests"), "{stderr}");
+    // Its action registers are written, never read, and a drastic one asks first.
+    let stderr = fails(&["--spec", &spec, "read", "reset"]);
+    assert!(stderr.contains("action register"), "{stderr}");
+    let stderr = fails(&["--spec", &spec, "do", "factory_reset"]);
+    assert!(stderr.contains("--yes"), "{stderr}");
+}
