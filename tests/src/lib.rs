@@ -9,6 +9,7 @@
 pub mod e2e;
 pub mod fault_run;
 pub mod golden;
+pub mod wire;
 
 /// The code generated from every spec in `specs/` (found by `build.rs`), and from the `mini`
 /// test spec, each compiled as public library code under `#![deny(missing_docs, warnings)]`.
