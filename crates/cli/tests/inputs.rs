@@ -47,8 +47,54 @@ fn durations_are_bounded_and_strict() {
     ] {
         refused(&words(line), USAGE, message);
     }
-    // The bounds themselves are fine.
+    // Anything else that is no duration within the bounds: refused as a usage error.
+    for text in [
+        "999us",
+        "nan s",
+        "inf",
+        "1e3",
+        "",
+        ".5s",
+        "1.s",
+        "1..2s",
+        "24.000001h",
+        "340282366920938463463374607431768211456s",
+        "99999999999999999999999999999999999999999999",
+        "1 fortnight",
+    ] {
+        let args = [
+            "--timeout",
+            text,
+            "frame",
+            "encode",
+            "p",
+            "read",
+            "distance_1",
+        ];
+        refused(&args, USAGE, "--timeout");
+    }
+    // Exact to the nanosecond, a bare number is milliseconds; the bounds themselves are fine.
+    for text in ["200ms", "1.5s", "250", "2m", "0.1s", "1000us", "1s 500ms"] {
+        ok(&[
+            "--timeout",
+            text,
+            "frame",
+            "encode",
+            "p",
+            "read",
+            "distance_1",
+        ]);
+    }
     ok(&["--timeout", "24h", "read", "distance_1"]);
+    // The value itself, as `watch` shows its interval.
+    for (text, shown) in [
+        ("1.5s", "every 1500 ms"),
+        ("250", "every 250 ms"),
+        ("2000us", "every 2 ms"),
+    ] {
+        let stdout = ok(&["watch", "distance_1", "--count", "1", "--interval", text]);
+        assert!(stdout.contains(shown), "{text}: {stdout}");
+    }
     ok(&[
         "--timeout",
         "1ms",
