@@ -6,7 +6,7 @@ use std::net::Ipv4Addr;
 use optobus_codec::value::{Fixed, Scale};
 use optobus_device::{CodeInfo, RegisterInfo, ValueKind};
 
-use crate::Error;
+use crate::error::Error;
 
 /// A value read from a register's words.
 ///

@@ -7,8 +7,9 @@ use optobus_codec::{BROADCAST, MAX_SLAVE};
 use optobus_device::{Addressing, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo, Table};
 use optobus_transport::{ReadRequest, Transport};
 
+use crate::convert::{Decode, Encode};
+use crate::error::Error;
 use crate::plan::{plan_reads, plan_write, ReadSpan};
-use crate::{Decode, Encode, Error};
 
 /// A transport, a slave address and the device description: what a generated driver wraps.
 #[derive(Debug)]

@@ -10,7 +10,8 @@ use std::str::FromStr;
 use optobus_codec::value::{Fixed, ParseFixedError, Scale};
 use optobus_device::RegisterInfo;
 
-use crate::{Decode, Encode, Error};
+use crate::convert::{Decode, Encode};
+use crate::error::Error;
 
 /// Multiplies a value by `10^shift` exactly (a change of unit prefix).
 fn shift(value: Fixed, shift: i8) -> Fixed {

@@ -8,8 +8,10 @@ use optobus_codec::{
 };
 use optobus_device::DeviceInfo;
 
+use crate::error::Error;
 use crate::explain::{explain_pdu, function_list, Context, ExplainAs, Sent};
-use crate::{hex, CrcCheck, Error, ExplainedFrame, Field, FrameKind, Framing};
+use crate::frame::{CrcCheck, ExplainedFrame, Field, FrameKind, Framing};
+use crate::hex::hex;
 
 /// Every frame in `bytes`, explained field by field: request, reply or exception, CRC
 /// checked, registers named and values decoded, with notes on anything a device would

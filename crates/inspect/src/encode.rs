@@ -5,11 +5,12 @@ use optobus_device::{DeviceInfo, RegisterInfo};
 use optobus_driver::{plan_reads, plan_write, WritePart, WriteStep};
 use serde::Serialize;
 
+use crate::error::Error;
+use crate::frame::{serialize_hex, Framing};
 use crate::layout::span_text;
 use crate::parse::parse_value;
 use crate::resolve::{resolve_one, resolve_readable};
-use crate::value::decode_value;
-use crate::{serialize_hex, Error, Framing};
+use crate::value::{decode_value, Value};
 
 /// One request frame to send, and what it does in words.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
@@ -137,7 +138,7 @@ fn write_text(
     step: &WriteStep,
     i: usize,
     words: usize,
-    value: &crate::Value,
+    value: &Value,
 ) -> String {
     let table = register.table.as_str();
     let (name, address) = (register.name, step.address);

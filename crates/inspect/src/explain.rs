@@ -7,9 +7,9 @@ use optobus_codec::{
 };
 use optobus_device::{DeviceInfo, Invalid, LongWrites, RegisterInfo, Table, WordOrder, WriteOrder};
 
+use crate::frame::{Field, FrameKind, RegisterValue};
 use crate::layout::{address_text, guess_start, layout, span_text, Held};
 use crate::value::{decode_value, range_text};
-use crate::{Field, FrameKind, RegisterValue};
 
 /// A request seen earlier in the same input, to pair its reply with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -5,7 +5,7 @@ use std::fmt;
 
 use optobus_device::{DeviceInfo, RegisterInfo};
 
-use crate::Error;
+use crate::error::Error;
 
 /// Why [`resolve`] found no register; `Display` gives one line for people.
 #[derive(Clone, Debug, PartialEq, Eq)]

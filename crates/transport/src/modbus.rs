@@ -11,10 +11,10 @@ use tokio_modbus::slave::{Slave, SlaveContext};
 use tokio_modbus::ProtocolError;
 use tokio_modbus::{Request, Response};
 
+use crate::error::Error;
 use crate::timing::deadline_after;
-use crate::{
-    Error, ExceptionCode, ReadFunction, ReadRequest, Transport, WriteValue, DEFAULT_TIMEOUT,
-};
+use crate::transport::{ReadRequest, Transport, DEFAULT_TIMEOUT};
+use optobus_codec::{ExceptionCode, ReadFunction, WriteValue};
 
 /// A tokio-modbus client context (TCP or RTU), possibly shared with other Modbus devices.
 ///

@@ -9,9 +9,10 @@ use optobus_codec::{rtu, DecodeError, Decoded, ExceptionShape, LineFormat, Reque
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};
 use tokio::time::{timeout_at, Instant};
 
+use crate::error::Error;
 use crate::timing::{deadline_from, sleep_until_precise};
 use crate::transact::{Reply, Transact};
-use crate::{Error, DEFAULT_TIMEOUT};
+use crate::transport::DEFAULT_TIMEOUT;
 
 /// The longest quiet period recovery waits for by default, whatever the timeout.
 const MAX_DEFAULT_RECOVERY: Duration = Duration::from_secs(10);

@@ -5,9 +5,12 @@ pub use tokio_serial::SerialStream;
 #[cfg(feature = "serial")]
 use tokio_serial::{DataBits, FlowControl, SerialPortBuilderExt, StopBits};
 
-use crate::LineFormat;
+use optobus_codec::LineFormat;
 #[cfg(feature = "serial")]
-use crate::{Error, Parity};
+use optobus_codec::Parity;
+
+#[cfg(feature = "serial")]
+use crate::error::Error;
 
 /// How to open a serial port: its path and line format, no flow control.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -4,7 +4,10 @@ use std::sync::Arc;
 
 use tokio::sync::Mutex;
 
-use crate::{Error, ReadRequest, Transport, WriteValue};
+use optobus_codec::WriteValue;
+
+use crate::error::Error;
+use crate::transport::{ReadRequest, Transport};
 
 /// A cloneable handle to one transport; transactions from all clones are serialised, so
 /// sensors at different slave addresses on one serial line can be used from different tasks.

@@ -11,10 +11,11 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::TcpStream;
 use tokio::time::{sleep_until, timeout_at, Instant};
 
+use crate::error::Error;
 use crate::tap::{Observe, Tap};
 use crate::timing::deadline_after;
 use crate::transact::{Reply, Transact};
-use crate::{Error, DEFAULT_TIMEOUT};
+use crate::transport::DEFAULT_TIMEOUT;
 
 /// Makes the connection a [`TcpClient`] talks over, again after it broke.
 pub trait Connect: Send {

@@ -4,7 +4,10 @@ use std::future::Future;
 
 use optobus_codec::{Request, Response};
 
-use crate::{Error, ReadRequest, Transport, WriteValue};
+use optobus_codec::WriteValue;
+
+use crate::error::Error;
+use crate::transport::{ReadRequest, Transport};
 
 /// A reply with its data copied out of the receive buffer.
 pub(crate) enum Reply {
