@@ -6,7 +6,7 @@
 use optobus_device::{DeviceInfo, RegisterInfo};
 use optobus_driver::{Core, Transport};
 use optobus_simulator::Simulator;
-use optobus_tests::e2e::{simulated, write_every_register};
+use optobus_tests::e2e::{read_whole, simulated, write_every_register};
 use optobus_tests::specs;
 
 /// The words the simulator shows for `register` now.
@@ -22,16 +22,7 @@ async fn read_registers<T: Transport>(sim: &Simulator, core: &mut Core<T>) -> us
     let mut compared = 0;
     for register in device.readable_registers() {
         let before = held(sim, register);
-        let words = core
-            .read_words(register)
-            .await
-            .unwrap_or_else(|e| panic!("{}: {e}", register.name));
-        assert_eq!(
-            words.len(),
-            usize::from(register.words),
-            "{}",
-            register.name
-        );
+        let words = read_whole(core, register).await;
         // A read that turns a buffer page shows the page it turned away from.
         assert_eq!(words, before, "{}", register.name);
         compared += 1;

@@ -30,6 +30,11 @@ fn leak_slice<T>(values: Vec<T>) -> &'static [T] {
     Box::leak(values.into_boxed_slice())
 }
 
+/// `describe` applied to each of `items`, leaked.
+fn leak_each<T, U>(items: &[T], describe: impl FnMut(&T) -> U) -> &'static [U] {
+    leak_slice(items.iter().map(describe).collect())
+}
+
 fn text(text: &str) -> &'static str {
     Box::leak(text.to_owned().into_boxed_str())
 }
@@ -124,7 +129,7 @@ impl<'m> Describer<'m> {
         DeviceInfo {
             family: text(&model.family),
             title: text(&model.title),
-            aliases: leak_slice(model.aliases.iter().map(|a| text(a)).collect()),
+            aliases: leak_each(&model.aliases, |a| text(a)),
             manual: text(&model.manual.file),
             rtu,
             tcp,
@@ -144,45 +149,27 @@ impl<'m> Describer<'m> {
             needs_save_and_power_cycle: model.protocol.apply == Apply::AfterSaveAndPowerCycle,
             exception_codes,
             continuous_send,
-            registers: leak_slice(model.registers.iter().map(|r| self.register(r)).collect()),
-            reserved: leak_slice(
-                model
-                    .reserved
-                    .iter()
-                    .map(|r| ReservedInfo {
-                        table: r.table,
-                        from: u16_of(r.from),
-                        to: u16_of(r.to),
-                        readable: r.readable,
-                    })
-                    .collect(),
-            ),
-            commands: leak_slice(
-                model
-                    .commands
-                    .iter()
-                    .map(|c| CommandInfo {
-                        name: text(&c.name),
-                        doc: doc(c.doc.as_deref()),
-                        register: text(&c.register),
-                        value: u32::try_from(c.value).unwrap_or(u32::MAX),
-                        busy_ms: c.busy_ms.unwrap_or(0),
-                        effect: c.effect,
-                        targets: leak_slice(c.targets.iter().map(|t| text(t)).collect()),
-                    })
-                    .collect(),
-            ),
-            groups: leak_slice(
-                model
-                    .groups
-                    .iter()
-                    .map(|g| GroupInfo {
-                        name: text(&g.name),
-                        doc: doc(g.doc.as_deref()),
-                        registers: leak_slice(g.registers.iter().map(|(n, _)| text(n)).collect()),
-                    })
-                    .collect(),
-            ),
+            registers: leak_each(&model.registers, |r| self.register(r)),
+            reserved: leak_each(&model.reserved, |r| ReservedInfo {
+                table: r.table,
+                from: u16_of(r.from),
+                to: u16_of(r.to),
+                readable: r.readable,
+            }),
+            commands: leak_each(&model.commands, |c| CommandInfo {
+                name: text(&c.name),
+                doc: doc(c.doc.as_deref()),
+                register: text(&c.register),
+                value: u32::try_from(c.value).unwrap_or(u32::MAX),
+                busy_ms: c.busy_ms.unwrap_or(0),
+                effect: c.effect,
+                targets: leak_each(&c.targets, |t| text(t)),
+            }),
+            groups: leak_each(&model.groups, |g| GroupInfo {
+                name: text(&g.name),
+                doc: doc(g.doc.as_deref()),
+                registers: leak_each(&g.registers, |(n, _)| text(n)),
+            }),
         }
     }
 

@@ -23,7 +23,7 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
     };
     let root = Path::root();
 
-    for (name, decl) in &spec.enums.entries {
+    for (name, decl) in spec.enums.entries() {
         let path = root.key("enums").key(name);
         let codes = lowering.codes(&decl.codes, &path.key("codes"));
         lowering.enums.push(EnumDef {

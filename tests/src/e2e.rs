@@ -112,6 +112,24 @@ pub fn valid_values(register: &'static RegisterInfo) -> Vec<Vec<u16>> {
         .collect()
 }
 
+/// Reads `register` alone; panics unless every one of its words came back.
+pub async fn read_whole<T: Transport>(
+    core: &mut Core<T>,
+    register: &'static RegisterInfo,
+) -> Vec<u16> {
+    let words = core
+        .read_words(register)
+        .await
+        .unwrap_or_else(|e| panic!("{}: {e}", register.name));
+    assert_eq!(
+        words.len(),
+        usize::from(register.words),
+        "{}",
+        register.name
+    );
+    words
+}
+
 /// Reads every readable register, one request each, and checks what came back: the right
 /// number of words, settings inside their range, known codes for enumerated settings.
 /// Returns how many registers were read.
@@ -119,16 +137,7 @@ pub async fn read_every_register<T: Transport>(core: &mut Core<T>) -> usize {
     let device = core.device();
     let mut count = 0;
     for register in device.readable_registers() {
-        let words = core
-            .read_words(register)
-            .await
-            .unwrap_or_else(|e| panic!("{}: {e}", register.name));
-        assert_eq!(
-            words.len(),
-            usize::from(register.words),
-            "{}",
-            register.name
-        );
+        let words = read_whole(core, register).await;
         if register.table == Table::Holding
             && register.access.writable()
             && sweepable(device, register)

@@ -20,6 +20,23 @@ pub(crate) struct Reader {
 }
 
 impl Reader {
+    /// A key given twice in one mapping: at `again`, first at `first`.
+    fn repeated(&mut self, path: &Path, name: &str, again: Span, first: Span, help: &str) {
+        self.diagnostics.push(Diagnostic {
+            rule: RULE,
+            message: format!("{} has `{name}` twice", what(path)),
+            primary: Label {
+                location: Location::Span(again),
+                text: "repeated key".into(),
+            },
+            secondary: vec![Label {
+                location: Location::Span(first),
+                text: "first given here".into(),
+            }],
+            help: Some(help.into()),
+        });
+    }
+
     pub(super) fn error(&mut self, span: Span, message: String, label: impl Into<String>) {
         self.diagnostics.push(Diagnostic {
             rule: RULE,
@@ -33,6 +50,21 @@ impl Reader {
         });
     }
 
+    /// The key-value pairs of `node`, or an error saying a mapping was `expected`.
+    fn pairs<'n>(
+        &mut self,
+        node: &'n Node,
+        path: &Path,
+        expected: &str,
+    ) -> Option<&'n [(Node, Node)]> {
+        if let Value::Mapping(pairs) = &node.value {
+            return Some(pairs);
+        }
+        let message = format!("{} must be a mapping, not {}", what(path), node.kind());
+        self.error(node.span, message, expected);
+        None
+    }
+
     /// `node` as a mapping of the given keys: unknown and repeated keys are reported (and
     /// otherwise ignored).
     pub(super) fn mapping<'n>(
@@ -41,14 +73,11 @@ impl Reader {
         path: &Path,
         keys: &[&str],
     ) -> Option<Mapping<'n>> {
-        let Value::Mapping(entries) = &node.value else {
-            self.error(
-                node.span,
-                format!("{} must be a mapping, not {}", what(path), node.kind()),
-                "expected `key: value` lines or `{key: value, …}`",
-            );
-            return None;
-        };
+        let entries = self.pairs(
+            node,
+            path,
+            "expected `key: value` lines or `{key: value, …}`",
+        )?;
         let mut found: BTreeMap<&str, (&Node, &Node)> = BTreeMap::new();
         for (key, value) in entries {
             let Some(name) = key.text().filter(|_| !key.is_null()) else {
@@ -76,19 +105,7 @@ impl Reader {
             }
             if let Some((first, _)) = found.get(name) {
                 let first = first.span;
-                self.diagnostics.push(Diagnostic {
-                    rule: RULE,
-                    message: format!("{} has `{name}` twice", what(path)),
-                    primary: Label {
-                        location: Location::Span(key.span),
-                        text: "repeated key".into(),
-                    },
-                    secondary: vec![Label {
-                        location: Location::Span(first),
-                        text: "first given here".into(),
-                    }],
-                    help: Some("keep one of them".into()),
-                });
+                self.repeated(path, name, key.span, first, "keep one of them");
                 continue;
             }
             found.insert(name, (key, value));
@@ -328,28 +345,25 @@ impl FromNode for (i64, i64) {
     }
 }
 
-/// A list of named items, each with its index in the file; items that could not be read are
-/// left out and their names noted.
-#[derive(Debug)]
-pub(crate) struct Items<T> {
-    items: Vec<(usize, T)>,
+/// What a list or mapping of named items gave: the items read (`found`), and the names of
+/// those that could not be read and were left out (`unread`).
+#[derive(Debug, Default)]
+pub(crate) struct Read<C> {
+    found: C,
     /// Names of the items left out.
     pub(crate) unread: Vec<String>,
 }
 
-impl<T> Default for Items<T> {
-    fn default() -> Self {
-        Self {
-            items: Vec::new(),
-            unread: Vec::new(),
-        }
-    }
-}
+/// A list of named items, each with its index in the file.
+pub(crate) type Items<T> = Read<Vec<(usize, T)>>;
+
+/// A mapping from names to items.
+pub(crate) type Entries<T> = Read<BTreeMap<String, T>>;
 
 impl<T> Items<T> {
     /// The items read, with their index in the file.
     pub(crate) fn iter(&self) -> impl Iterator<Item = (usize, &T)> {
-        self.items.iter().map(|(i, item)| (*i, item))
+        self.found.iter().map(|(i, item)| (*i, item))
     }
 }
 
@@ -358,7 +372,7 @@ impl<T: FromNode> FromNode for Items<T> {
         let mut read = Self::default();
         for (i, item) in sequence(node, path, reader)?.iter().enumerate() {
             match T::from_node(item, &path.index(i), reader) {
-                Some(value) => read.items.push((i, value)),
+                Some(value) => read.found.push((i, value)),
                 None => read
                     .unread
                     .extend(item.get("name").and_then(Node::text).map(str::to_owned)),
@@ -368,33 +382,16 @@ impl<T: FromNode> FromNode for Items<T> {
     }
 }
 
-/// A mapping from names to items; entries that could not be read are left out and noted.
-#[derive(Debug)]
-pub(crate) struct Entries<T> {
-    pub(crate) entries: BTreeMap<String, T>,
-    /// Names of the entries left out.
-    pub(crate) unread: Vec<String>,
-}
-
-impl<T> Default for Entries<T> {
-    fn default() -> Self {
-        Self {
-            entries: BTreeMap::new(),
-            unread: Vec::new(),
-        }
+impl<T> Entries<T> {
+    /// The entries read, by name.
+    pub(crate) fn entries(&self) -> &BTreeMap<String, T> {
+        &self.found
     }
 }
 
 impl<T: FromNode> FromNode for Entries<T> {
     fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
-        let Value::Mapping(pairs) = &node.value else {
-            reader.error(
-                node.span,
-                format!("{} must be a mapping, not {}", what(path), node.kind()),
-                "expected `name: …` entries",
-            );
-            return None;
-        };
+        let pairs = reader.pairs(node, path, "expected `name: …` entries")?;
         let mut read = Self::default();
         let mut first: BTreeMap<&str, Span> = BTreeMap::new();
         for (key, value) in pairs {
@@ -402,24 +399,12 @@ impl<T: FromNode> FromNode for Entries<T> {
                 continue;
             };
             if let Some(span) = first.insert(name, key.span) {
-                reader.diagnostics.push(Diagnostic {
-                    rule: RULE,
-                    message: format!("{} has `{name}` twice", what(path)),
-                    primary: Label {
-                        location: Location::Span(key.span),
-                        text: "repeated key".into(),
-                    },
-                    secondary: vec![Label {
-                        location: Location::Span(span),
-                        text: "first given here".into(),
-                    }],
-                    help: Some("rename one of them".into()),
-                });
+                reader.repeated(path, name, key.span, span, "rename one of them");
                 continue;
             }
             match T::from_node(value, &path.key(name), reader) {
                 Some(item) => {
-                    read.entries.insert(name.to_owned(), item);
+                    read.found.insert(name.to_owned(), item);
                 }
                 None => read.unread.push(name.to_owned()),
             }

@@ -1,8 +1,6 @@
 //! The options every command takes, and what they mean for reaching the device: the slave
 //! address, the line checks, a connection, and reading registers over it.
 
-use std::time::Duration;
-
 use clap::Args;
 use optobus_device::{DeviceInfo, RegisterInfo};
 use optobus_driver::Core;
@@ -22,34 +20,19 @@ pub(crate) struct Global {
     /// `optobus-codegen check`).
     #[arg(long, global = true, value_name = "SPEC.yaml")]
     pub(crate) spec: Option<std::path::PathBuf>,
-    /// Serial port of the device (e.g. /dev/ttyUSB0); default settings from the manual.
-    #[arg(long, global = true, conflicts_with = "tcp")]
-    pub(crate) serial: Option<String>,
-    /// Baud rate, when the device is not at its factory setting: one its manual lists.
-    #[arg(long, global = true)]
-    pub(crate) baud: Option<u32>,
+    /// Where the device is and how to talk to it.
+    #[command(flatten)]
+    pub(crate) target: Target,
     /// Allow a --baud (or scan --bauds) rate the model's manual does not list.
     #[arg(long, global = true)]
     pub(crate) any_baud: bool,
-    /// Parity: none, odd or even (n, o, e).
-    #[arg(long, global = true, ignore_case = true)]
-    pub(crate) parity: Option<inputs::ParityArg>,
-    /// Modbus TCP address of the device: HOST or HOST:PORT.
-    #[arg(long, global = true)]
-    pub(crate) tcp: Option<String>,
     /// Slave address, 1 to 247 (default: the model's factory setting); 0 broadcasts a write
     /// (`set`, `do`), which no device answers.
     #[arg(long, global = true, value_parser = inputs::parse_slave, allow_hyphen_values = true)]
     pub(crate) slave: Option<u8>,
-    /// Reply timeout, e.g. 500ms or 2s (1 ms to 24 h).
-    #[arg(long, global = true, default_value = "1s", value_parser = inputs::TIMEOUT.parser(), allow_hyphen_values = true)]
-    pub(crate) timeout: Duration,
     /// Print data as JSON.
     #[arg(long, global = true)]
     pub(crate) json: bool,
-    /// Print every frame sent and received, in hex with a timestamp, on stderr.
-    #[arg(long, short, global = true)]
-    pub(crate) verbose: bool,
 }
 
 impl Global {
@@ -68,21 +51,10 @@ impl Global {
         }
     }
 
-    pub(crate) fn target(&self) -> Target {
-        Target {
-            serial: self.serial.clone(),
-            baud: self.baud,
-            parity: self.parity.map(inputs::ParityArg::parity),
-            tcp: self.tcp.clone(),
-            timeout: self.timeout,
-            verbose: self.verbose,
-        }
-    }
-
     /// The serial line settings that can be checked without a port: `--baud` is one the
     /// model's manual lists (any rate a port can run at with `--any-baud`).
     pub(crate) fn check_line(&self, device: &DeviceInfo) -> Result<(), CliError> {
-        match self.baud {
+        match self.target.baud {
             Some(baud) => inputs::check_baud(device, "--baud", baud, self.any_baud),
             None => Ok(()),
         }
@@ -111,7 +83,7 @@ impl Global {
     /// The slave address of a write: 0 broadcasts it, on a serial line only.
     pub(crate) fn writing_slave(&self, device: &DeviceInfo) -> Result<u8, CliError> {
         let slave = self.slave.unwrap_or(device.default_slave);
-        if slave == 0 && self.tcp.is_some() {
+        if slave == 0 && self.target.tcp.is_some() {
             return Err(CliError::new(
                 "--slave 0 broadcasts on a serial line; Modbus TCP has no broadcast",
             )
@@ -120,13 +92,28 @@ impl Global {
         Ok(slave)
     }
 
+    /// The readable registers `names` stand for (checked before anything is opened) and a
+    /// connection at the slave that answers `command`.
+    pub(crate) async fn connect_to_read(
+        &self,
+        names: &[String],
+        channel: Option<u8>,
+        command: &str,
+    ) -> Result<(Vec<&'static RegisterInfo>, Core<Link>), CliError> {
+        let device = self.device()?;
+        self.check_line(device)?;
+        let registers = optobus_inspect::resolve_readable(device, names, channel)?;
+        let slave = self.answering_slave(device, command)?;
+        Ok((registers, self.connect(device, slave).await?))
+    }
+
     /// Connects to the device these options name (or the built-in simulator), at `slave`.
     pub(crate) async fn connect(
         &self,
         device: &'static DeviceInfo,
         slave: u8,
     ) -> Result<Core<Link>, CliError> {
-        let link = link::open(device, slave, &self.target()).await?;
+        let link = link::open(device, slave, &self.target).await?;
         Core::new(link, slave, device).map_err(CliError::from)
     }
 }

@@ -4,10 +4,11 @@
 use std::net::SocketAddr;
 use std::time::Duration;
 
+use clap::Args;
 use optobus_device::DeviceInfo;
 use optobus_driver::transport::{
-    self, Error as WireError, Flow, LineFormat, Observe, Parity, ReadRequest, RtuClient,
-    SerialStream, TapConnect, TcpClient, WriteValue,
+    self, Error as WireError, Flow, LineFormat, Observe, ReadRequest, RtuClient, SerialStream,
+    TapConnect, TcpClient, WriteValue,
 };
 use optobus_driver::{line_format, rtu_config, serial_settings, tcp_config, Transport};
 use optobus_inspect::hex;
@@ -15,6 +16,7 @@ use optobus_simulator::Simulator;
 use tokio::io::DuplexStream;
 
 use crate::error::CliError;
+use crate::inputs::{self, ParityArg};
 
 /// `HH:MM:SS.mmm` (UTC) of now.
 pub(crate) fn timestamp() -> String {
@@ -77,13 +79,25 @@ impl Transport for Link {
 }
 
 /// How to reach the device, from the command line.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Args)]
 pub(crate) struct Target {
+    /// Serial port of the device (e.g. /dev/ttyUSB0); default settings from the manual.
+    #[arg(long, global = true, conflicts_with = "tcp")]
     pub(crate) serial: Option<String>,
+    /// Baud rate, when the device is not at its factory setting: one its manual lists.
+    #[arg(long, global = true)]
     pub(crate) baud: Option<u32>,
-    pub(crate) parity: Option<Parity>,
+    /// Parity: none, odd or even (n, o, e).
+    #[arg(long, global = true, ignore_case = true)]
+    pub(crate) parity: Option<ParityArg>,
+    /// Modbus TCP address of the device: HOST or HOST:PORT.
+    #[arg(long, global = true)]
     pub(crate) tcp: Option<String>,
+    /// Reply timeout, e.g. 500ms or 2s (1 ms to 24 h).
+    #[arg(long, global = true, default_value = "1s", value_parser = inputs::TIMEOUT.parser(), allow_hyphen_values = true)]
     pub(crate) timeout: Duration,
+    /// Print every frame sent and received, in hex with a timestamp, on stderr.
+    #[arg(long, short, global = true)]
     pub(crate) verbose: bool,
 }
 
@@ -95,7 +109,7 @@ impl Target {
             format.baud = baud;
         }
         if let Some(parity) = self.parity {
-            format.parity = parity;
+            format.parity = parity.parity();
         }
         format
     }

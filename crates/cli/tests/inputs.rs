@@ -8,6 +8,19 @@ mod common;
 
 use common::{ok, outcome, refused, words, Served, FAILURE, USAGE};
 
+/// `frame encode p read distance_1` with `--timeout text`: parses the option, sends nothing.
+fn encode_with_timeout(text: &str) -> [&str; 7] {
+    [
+        "--timeout",
+        text,
+        "frame",
+        "encode",
+        "p",
+        "read",
+        "distance_1",
+    ]
+}
+
 #[test]
 fn durations_are_bounded_and_strict() {
     for (line, message) in [
@@ -62,28 +75,11 @@ fn durations_are_bounded_and_strict() {
         "99999999999999999999999999999999999999999999",
         "1 fortnight",
     ] {
-        let args = [
-            "--timeout",
-            text,
-            "frame",
-            "encode",
-            "p",
-            "read",
-            "distance_1",
-        ];
-        refused(&args, USAGE, "--timeout");
+        refused(&encode_with_timeout(text), USAGE, "--timeout");
     }
     // Exact to the nanosecond, a bare number is milliseconds; the bounds themselves are fine.
     for text in ["200ms", "1.5s", "250", "2m", "0.1s", "1000us", "1s 500ms"] {
-        ok(&[
-            "--timeout",
-            text,
-            "frame",
-            "encode",
-            "p",
-            "read",
-            "distance_1",
-        ]);
+        ok(&encode_with_timeout(text));
     }
     ok(&["--timeout", "24h", "read", "distance_1"]);
     // The value itself, as `watch` shows its interval.

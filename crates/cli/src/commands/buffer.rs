@@ -43,7 +43,7 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
     let source = input(count, &args.source)?;
     let slave = global.answering_slave(device, "buffer")?;
     global.check_line(device)?;
-    let link = link::open(device, slave, &global.target()).await?;
+    let link = link::open(device, slave, &global.target).await?;
     let mut sensor = PSeries::new(link, slave)?;
     sensor
         .start_buffering(source, count)

@@ -87,7 +87,7 @@ pub(crate) struct EncodeOptions {
 /// model's factory address); the global `--tcp` implies Modbus TCP framing like `--mbap`.
 pub(crate) fn run(global: &Global, command: &FrameCommand) -> Result<(), CliError> {
     let framing = |mbap: bool| {
-        if mbap || global.tcp.is_some() {
+        if mbap || global.target.tcp.is_some() {
             Framing::Tcp
         } else {
             Framing::Rtu

@@ -22,11 +22,9 @@ pub(crate) struct ReadArgs {
 }
 
 pub(crate) async fn read(global: &Global, args: &ReadArgs) -> Result<(), CliError> {
-    let device = global.device()?;
-    global.check_line(device)?;
-    let registers = optobus_inspect::resolve_readable(device, &args.names, args.channel)?;
-    let slave = global.answering_slave(device, "read")?;
-    let mut core = global.connect(device, slave).await?;
+    let (registers, mut core) = global
+        .connect_to_read(&args.names, args.channel, "read")
+        .await?;
     let values = read_values(&mut core, &registers).await?;
     if global.json {
         print(&pretty(&values_json(&values)));

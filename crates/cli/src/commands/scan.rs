@@ -23,7 +23,7 @@ pub(crate) struct ScanArgs {
 pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError> {
     let device = global.device()?;
     global.answering_slave(device, "scan")?;
-    let bauds: Vec<u32> = match (&args.bauds, global.baud) {
+    let bauds: Vec<u32> = match (&args.bauds, global.target.baud) {
         (Some(text), _) => inputs::parse_bauds(device, text, global.any_baud)?,
         (None, Some(baud)) => {
             inputs::check_baud(device, "--baud", baud, global.any_baud)?;
@@ -41,7 +41,7 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
             (device.slaves.0.max(first)..=device.slaves.1.min(last)).collect()
         }
     };
-    let Some(path) = &global.serial else {
+    let Some(path) = &global.target.serial else {
         return Err(CliError::new("scan needs a serial port").hint("give --serial PORT"));
     };
     let probe = device
@@ -55,10 +55,10 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
     );
     let mut found = Vec::new();
     for &baud in &bauds {
-        let mut target = global.target();
+        let mut target = global.target.clone();
         target.baud = Some(baud);
         // A silent address costs the whole timeout: keep it short unless asked otherwise.
-        target.timeout = global.timeout.min(Duration::from_millis(200));
+        target.timeout = global.target.timeout.min(Duration::from_millis(200));
         let link = link::open(device, 0, &target).await?;
         let mut core = Core::with_default_slave(link, device);
         for &slave in &slaves {

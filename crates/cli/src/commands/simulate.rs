@@ -59,7 +59,7 @@ fn faults(args: &SimulateArgs) -> Result<Option<Faults>, CliError> {
 /// The emulated line of `--line-timing`: the model's factory format with `--baud` and
 /// `--parity` applied, and `--turnaround`.
 fn line(device: &DeviceInfo, global: &Global, args: &SimulateArgs) -> Result<Line, CliError> {
-    let format = global.target().line_format(device);
+    let format = global.target.line_format(device);
     format
         .check()
         .map_err(|e| CliError::new(format!("--line-timing cannot time this line: {e}")))?;
@@ -80,7 +80,7 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
         .hint("serve at 1 to 247 with --slave"));
     }
     let faults = faults(args)?;
-    let rtu = args.pty || global.serial.is_some();
+    let rtu = args.pty || global.target.serial.is_some();
     let line = if args.line_timing {
         if !rtu {
             return Err(CliError::new(
@@ -159,9 +159,9 @@ async fn serve(
         let path = pty.path().display().to_string();
         print(&path);
         (Box::new(pty), format!("RTU at {path}"))
-    } else if let Some(path) = &global.serial {
+    } else if let Some(path) = &global.target.serial {
         let mut settings = serial_settings(device, path.as_str());
-        settings.line = global.target().line_format(device);
+        settings.line = global.target.line_format(device);
         let port = settings
             .open()
             .map_err(|e| CliError::new(format!("cannot open {path}: {e}")))?;
@@ -175,7 +175,7 @@ async fn serve(
         });
         (Box::new(task), format!("RTU at {path}"))
     } else {
-        let address = global.tcp.as_deref().unwrap_or("127.0.0.1:5020");
+        let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
         let address = link::resolve_tcp(address, 5020).await?;
         let server = sim.serve_tcp(address).await.map_err(|e| {
             CliError::new(format!("cannot listen on {address}: {e}"))

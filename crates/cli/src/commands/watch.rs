@@ -29,11 +29,10 @@ pub(crate) struct WatchArgs {
 
 /// Redraws the values every `--interval` until Ctrl-C (or `--count` refreshes).
 pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliError> {
-    let device = global.device()?;
-    global.check_line(device)?;
-    let registers = optobus_inspect::resolve_readable(device, &args.names, args.channel)?;
-    let slave = global.answering_slave(device, "watch")?;
-    let mut core = global.connect(device, slave).await?;
+    let (registers, mut core) = global
+        .connect_to_read(&args.names, args.channel, "watch")
+        .await?;
+    let device = core.device();
     let terminal = std::io::stdout().is_terminal() && !global.json;
     let mut drawn_lines = 0usize;
     let mut last: Option<String> = None;
