@@ -30,20 +30,13 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             if aliased(a, b) || same_entry {
                 continue;
             }
+            let (table, at, start) = (b.table.as_str(), b.address.0, a.address.0);
+            let message = format!(
+                "`{}` at {table} address {at} overlaps `{}` ({start}..{a_end})",
+                b.name, a.name
+            );
             out.push(
-                Diagnostic::at(
-                    RULE,
-                    &b.path.key("address"),
-                    format!(
-                        "`{}` at {} address {} overlaps `{}` ({}..{})",
-                        b.name,
-                        b.table.as_str(),
-                        b.address.0,
-                        a.name,
-                        a.address.0,
-                        a_end
-                    ),
-                )
+                Diagnostic::at(RULE, &b.path.key("address"), message)
                 .label("overlapping register")
                 .also(&a.path.key("address"), format!("`{}` starts here", a.name))
                 .help(format!(

@@ -17,20 +17,15 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 .as_ref()
                 .map(|c| format!(" (copy {} of the repeat block)", c.number))
                 .unwrap_or_default();
+            let (name, table, start) =
+                (&register.name, register.table.as_str(), register.address.0);
+            let message = format!(
+                "`{name}`{copy} occupies {table} addresses {start}..{end}, beyond the {table} table of {size}"
+            );
             out.push(
-                Diagnostic::at(
-                    RULE,
-                    &register.path.key("address"),
-                    format!(
-                        "`{}`{copy} occupies {} addresses {}..{end}, beyond the {} table of {size}",
-                        register.name,
-                        register.table.as_str(),
-                        register.address.0,
-                        register.table.as_str()
-                    ),
-                )
-                .label("out of the table")
-                .help("check the address, the word count, or `device.tables`"),
+                Diagnostic::at(RULE, &register.path.key("address"), message)
+                    .label("out of the table")
+                    .help("check the address, the word count, or `device.tables`"),
             );
         }
     }

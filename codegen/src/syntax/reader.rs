@@ -150,10 +150,10 @@ impl Reader {
         path: &Path,
         key: &str,
     ) -> Option<T> {
-        match map.entries.get(key) {
-            Some((_, value)) if !value.is_null() => T::from_node(value, &path.key(key), self),
-            _ => Some(T::default()),
-        }
+        let given = map.entries.get(key).filter(|(_, value)| !value.is_null());
+        given.map_or(Some(T::default()), |(_, value)| {
+            T::from_node(value, &path.key(key), self)
+        })
     }
 
     /// The text of a scalar, or a report that `node` is not one.

@@ -35,6 +35,17 @@ pub(crate) struct Global {
     pub(crate) json: bool,
 }
 
+/// The registers a reading command names: registers, repeat members or groups.
+#[derive(Debug, Args)]
+pub(crate) struct Names {
+    /// Register or group names (`optobus registers` lists them).
+    #[arg(required = true)]
+    names: Vec<String>,
+    /// Copy of a per-channel register (CCF channels 1 to 4).
+    #[arg(long)]
+    channel: Option<u8>,
+}
+
 impl Global {
     /// The model `--spec` describes, or else the one `--model` names.
     pub(crate) fn device(&self) -> Result<&'static DeviceInfo, CliError> {
@@ -92,17 +103,16 @@ impl Global {
         Ok(slave)
     }
 
-    /// The readable registers `names` stand for (checked before anything is opened) and a
+    /// The readable registers `names` stands for (checked before anything is opened) and a
     /// connection at the slave that answers `command`.
     pub(crate) async fn connect_to_read(
         &self,
-        names: &[String],
-        channel: Option<u8>,
+        names: &Names,
         command: &str,
     ) -> Result<(Vec<&'static RegisterInfo>, Core<Link>), CliError> {
         let device = self.device()?;
         self.check_line(device)?;
-        let registers = optobus_inspect::resolve_readable(device, names, channel)?;
+        let registers = optobus_inspect::resolve_readable(device, &names.names, names.channel)?;
         let slave = self.answering_slave(device, command)?;
         Ok((registers, self.connect(device, slave).await?))
     }

@@ -63,7 +63,7 @@ pub fn encode_write_of(
     framing: Framing,
 ) -> Result<Vec<EncodedFrame>, Error> {
     let register = resolve_one(device, name, copy)?;
-    let words = parse_value(register, value).map_err(|e| Error::new(e.to_string()))?;
+    let words = parse_value(register, value)?;
     let frames = encode_write(device, register, &words, slave, framing).map_err(not_encoded)?;
     if frames.is_empty() {
         return Err(Error::new(format!(

@@ -1,8 +1,12 @@
-//! The one-line error of the inspector, with a hint where one helps.
+//! The one-line error of the inspector (and of the tools built on it), with a hint where one
+//! helps.
 
 use std::fmt;
 
-/// Why bytes could not be decoded, or a name or value not encoded, in a line for people.
+use crate::parse::ParseError;
+
+/// Why bytes could not be decoded, or a name or value not encoded, in a line for people;
+/// `Display` gives the message and, in parentheses, the hint.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Error {
     /// What is wrong.
@@ -12,14 +16,16 @@ pub struct Error {
 }
 
 impl Error {
-    pub(crate) fn new(message: impl Into<String>) -> Self {
+    /// An error saying `message`.
+    pub fn new(message: impl Into<String>) -> Self {
         Self {
             message: message.into(),
             hint: None,
         }
     }
 
-    pub(crate) fn hint(mut self, hint: impl Into<String>) -> Self {
+    /// The error with what to try instead.
+    pub fn hint(mut self, hint: impl Into<String>) -> Self {
         self.hint = Some(hint.into());
         self
     }
@@ -27,8 +33,24 @@ impl Error {
 
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.message)
+        f.write_str(&self.message)?;
+        if let Some(hint) = &self.hint {
+            write!(f, " ({hint})")?;
+        }
+        Ok(())
     }
 }
 
 impl std::error::Error for Error {}
+
+impl From<ParseError> for Error {
+    fn from(error: ParseError) -> Self {
+        Self::new(error.to_string())
+    }
+}
+
+impl From<optobus_driver::Error> for Error {
+    fn from(error: optobus_driver::Error) -> Self {
+        Self::new(error.to_string())
+    }
+}

@@ -6,25 +6,19 @@ use optobus_device::RegisterInfo;
 use optobus_driver::plan_reads;
 use serde_json::json;
 
-use crate::connect::{read_values, Global};
+use crate::connect::{read_values, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{pretty, print, values_json, values_text};
 
 #[derive(Debug, Args)]
 pub(crate) struct ReadArgs {
-    /// Register or group names (`optobus registers` lists them).
-    #[arg(required = true)]
-    names: Vec<String>,
-    /// Copy of a per-channel register (CCF channels 1 to 4).
-    #[arg(long)]
-    channel: Option<u8>,
+    #[command(flatten)]
+    names: Names,
 }
 
 pub(crate) async fn read(global: &Global, args: &ReadArgs) -> Result<(), CliError> {
-    let (registers, mut core) = global
-        .connect_to_read(&args.names, args.channel, "read")
-        .await?;
+    let (registers, mut core) = global.connect_to_read(&args.names, "read").await?;
     let values = read_values(&mut core, &registers).await?;
     if global.json {
         print(&pretty(&values_json(&values)));

@@ -6,22 +6,18 @@ use std::time::Duration;
 use clap::Args;
 use serde_json::json;
 
-use crate::connect::{read_values, Global};
+use crate::connect::{read_values, Global, Names};
 use crate::error::CliError;
 use crate::render::{values_json, values_text};
 use crate::{inputs, link};
 
 #[derive(Debug, Args)]
 pub(crate) struct WatchArgs {
-    /// Register or group names.
-    #[arg(required = true)]
-    names: Vec<String>,
+    #[command(flatten)]
+    names: Names,
     /// Time between refreshes (1 ms to 24 h).
     #[arg(long, default_value = "200ms", value_parser = inputs::INTERVAL.parser(), allow_hyphen_values = true)]
     interval: Duration,
-    /// Copy of a per-channel register.
-    #[arg(long)]
-    channel: Option<u8>,
     /// Stop after this many refreshes (default: until Ctrl-C).
     #[arg(long)]
     count: Option<u64>,
@@ -29,9 +25,7 @@ pub(crate) struct WatchArgs {
 
 /// Redraws the values every `--interval` until Ctrl-C (or `--count` refreshes).
 pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliError> {
-    let (registers, mut core) = global
-        .connect_to_read(&args.names, args.channel, "watch")
-        .await?;
+    let (registers, mut core) = global.connect_to_read(&args.names, "watch").await?;
     let device = core.device();
     let terminal = std::io::stdout().is_terminal() && !global.json;
     let mut drawn_lines = 0usize;
