@@ -7,6 +7,7 @@ mod do_command;
 mod frame;
 mod models;
 mod read;
+mod record;
 mod registers;
 mod scan;
 mod set;
@@ -28,6 +29,8 @@ pub(crate) enum Command {
     Read(read::ReadArgs),
     /// Show registers or groups live, refreshed in place; Ctrl-C ends.
     Watch(watch::WatchArgs),
+    /// Sample registers or groups into a CSV file (time, elapsed seconds, values in units).
+    Record(record::RecordArgs),
     /// Every readable register, decoded, read in the fewest transactions.
     Dump,
     /// Write a register: engineering units (`100us`, `42.5`) or code names.
@@ -53,6 +56,7 @@ pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError
         Command::Registers(args) => registers::run(&global, &args),
         Command::Read(args) => read::read(&global, &args).await,
         Command::Watch(args) => watch::run(&global, &args).await,
+        Command::Record(args) => record::run(&global, &args).await,
         Command::Dump => read::dump(&global).await,
         Command::Set(args) => set::run(&global, &args).await,
         Command::Do(args) => do_command::run(&global, &args).await,
