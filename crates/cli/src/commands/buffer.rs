@@ -6,6 +6,7 @@ use std::time::Duration;
 use clap::Args;
 use optobus_p_series::{MeasurementSource, PSeries, DEVICE};
 
+use crate::chart::{check_out, draw, Series};
 use crate::connect::Global;
 use crate::error::{driver_error, CliError};
 use crate::log::note;
@@ -26,6 +27,9 @@ pub(crate) struct BufferArgs {
     /// Write `index,value_mm` CSV here instead of stdout.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Also draw the values over their index as SVG here.
+    #[arg(long, value_name = "FILE.svg")]
+    plot: Option<PathBuf>,
 }
 
 /// Buffers `--count` values of `--source`, downloads them and writes CSV (or JSON).
@@ -38,6 +42,9 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
             device.family
         ))
         .hint(format!("use --model {}", models::name(&DEVICE))));
+    }
+    if let Some(path) = &args.plot {
+        check_out(path)?;
     }
     let (count, wait) = (args.count, args.wait);
     let source = input(count, &args.source)?;
@@ -64,6 +71,15 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
         .await
         .map_err(|e| driver_error(e, Some("buffer")))?;
     bar.finish();
+    if let Some(path) = &args.plot {
+        let points = values.iter().enumerate();
+        let points = points.map(|(i, v)| (i as f64, v.as_ref().map(|v| v.to_f64())));
+        let series = Series {
+            label: format!("{} [mm]", args.source),
+            points: points.collect(),
+        };
+        draw(path, "index", &[series])?;
+    }
     if global.json && args.out.is_none() {
         let list: Vec<serde_json::Value> = values
             .iter()

@@ -6,6 +6,7 @@ mod buffer;
 mod do_command;
 mod frame;
 mod models;
+mod plot;
 mod read;
 mod record;
 mod registers;
@@ -31,6 +32,8 @@ pub(crate) enum Command {
     Watch(watch::WatchArgs),
     /// Sample registers or groups into a CSV file (time, elapsed seconds, values in units).
     Record(record::RecordArgs),
+    /// Draw a recording as SVG: each column over the elapsed time, with its unit.
+    Plot(plot::PlotArgs),
     /// Every readable register, decoded, read in the fewest transactions.
     Dump,
     /// Write a register: engineering units (`100us`, `42.5`) or code names.
@@ -57,6 +60,7 @@ pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError
         Command::Read(args) => read::read(&global, &args).await,
         Command::Watch(args) => watch::run(&global, &args).await,
         Command::Record(args) => record::run(&global, &args).await,
+        Command::Plot(args) => plot::run(&args),
         Command::Dump => read::dump(&global).await,
         Command::Set(args) => set::run(&global, &args).await,
         Command::Do(args) => do_command::run(&global, &args).await,

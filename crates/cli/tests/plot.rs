@@ -1,0 +1,76 @@
+//! `optobus plot` and `optobus buffer --plot`: SVG charts of recorded values, one panel per
+//! column over the elapsed time (or the index), with the units on the axes.
+
+mod common;
+
+use common::{fails, ok};
+
+/// A file in the temporary directory, unique to this test process.
+fn scratch(name: &str) -> String {
+    std::env::temp_dir()
+        .join(format!("optobus-plot-{}-{name}", std::process::id()))
+        .display()
+        .to_string()
+}
+
+/// The SVG text of `path`, which is then removed.
+fn svg(path: &str) -> String {
+    let text = std::fs::read_to_string(path).expect("the chart was written");
+    let _ = std::fs::remove_file(path);
+    text
+}
+
+#[test]
+fn a_recording_is_drawn_with_its_units() {
+    let (csv, out) = (scratch("run.csv"), scratch("run.svg"));
+    ok(&[
+        "record",
+        "distance_1",
+        "thickness",
+        "--count",
+        "40",
+        "--out",
+        &csv,
+    ]);
+    ok(&["plot", &csv, "--out", &out]);
+    let _ = std::fs::remove_file(&csv);
+    let chart = svg(&out);
+    assert!(
+        chart.starts_with("<svg"),
+        "{}",
+        &chart[..chart.len().min(200)]
+    );
+    for label in ["distance_1 [mm]", "thickness [mm]", "elapsed [s]"] {
+        assert!(chart.contains(label), "{label} missing");
+    }
+    // One line per run of valid readings, in each of the two panels.
+    assert!(chart.matches("<polyline").count() >= 2);
+}
+
+#[test]
+fn a_buffer_download_is_drawn_over_its_index() {
+    let out = scratch("buffer.svg");
+    ok(&["buffer", "--count", "120", "--wait", "0", "--plot", &out]);
+    let chart = svg(&out);
+    assert!(chart.contains("distance_1 [mm]") && chart.contains("index"));
+    assert!(chart.contains("<polyline"));
+}
+
+#[test]
+fn what_cannot_be_drawn_is_refused() {
+    let csv = scratch("not-a-recording.csv");
+    std::fs::write(&csv, "index,value_mm\n0,1.0\n").expect("write");
+    let stderr = fails(&["plot", &csv, "--out", &scratch("x.svg")]);
+    assert!(stderr.contains("no recording"), "{stderr}");
+    let stderr = fails(&["plot", &csv, "--out", &scratch("x.png")]);
+    assert!(stderr.contains("written as SVG"), "{stderr}");
+    let _ = std::fs::remove_file(&csv);
+    let stderr = fails(&["plot", &scratch("missing.csv"), "--out", &scratch("x.svg")]);
+    assert!(stderr.contains("cannot read"), "{stderr}");
+    // Refused before the download starts.
+    let stderr = fails(&["buffer", "--count", "10", "--plot", &scratch("x.pdf")]);
+    assert!(
+        stderr.contains("written as SVG") && !stderr.contains("buffering"),
+        "{stderr}"
+    );
+}
