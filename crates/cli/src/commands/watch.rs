@@ -4,6 +4,7 @@ use std::io::{IsTerminal, Write};
 use std::time::Duration;
 
 use clap::Args;
+use crossterm::{cursor, terminal, QueueableCommand};
 use serde_json::json;
 
 use crate::connect::{read_values, Global, Names};
@@ -28,7 +29,7 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
     let (registers, mut core) = global.connect_to_read(&args.names, "watch").await?;
     let device = core.device();
     let terminal = std::io::stdout().is_terminal() && !global.json;
-    let mut drawn_lines = 0usize;
+    let mut drawn_lines = 0u16;
     let mut last: Option<String> = None;
     let mut refresh = 0u64;
     let ctrl_c = tokio::signal::ctrl_c();
@@ -65,13 +66,13 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
             ),
         };
         let mut out = std::io::stdout().lock();
-        if terminal && drawn_lines > 0 {
-            // Back to the top of the last drawing and clear it: the view refreshes in place.
-            let _ = write!(out, "\x1b[{drawn_lines}F\x1b[J");
+        if terminal {
+            let rows = terminal::size().map_or(u16::MAX, |(_, rows)| rows);
+            drawn_lines = redraw(&mut out, drawn_lines, &block, rows);
+        } else {
+            let _ = out.write_all(block.as_bytes());
         }
-        let _ = out.write_all(block.as_bytes());
         let _ = out.flush();
-        drawn_lines = block.lines().count();
         if args.count.is_some_and(|n| refresh >= n) {
             break;
         }
@@ -81,4 +82,37 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
         }
     }
     Ok(())
+}
+
+/// Replaces the last drawing (`drawn` lines) with `block`, cut to a terminal of `rows` rows
+/// so that the cursor can always climb back over it (a taller block would scroll and smear
+/// the scrollback); gives the lines drawn.
+fn redraw(out: &mut impl Write, drawn: u16, block: &str, rows: u16) -> u16 {
+    let lines: Vec<&str> = block.lines().take(usize::from(rows.max(2) - 1)).collect();
+    if drawn > 0 {
+        let _ = out.queue(cursor::MoveToPreviousLine(drawn));
+        let _ = out.queue(terminal::Clear(terminal::ClearType::FromCursorDown));
+    }
+    for line in &lines {
+        let _ = writeln!(out, "{line}");
+    }
+    u16::try_from(lines.len()).unwrap_or(u16::MAX)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::redraw;
+
+    #[test]
+    fn a_block_taller_than_the_terminal_is_cut_and_climbed_back_over() {
+        let block: String = (1..=10).map(|i| format!("line {i}\n")).collect();
+        let mut out = Vec::new();
+        let drawn = redraw(&mut out, 0, &block, 4);
+        assert_eq!(drawn, 3);
+        assert_eq!(String::from_utf8_lossy(&out), "line 1\nline 2\nline 3\n");
+        let mut out = Vec::new();
+        assert_eq!(redraw(&mut out, drawn, "a\nb\n", 4), 2);
+        // Up three lines, clear below, then the new block.
+        assert_eq!(String::from_utf8_lossy(&out), "\u{1b}[3F\u{1b}[Ja\nb\n");
+    }
 }
