@@ -276,19 +276,10 @@ fn connection_errors_are_one_clear_line() {
 
 #[test]
 fn ctrl_c_ends_watch_cleanly() {
-    let child = common::optobus()
-        .args(["watch", "distance_1", "--interval", "20ms"])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .expect("start watch");
-    std::thread::sleep(std::time::Duration::from_millis(500));
-    let killed = std::process::Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .expect("kill");
-    assert!(killed.success());
-    let output = child.wait_with_output().expect("watch ends");
+    let output = common::interrupted(
+        &["watch", "distance_1", "--interval", "20ms"],
+        std::time::Duration::from_millis(500),
+    );
     assert!(output.status.success(), "{:?}", output.status);
     let text = String::from_utf8_lossy(&output.stdout);
     assert!(text.lines().any(|l| l.starts_with("distance_1")), "{text}");

@@ -115,27 +115,19 @@ fn an_end_is_required_and_checked() {
 #[test]
 fn ctrl_c_ends_the_recording_with_a_complete_file() {
     let out = scratch("interrupted.csv");
-    let mut child = common::optobus()
-        .args([
-            "record",
-            "distance_1",
-            "--duration",
-            "20s",
-            "--interval",
-            "10ms",
-        ])
-        .args(["--out", &out])
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .expect("start optobus record");
-    std::thread::sleep(std::time::Duration::from_millis(600));
-    let interrupted = std::process::Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .expect("kill -INT");
-    assert!(interrupted.success());
-    let status = child.wait().expect("record ends");
-    assert!(status.success(), "{status}");
+    let args = [
+        "record",
+        "distance_1",
+        "--duration",
+        "20s",
+        "--interval",
+        "10ms",
+    ];
+    let output = common::interrupted(
+        &[&args[..], &["--out", &out]].concat(),
+        std::time::Duration::from_millis(600),
+    );
+    assert!(output.status.success(), "{:?}", output.status);
     let text = std::fs::read_to_string(&out).expect("the file");
     assert!(text.ends_with('\n'), "the last row is whole");
     let rows = rows(&out);

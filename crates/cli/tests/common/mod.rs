@@ -133,3 +133,21 @@ impl Drop for Served {
         let _ = self.child.wait();
     }
 }
+
+/// Runs `optobus args…`, sends it Ctrl-C (SIGINT) after `after`, and gives how it ended.
+#[allow(dead_code)]
+pub fn interrupted(args: &[&str], after: std::time::Duration) -> Output {
+    let child = optobus()
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start optobus");
+    std::thread::sleep(after);
+    let sent = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill -INT");
+    assert!(sent.success());
+    child.wait_with_output().expect("optobus ends")
+}
