@@ -6,7 +6,7 @@ use std::time::Duration;
 use clap::Args;
 use optobus_p_series::{MeasurementSource, PSeries, DEVICE};
 
-use crate::connect::Global;
+use crate::connect::{DeviceArgs, Global};
 use crate::error::{driver_error, CliError};
 use crate::log::note;
 use crate::render::{print, progress_bar};
@@ -26,6 +26,8 @@ pub(crate) struct BufferArgs {
     /// Write `index,value_mm` CSV here instead of stdout.
     #[arg(long)]
     out: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
 }
 
 /// Buffers `--count` values of `--source`, downloads them and writes CSV (or JSON).
