@@ -26,7 +26,8 @@ impl Exit {
 }
 
 /// The exit codes, for `--help`.
-pub(crate) const EXIT_CODES: &str = "Exit codes: 0 done; 1 the device, the line or the system failed \
+pub(crate) const EXIT_CODES: &str =
+    "Exit codes: 0 done; 1 the device, the line or the system failed \
 (timeout, exception, bad reply, port or address unreachable); 2 usage error; 3 refused before \
 anything was sent (unknown name, value out of range, missing --yes).";
 

@@ -40,8 +40,8 @@ pub use encode::{encode_read, encode_read_of, encode_write, encode_write_of, Enc
 pub use error::Error;
 pub use frame::{CrcCheck, ExplainedFrame, Field, FrameKind, Framing, RegisterValue};
 pub use hex::{hex, parse_hex, HexError};
-pub use optobus_codec::EncodeError;
 pub use number::{hex_and_decimal, parse_number};
+pub use optobus_codec::EncodeError;
 pub use parse::{code_list, parse_value, ParseError};
 pub use resolve::{resolve, resolve_one, resolve_readable, ResolveError};
 pub use value::{decode_value, range_text, Value};

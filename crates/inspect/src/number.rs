@@ -7,9 +7,7 @@ use crate::error::Error;
 /// `what` names it in the error (`a register address`).
 pub fn parse_number(text: &str, what: &str) -> Result<u16, Error> {
     let text = text.trim();
-    let hex = text
-        .strip_prefix("0x")
-        .or_else(|| text.strip_prefix("0X"));
+    let hex = text.strip_prefix("0x").or_else(|| text.strip_prefix("0X"));
     let digits_ok = match hex {
         Some(digits) => !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_hexdigit()),
         None => !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit()),
@@ -21,13 +19,18 @@ pub fn parse_number(text: &str, what: &str) -> Result<u16, Error> {
     let digits = hex.unwrap_or(text).trim_start_matches('0');
     let parsed = match hex {
         Some(_) if digits.len() <= 4 => u16::from_str_radix(digits, 16).ok(),
-        None if digits.len() <= 5 => digits.parse::<u32>().ok().and_then(|n| u16::try_from(n).ok()),
+        None if digits.len() <= 5 => digits
+            .parse::<u32>()
+            .ok()
+            .and_then(|n| u16::try_from(n).ok()),
         _ => None,
     };
     let parsed = if digits.is_empty() { Some(0) } else { parsed };
     parsed.ok_or_else(|| {
-        Error::new(format!("`{text}` is too large for {what}: a register holds 16 bits"))
-            .hint(range)
+        Error::new(format!(
+            "`{text}` is too large for {what}: a register holds 16 bits"
+        ))
+        .hint(range)
     })
 }
 
@@ -61,7 +64,10 @@ mod tests {
         for text in ["65536", "0x10000", "99999999999999999999"] {
             let error = parse_number(text, "a value").unwrap_err();
             assert!(error.message.contains("too large"), "{error}");
-            assert_eq!(error.hint.as_deref(), Some("0 to 65535, or 0x0000 to 0xFFFF"));
+            assert_eq!(
+                error.hint.as_deref(),
+                Some("0 to 65535, or 0x0000 to 0xFFFF")
+            );
         }
     }
 

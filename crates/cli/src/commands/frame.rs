@@ -12,8 +12,8 @@ use serde::Serialize;
 use serde_json::json;
 
 use crate::connect::Options;
-use crate::inputs;
 use crate::error::CliError;
+use crate::inputs;
 use crate::render::{pretty, print};
 
 /// `optobus frame …`.

@@ -80,7 +80,12 @@ pub(crate) async fn run(options: &Options, command: &RawCommand) -> Result<(), C
 }
 
 /// Reads `count` words from `address` of `table`; everything checked before the link opens.
-async fn read(global: &Global, table: RawTable, address: &str, count: &str) -> Result<(), CliError> {
+async fn read(
+    global: &Global,
+    table: RawTable,
+    address: &str,
+    count: &str,
+) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
     let address = parse_number(address, "a register address")?;

@@ -6,7 +6,7 @@ use optobus_device::RegisterInfo;
 use optobus_driver::plan_reads;
 use serde_json::json;
 
-use crate::connect::{DeviceArgs, read_values, Global, Names};
+use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{pretty, print, values_json, values_text};

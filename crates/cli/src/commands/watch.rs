@@ -6,7 +6,7 @@ use std::time::Duration;
 use clap::Args;
 use serde_json::json;
 
-use crate::connect::{DeviceArgs, read_values, Global, Names};
+use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::render::{values_json, values_text};
 use crate::{inputs, link};
