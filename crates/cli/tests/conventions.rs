@@ -88,7 +88,10 @@ fn frame_names_its_model_once() {
     }
     // --slave of an encoded frame belongs to the request, not to a device.
     let text = ok(&words("frame encode ccs read distance_1 --slave 7"));
-    assert!(text.lines().any(|l| l == "07 04 00 00 00 02 71 AD"), "{text}");
+    assert!(
+        text.lines().any(|l| l == "07 04 00 00 00 02 71 AD"),
+        "{text}"
+    );
 }
 
 #[test]
