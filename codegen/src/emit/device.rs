@@ -40,15 +40,16 @@ pub(super) fn group_path(name: &str) -> TokenStream {
     quote!(groups::#name)
 }
 
-/// `0012` or `0012–0013`, as the manuals print addresses.
+/// `holding 0x0010 (16)` or `holding 0x0010–0x0011 (16–17)`: hex and decimal, so neither
+/// reads as the other; 0-based, as on the wire.
 pub(super) fn address_text(model: &Model, register: &Register) -> String {
     let first = register.address.0;
     let last = first + model.extent(register).saturating_sub(1);
     let table = register.table.as_str();
     if last == first {
-        format!("{table} {first:04}")
+        format!("{table} {first:#06X} ({first})")
     } else {
-        format!("{table} {first:04}–{last:04}")
+        format!("{table} {first:#06X}–{last:#06X} ({first}–{last})")
     }
 }
 

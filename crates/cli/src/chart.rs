@@ -60,7 +60,7 @@ pub(crate) fn check_out(out: &Path) -> Result<(), CliError> {
 pub(crate) fn draw(out: &Path, x_label: &str, series: &[Series]) -> Result<(), CliError> {
     check_out(out)?;
     let failed =
-        |e: &dyn std::fmt::Display| CliError::new(format!("cannot draw {}: {e}", out.display()));
+        |e: &dyn std::fmt::Display| CliError::failed(format!("cannot draw {}: {e}", out.display()));
     let count = u32::try_from(series.len()).unwrap_or(u32::MAX).max(1);
     let root = SVGBackend::new(out, (1000, PANEL_HEIGHT.saturating_mul(count))).into_drawing_area();
     root.fill(&WHITE).map_err(|e| failed(&e))?;

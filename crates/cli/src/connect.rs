@@ -10,9 +10,9 @@ use crate::error::{driver_error, CliError};
 use crate::link::{self, Link, Target};
 use crate::{inputs, models};
 
-/// Options every command takes.
+/// Options every command takes: which model, and how to print.
 #[derive(Debug, Args)]
-pub(crate) struct Global {
+pub(crate) struct Options {
     /// Sensor family (help and default from the models, at startup).
     #[arg(long, short, global = true)]
     pub(crate) model: String,
@@ -20,19 +20,76 @@ pub(crate) struct Global {
     /// `optobus-codegen check`).
     #[arg(long, global = true, value_name = "SPEC.yaml")]
     pub(crate) spec: Option<std::path::PathBuf>,
+    /// Print data as JSON.
+    #[arg(long, global = true)]
+    pub(crate) json: bool,
+}
+
+/// Options of the commands that talk to a device (or serve one): where it is, the line, the
+/// slave address. Commands that only describe models or frames do not take them.
+#[derive(Clone, Debug, Args)]
+#[command(next_help_heading = "Device options")]
+pub(crate) struct DeviceArgs {
     /// Where the device is and how to talk to it.
     #[command(flatten)]
     pub(crate) target: Target,
     /// Allow a --baud (or scan --bauds) rate the model's manual does not list.
-    #[arg(long, global = true)]
+    #[arg(long)]
     pub(crate) any_baud: bool,
     /// Slave address, 1 to 247 (default: the model's factory setting); 0 broadcasts a write
     /// (`set`, `do`), which no device answers.
-    #[arg(long, global = true, value_parser = inputs::parse_slave, allow_hyphen_values = true)]
+    #[arg(long, value_parser = inputs::parse_slave, allow_hyphen_values = true)]
     pub(crate) slave: Option<u8>,
-    /// Print data as JSON.
-    #[arg(long, global = true)]
+}
+
+/// What a device command was given besides its own arguments: the common options and the
+/// device options.
+#[derive(Debug)]
+pub(crate) struct Global {
+    pub(crate) model: String,
+    pub(crate) spec: Option<std::path::PathBuf>,
     pub(crate) json: bool,
+    pub(crate) target: Target,
+    pub(crate) any_baud: bool,
+    pub(crate) slave: Option<u8>,
+}
+
+impl Options {
+    /// The model `--spec` describes, or else the one a command names itself (`simulate ccs`),
+    /// or else the one `--model` names. (A command's own model argument shares `--model`'s
+    /// id, so it also carries `--model`'s value.)
+    pub(crate) fn device_or(&self, named: Option<&str>) -> Result<&'static DeviceInfo, CliError> {
+        model(self.spec.as_deref(), &self.model, named)
+    }
+
+    /// These options with a device command's `device` options.
+    pub(crate) fn with(&self, device: &DeviceArgs) -> Global {
+        let DeviceArgs {
+            target,
+            any_baud,
+            slave,
+        } = device.clone();
+        Global {
+            model: self.model.clone(),
+            spec: self.spec.clone(),
+            json: self.json,
+            target,
+            any_baud,
+            slave,
+        }
+    }
+}
+
+/// The model `spec` describes, or else the one `named`, or else `model`.
+fn model(
+    spec: Option<&std::path::Path>,
+    model: &str,
+    named: Option<&str>,
+) -> Result<&'static DeviceInfo, CliError> {
+    match spec {
+        Some(spec) => models::load(spec),
+        None => models::find(named.unwrap_or(model)),
+    }
 }
 
 /// The registers a reading command names: registers, repeat members or groups.
@@ -52,13 +109,20 @@ impl Global {
         self.device_or(None)
     }
 
-    /// The model `--spec` describes, or else the one a command names itself (`simulate ccs`),
-    /// or else the one `--model` names. (A command's own model argument shares `--model`'s
-    /// id, so it also carries `--model`'s value.)
+    /// The model `--spec` describes, or else the one a command names itself, or else the one
+    /// `--model` names.
     pub(crate) fn device_or(&self, named: Option<&str>) -> Result<&'static DeviceInfo, CliError> {
-        match &self.spec {
-            Some(spec) => models::load(spec),
-            None => models::find(named.unwrap_or(&self.model)),
+        model(self.spec.as_deref(), &self.model, named)
+    }
+
+    /// Before a write to the built-in simulator (neither --serial nor --tcp given), says on
+    /// stderr that its state lasts for this command only.
+    pub(crate) fn note_if_simulated(&self, command: &str) {
+        if self.target.serial.is_none() && self.target.tcp.is_none() {
+            crate::log::note!(
+                "optobus: the built-in simulator's state lasts for this `{command}` only; serve \
+                 a lasting one with `optobus simulate` and point --tcp or --serial at it"
+            );
         }
     }
 

@@ -1,21 +1,133 @@
-//! One error type for the tool: a line saying what failed and what to try.
+//! One error type for the tool: a line saying what failed and what to try, and the exit code
+//! that tells a script which kind of failure it was.
+
+use std::fmt;
+use std::process::ExitCode;
+
+use optobus_driver::transport::Error as WireError;
+
+/// The exit codes of `optobus`, documented in its `--help` and the README.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Exit {
+    /// The device, the line, the network or the system failed: a timeout, an exception, a
+    /// malformed reply, a port that does not open, no device found.
+    Failed = 1,
+    /// The command line is malformed (clap's own code for usage errors).
+    Usage = 2,
+    /// Refused before anything was sent: an unknown name, a value out of range, a missing
+    /// `--yes`.
+    Refused = 3,
+}
+
+impl Exit {
+    pub(crate) fn code(self) -> ExitCode {
+        ExitCode::from(self as u8)
+    }
+}
+
+/// The exit codes, for `--help`.
+pub(crate) const EXIT_CODES: &str =
+    "Exit codes: 0 done; 1 the device, the line or the system failed \
+(timeout, exception, bad reply, port or address unreachable); 2 usage error; 3 refused before \
+anything was sent (unknown name, value out of range, missing --yes).";
 
 /// A failure the user sees as one line on stderr (with a hint in parentheses where one helps)
-/// and a non-zero exit code: the inspector's error, which every library error here converts
-/// into.
-pub(crate) use optobus_inspect::Error as CliError;
+/// and the exit code of its kind.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct CliError {
+    error: optobus_inspect::Error,
+    exit: Exit,
+}
+
+impl CliError {
+    /// Input refused before anything was sent.
+    pub(crate) fn new(message: impl Into<String>) -> Self {
+        Self {
+            error: optobus_inspect::Error::new(message),
+            exit: Exit::Refused,
+        }
+    }
+
+    /// The device, the line or the system failed.
+    pub(crate) fn failed(message: impl Into<String>) -> Self {
+        Self {
+            error: optobus_inspect::Error::new(message),
+            exit: Exit::Failed,
+        }
+    }
+
+    /// The error with what to try instead.
+    pub(crate) fn hint(mut self, hint: impl Into<String>) -> Self {
+        self.error = self.error.hint(hint);
+        self
+    }
+
+    pub(crate) fn exit(&self) -> Exit {
+        self.exit
+    }
+}
+
+impl fmt::Display for CliError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.error.fmt(f)
+    }
+}
+
+impl std::error::Error for CliError {}
+
+/// The inspector refuses names, values and bytes; it never sends anything.
+impl From<optobus_inspect::Error> for CliError {
+    fn from(error: optobus_inspect::Error) -> Self {
+        Self {
+            error,
+            exit: Exit::Refused,
+        }
+    }
+}
+
+impl From<optobus_inspect::ParseError> for CliError {
+    fn from(error: optobus_inspect::ParseError) -> Self {
+        optobus_inspect::Error::from(error).into()
+    }
+}
+
+impl From<optobus_driver::Error> for CliError {
+    fn from(error: optobus_driver::Error) -> Self {
+        driver_error(error, None)
+    }
+}
+
+/// Whether the driver refused before sending (a value, a request no device takes) or the
+/// exchange failed.
+fn exit_of(error: &optobus_driver::Error) -> Exit {
+    match error {
+        optobus_driver::Error::Transport(WireError::Request(_) | WireError::Unsupported(_)) => {
+            Exit::Refused
+        }
+        optobus_driver::Error::Transport(_) => Exit::Failed,
+        _ => Exit::Refused,
+    }
+}
 
 /// Explains a driver error; `register` names the register involved, if any.
 pub(crate) fn driver_error(error: optobus_driver::Error, register: Option<&str>) -> CliError {
     let subject = register.map(|r| format!(" for `{r}`")).unwrap_or_default();
     let timed_out = matches!(
         error,
-        optobus_driver::Error::Transport(optobus_driver::transport::Error::Timeout { .. })
+        optobus_driver::Error::Transport(WireError::Timeout { .. })
     );
-    let error = CliError::new(format!("{error}{subject}"));
+    let explained = CliError {
+        error: optobus_inspect::Error::new(format!("{error}{subject}")),
+        exit: exit_of(&error),
+    };
     if timed_out {
-        error.hint("check wiring, --slave, --baud and --parity, or raise --timeout")
+        explained.hint("check wiring, --slave, --baud and --parity, or raise --timeout")
     } else {
-        error
+        explained
     }
+}
+
+/// Explains a transport error of a raw exchange; `subject` says what was read or written.
+pub(crate) fn transport_error(error: WireError, subject: &str) -> CliError {
+    driver_error(optobus_driver::Error::Transport(error), Some(subject))
 }

@@ -82,27 +82,34 @@ impl Transport for Link {
 #[derive(Clone, Debug, Args)]
 pub(crate) struct Target {
     /// Serial port of the device (e.g. /dev/ttyUSB0); default settings from the manual.
-    #[arg(long, global = true, conflicts_with = "tcp")]
+    #[arg(long, conflicts_with = "tcp")]
     pub(crate) serial: Option<String>,
     /// Baud rate, when the device is not at its factory setting: one its manual lists.
-    #[arg(long, global = true)]
+    #[arg(long)]
     pub(crate) baud: Option<u32>,
     /// Parity: none, odd or even (n, o, e).
-    #[arg(long, global = true, ignore_case = true)]
+    #[arg(long, ignore_case = true)]
     pub(crate) parity: Option<ParityArg>,
+    /// Data bits per character, 5 to 8 (default: the model's factory setting).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(5..=8))]
+    pub(crate) data_bits: Option<u8>,
+    /// Stop bits, 1 or 2 (default: the model's factory setting).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=2))]
+    pub(crate) stop_bits: Option<u8>,
     /// Modbus TCP address of the device: HOST or HOST:PORT.
-    #[arg(long, global = true)]
+    #[arg(long)]
     pub(crate) tcp: Option<String>,
     /// Reply timeout, e.g. 500ms or 2s (1 ms to 24 h).
-    #[arg(long, global = true, default_value = "1s", value_parser = inputs::TIMEOUT.parser(), allow_hyphen_values = true)]
+    #[arg(long, default_value = "1s", value_parser = inputs::TIMEOUT.parser(), allow_hyphen_values = true)]
     pub(crate) timeout: Duration,
     /// Print every frame sent and received, in hex with a timestamp, on stderr.
-    #[arg(long, short, global = true)]
+    #[arg(long, short)]
     pub(crate) verbose: bool,
 }
 
 impl Target {
-    /// The model's factory line format with `--baud` and `--parity` applied.
+    /// The model's factory line format with `--baud`, `--parity`, `--data-bits` and
+    /// `--stop-bits` applied.
     pub(crate) fn line_format(&self, device: &DeviceInfo) -> LineFormat {
         let mut format = line_format(device);
         if let Some(baud) = self.baud {
@@ -110,6 +117,12 @@ impl Target {
         }
         if let Some(parity) = self.parity {
             format.parity = parity.parity();
+        }
+        if let Some(bits) = self.data_bits {
+            format.data_bits = bits;
+        }
+        if let Some(bits) = self.stop_bits {
+            format.stop_bits = bits;
         }
         format
     }
@@ -119,7 +132,7 @@ impl Target {
 pub(crate) async fn resolve_tcp(address: &str, default_port: u16) -> Result<SocketAddr, CliError> {
     transport::resolve(address, default_port)
         .await
-        .map_err(|e| CliError::new(format!("cannot resolve `{address}`: {e}")))
+        .map_err(|e| CliError::failed(format!("cannot resolve `{address}`: {e}")))
 }
 
 /// Opens the link `target` describes to `device`; without a serial port or TCP address, the
@@ -136,7 +149,7 @@ pub(crate) async fn open(
         settings.line = target.line_format(device);
         config.line = Some(settings.line);
         let port = settings.open().map_err(|e| {
-            CliError::new(format!("cannot open {path}: {e}"))
+            CliError::failed(format!("cannot open {path}: {e}"))
                 .hint("check the path, that no other program holds the port, and your permissions")
         })?;
         return Ok(Link::Serial(RtuClient::with_config(
@@ -161,7 +174,7 @@ pub(crate) async fn open(
                 WireError::Connect { source, .. } => source.to_string(),
                 other => other.to_string(),
             };
-            CliError::new(format!("cannot connect to {address}: {why}"))
+            CliError::failed(format!("cannot connect to {address}: {why}"))
         })?;
         return Ok(Link::Tcp(client));
     }

@@ -19,16 +19,17 @@ use std::process::ExitCode;
 use clap::{Arg, CommandFactory, FromArgMatches, Parser};
 
 use crate::commands::Command;
-use crate::connect::Global;
+use crate::connect::Options;
+use crate::error::{Exit, EXIT_CODES};
 
 /// Read, watch and set industrial optical distance sensors over Modbus RTU or TCP.
 ///
 /// Without --serial or --tcp, device commands talk to the built-in simulator of --model.
 #[derive(Debug, Parser)]
-#[command(name = "optobus", version, propagate_version = true)]
+#[command(name = "optobus", version, propagate_version = true, after_help = EXIT_CODES)]
 struct Cli {
     #[command(flatten)]
-    global: Global,
+    options: Options,
     #[command(subcommand)]
     command: Command,
 }
@@ -56,8 +57,22 @@ fn with_models(command: clap::Command) -> clap::Command {
 
 fn main() -> ExitCode {
     let mut command = with_models(Cli::command());
-    let cli = Cli::from_arg_matches(&command.get_matches_mut())
-        .unwrap_or_else(|error| error.format(&mut command).exit());
+    let parsed = command
+        .try_get_matches_from_mut(std::env::args_os())
+        .and_then(|matches| Cli::from_arg_matches(&matches));
+    let cli = match parsed {
+        Ok(cli) => cli,
+        // --help and --version come this way too, on stdout.
+        Err(error) => {
+            let error = error.format(&mut command);
+            let _ = error.print();
+            return if error.use_stderr() {
+                Exit::Usage.code()
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
     let runtime = match tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -65,14 +80,14 @@ fn main() -> ExitCode {
         Ok(runtime) => runtime,
         Err(error) => {
             log::note!("optobus: cannot start: {error}");
-            return ExitCode::FAILURE;
+            return Exit::Failed.code();
         }
     };
-    match runtime.block_on(commands::run(cli.global, cli.command)) {
+    match runtime.block_on(commands::run(cli.options, cli.command)) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
             log::note!("optobus: {error}");
-            ExitCode::FAILURE
+            error.exit().code()
         }
     }
 }

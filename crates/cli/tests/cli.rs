@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{fails, json, ok, refused, run, words, Served, FAILURE};
+use common::{fails, json, ok, refused, run, words, Served, REFUSED};
 
 /// Runs each command line, which must succeed and print the line given.
 fn prints(cases: &[(&[&str], &str)]) {
@@ -127,7 +127,7 @@ fn watch_refreshes_and_stops() {
     // A device that does not answer: each refresh marks the error and watch carries on.
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
     let text = ok(&words(&served.serial(
-        "--slave 9 --timeout 50ms watch distance_1 --count 2 --interval 10ms",
+        "watch distance_1 --count 2 --interval 10ms --slave 9 --timeout 50ms",
     )));
     assert_eq!(
         text.lines()
@@ -174,7 +174,7 @@ fn invalid_values_are_refused_before_anything_is_sent() {
         ("--model ccf set exposure_time 1", "--channel"),
     ] {
         let args = words(line);
-        refused(&args, FAILURE, message);
+        refused(&args, REFUSED, message);
     }
 }
 
@@ -188,7 +188,7 @@ fn commands_run_and_drastic_ones_need_yes() {
             "zero_position done",
         ),
     ]);
-    refused(&["do", "save_parameters"], FAILURE, "--yes");
+    refused(&["do", "save_parameters"], REFUSED, "--yes");
     let error = fails(&["do", "self_destruct"]);
     assert!(error.contains("commands: zero_position_1"), "{error}");
 }
@@ -233,8 +233,8 @@ fn simulate_over_tcp_serves_other_clients() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let address = served.at.clone();
     assert!(address.starts_with("127.0.0.1:"), "{address}");
-    ok(&["--tcp", &address, "set", "light_power", "33.3"]);
-    let values = json(&["--tcp", &address, "read", "light_power"]);
+    ok(&["set", "light_power", "33.3", "--tcp", &address]);
+    let values = json(&["read", "light_power", "--tcp", &address]);
     assert_eq!(values["light_power"]["exact"], "33.3");
 }
 
@@ -250,13 +250,13 @@ fn scan_finds_the_device_on_a_pty() {
 #[test]
 fn connection_errors_are_one_clear_line() {
     // Nothing listens on port 1.
-    let error = fails(&["--tcp", "127.0.0.1:1", "read", "distance_1"]);
+    let error = fails(&["read", "distance_1", "--tcp", "127.0.0.1:1"]);
     assert!(
         error.starts_with("optobus: cannot connect to 127.0.0.1:1"),
         "{error}"
     );
     assert_eq!(error.lines().count(), 1, "{error}");
-    let error = fails(&["--serial", "/dev/nonexistent-port", "read", "distance_1"]);
+    let error = fails(&["read", "distance_1", "--serial", "/dev/nonexistent-port"]);
     assert!(
         error.contains("cannot open /dev/nonexistent-port"),
         "{error}"
@@ -264,7 +264,7 @@ fn connection_errors_are_one_clear_line() {
     // A device at another slave address stays silent: a timeout that says what to check.
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
     let error = fails(&words(
-        &served.serial("--slave 9 --timeout 100ms read laser"),
+        &served.serial("read laser --slave 9 --timeout 100ms"),
     ));
     assert!(
         error.starts_with("optobus: no reply within 100 ms for `laser_enabled"),
@@ -290,8 +290,8 @@ fn watch_over_tcp_carries_on_after_the_server_restarts() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let address = served.at.clone();
     let watch = common::optobus()
-        .args(["--tcp", &address, "--json", "--timeout", "200ms"])
         .args(["watch", "laser", "--interval", "100ms", "--count", "40"])
+        .args(["--tcp", &address, "--json", "--timeout", "200ms"])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::null())
         .spawn()

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{fails, ok, words};
+use common::{fails, ok, refused, words, USAGE};
 use serde_json::Value;
 
 /// Stdout of a successful `optobus frame decode args…`.
@@ -154,7 +154,7 @@ fn encode_slave_and_channel() {
         &frame,
     );
     let stdout = ok(&words(
-        "--slave 7 frame encode ccf read exposure_time --channel 3",
+        "frame encode ccf read exposure_time --channel 3 --slave 7",
     ));
     assert_eq!(hex_lines(&stdout), frame);
 }
@@ -166,9 +166,9 @@ fn encode_modbus_tcp_frames() {
         &["p-series", "set", "sampling_interval", "100us", "--mbap"],
         &["00 01 00 00 00 06 01 06 00 06 00 14"],
     );
-    // The global --tcp HOST implies Modbus TCP framing; transaction ids count up.
+    // Transaction ids count up.
     let stdout = ok(&words(
-        "--tcp 192.0.2.1 frame encode p-series set position_1_slope 2",
+        "frame encode p-series set position_1_slope 2 --mbap",
     ));
     assert_eq!(
         hex_lines(&stdout),
@@ -176,6 +176,12 @@ fn encode_modbus_tcp_frames() {
             "00 01 00 00 00 06 01 06 00 1C 00 00",
             "00 02 00 00 00 06 01 06 00 1B 00 20"
         ]
+    );
+    // --tcp names a device to talk to, which `frame` never does: no framing switch.
+    refused(
+        &words("frame encode p-series set position_1_slope 2 --tcp 192.0.2.1"),
+        USAGE,
+        "unexpected argument '--tcp'",
     );
 }
 

@@ -6,26 +6,18 @@
 
 mod common;
 
-use common::{ok, outcome, refused, words, Served, FAILURE, USAGE};
+use common::{ok, outcome, refused, words, Served, FAILED, REFUSED, USAGE};
 
-/// `frame encode p read distance_1` with `--timeout text`: parses the option, sends nothing.
-fn encode_with_timeout(text: &str) -> [&str; 7] {
-    [
-        "--timeout",
-        text,
-        "frame",
-        "encode",
-        "p",
-        "read",
-        "distance_1",
-    ]
+/// `read distance_1 --timeout text`: a refused timeout stops it before anything is opened.
+fn read_with_timeout(text: &str) -> [&str; 4] {
+    ["read", "distance_1", "--timeout", text]
 }
 
 #[test]
 fn durations_are_bounded_and_strict() {
     for (line, message) in [
         (
-            "--timeout 9999999999999999999s read distance_1",
+            "read distance_1 --timeout 9999999999999999999s",
             "--timeout 9999999999999999999s is too long: at most 24h",
         ),
         (
@@ -33,21 +25,21 @@ fn durations_are_bounded_and_strict() {
             "--interval 9223372036854775807s is too long: at most 24h",
         ),
         (
-            "--timeout 0 read distance_1",
+            "read distance_1 --timeout 0",
             "--timeout 0 is too short: at least 1ms",
         ),
         (
             "watch distance_1 --interval 0",
             "--interval 0 is too short: at least 1ms",
         ),
-        ("--timeout 25h read distance_1", "at most 24h"),
+        ("read distance_1 --timeout 25h", "at most 24h"),
         (
-            "--timeout -1s read distance_1",
+            "read distance_1 --timeout -1s",
             "--timeout cannot be negative",
         ),
-        ("--timeout NaN read distance_1", "`NaN` is not a duration"),
-        ("--timeout 1e400s read distance_1", "is not a duration"),
-        ("--timeout 1.5.2s read distance_1", "is not a duration"),
+        ("read distance_1 --timeout NaN", "`NaN` is not a duration"),
+        ("read distance_1 --timeout 1e400s", "is not a duration"),
+        ("read distance_1 --timeout 1.5.2s", "is not a duration"),
         (
             "buffer --count 10 --wait 100000s",
             "--wait 100000s is too long: at most 24h",
@@ -75,13 +67,13 @@ fn durations_are_bounded_and_strict() {
         "99999999999999999999999999999999999999999999",
         "1 fortnight",
     ] {
-        refused(&encode_with_timeout(text), USAGE, "--timeout");
+        refused(&read_with_timeout(text), USAGE, "--timeout");
     }
     // Exact to the nanosecond, a bare number is milliseconds; the bounds themselves are fine.
     for text in ["200ms", "1.5s", "250", "2m", "0.1s", "1000us", "1s 500ms"] {
-        ok(&encode_with_timeout(text));
+        ok(&read_with_timeout(text));
     }
-    ok(&["--timeout", "24h", "read", "distance_1"]);
+    ok(&["read", "distance_1", "--timeout", "24h"]);
     // The value itself, as `watch` shows its interval.
     for (text, shown) in [
         ("1.5s", "every 1500 ms"),
@@ -91,15 +83,7 @@ fn durations_are_bounded_and_strict() {
         let stdout = ok(&["watch", "distance_1", "--count", "1", "--interval", text]);
         assert!(stdout.contains(shown), "{text}: {stdout}");
     }
-    ok(&[
-        "--timeout",
-        "1ms",
-        "frame",
-        "encode",
-        "p",
-        "read",
-        "distance_1",
-    ]);
+    ok(&read_with_timeout("1ms"));
     ok(&["watch", "distance_1", "--count", "1", "--interval", "0.5s"]);
 }
 
@@ -108,23 +92,23 @@ fn slaves_248_to_255_are_refused() {
     for slave in 248..=255u16 {
         let slave = slave.to_string();
         refused(
-            &["--slave", &slave, "read", "distance_1"],
+            &["read", "distance_1", "--slave", &slave],
             USAGE,
             "Modbus reserves 248 to 255",
         );
         refused(
-            &["--slave", &slave, "set", "light_power", "42"],
+            &["set", "light_power", "42", "--slave", &slave],
             USAGE,
             "Modbus reserves 248 to 255",
         );
     }
     for (line, message) in [
         (
-            "--slave 248 frame encode p-series set light_power 42",
+            "frame encode p-series set light_power 42 --slave 248",
             "Modbus reserves 248 to 255",
         ),
-        ("--slave 256 read distance_1", "addresses are 0 to 247"),
-        ("--slave -1 read distance_1", "`-1` is not a slave address"),
+        ("read distance_1 --slave 256", "addresses are 0 to 247"),
+        ("read distance_1 --slave -1", "`-1` is not a slave address"),
     ] {
         refused(&words(line), USAGE, message);
     }
@@ -138,64 +122,64 @@ fn slave_0_is_for_writes_only() {
         vec!["watch", "distance_1", "--count", "1"],
         vec!["dump"],
         vec!["buffer", "--count", "10"],
-        vec!["--serial", "/dev/nonexistent-port", "read", "distance_1"],
-        vec!["--tcp", "127.0.0.1:1", "dump"],
+        vec!["read", "distance_1", "--serial", "/dev/nonexistent-port"],
+        vec!["dump", "--tcp", "127.0.0.1:1"],
     ] {
         let mut args = args.clone();
         args.extend(["--slave", "0"]);
         refused(
             &args,
-            FAILURE,
+            REFUSED,
             "no device answers slave 0, the broadcast address",
         );
     }
     refused(
-        &["--slave", "0", "scan", "--serial", "/dev/nonexistent-port"],
-        FAILURE,
+        &["scan", "--serial", "/dev/nonexistent-port", "--slave", "0"],
+        REFUSED,
         "no device answers slave 0",
     );
     refused(
-        &["--slave", "0", "simulate", "--tcp", "127.0.0.1:0"],
-        FAILURE,
+        &["simulate", "--tcp", "127.0.0.1:0", "--slave", "0"],
+        REFUSED,
         "a device never has slave address 0",
     );
     refused(
         &[
-            "--slave",
-            "0",
             "frame",
             "encode",
             "p-series",
             "read",
             "distance_1",
+            "--slave",
+            "0",
         ],
-        FAILURE,
+        REFUSED,
         "a read sent to slave 0, the broadcast address, gets no reply",
     );
     // A broadcast write is encoded like any write.
     let text = ok(&[
-        "--slave",
-        "0",
         "frame",
         "encode",
         "p-series",
         "set",
         "light_power",
         "42.5",
+        "--slave",
+        "0",
     ]);
     assert!(text.contains("\n00 06 00 02 01 A9 E8 35"), "{text}");
     // Modbus TCP has no broadcast: refused before connecting.
     refused(
         &[
+            "set",
+            "light_power",
+            "42",
             "--tcp",
             "127.0.0.1:1",
             "--slave",
             "0",
-            "set",
-            "light_power",
-            "42",
         ],
-        FAILURE,
+        REFUSED,
         "Modbus TCP has no broadcast",
     );
 }
@@ -204,7 +188,7 @@ fn slave_0_is_for_writes_only() {
 fn broadcast_writes_are_sent_once_and_not_waited_for() {
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
     let (code, stdout, stderr) = outcome(&words(
-        &served.serial("--slave 0 set light_power 42.5 --verbose"),
+        &served.serial("set light_power 42.5 --verbose --slave 0"),
     ));
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(
@@ -215,18 +199,18 @@ fn broadcast_writes_are_sent_once_and_not_waited_for() {
     assert!(stderr.contains(" -> 00 06 00 02 01 A9 E8 35"), "{stderr}");
     assert!(!stderr.contains(" <- "), "no reply read: {stderr}");
     // The device at slave 3 carried it out.
-    let values = common::json(&words(&served.serial("--slave 3 read light_power")));
+    let values = common::json(&words(&served.serial("read light_power --slave 3")));
     assert_eq!(values["light_power"]["exact"], "42.5");
-    let (code, stdout, stderr) = outcome(&words(&served.serial("--slave 0 do zero_position_1")));
+    let (code, stdout, stderr) = outcome(&words(&served.serial("do zero_position_1 --slave 0")));
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(
         stdout.trim(),
         "zero_position_1: broadcast sent, no reply expected"
     );
-    let json = common::json(&["--slave", "0", "do", "zero_position_1"]);
+    let json = common::json(&["do", "zero_position_1", "--slave", "0"]);
     assert_eq!(json["broadcast"], true);
     // Drastic commands still need --yes when broadcast.
-    refused(&["--slave", "0", "do", "reboot"], FAILURE, "--yes");
+    refused(&["do", "reboot", "--slave", "0"], REFUSED, "--yes");
 }
 
 /// `set slave_address 7 --verbose` on `model` served at slave 3 over a pty: the device
@@ -234,7 +218,7 @@ fn broadcast_writes_are_sent_once_and_not_waited_for() {
 fn set_slave_address_7(model: &str) -> (Served, String) {
     let served = Served::start(&[model, "--pty", "--slave", "3"]);
     let line = format!(
-        "--model {model} --serial {} --slave 3 set slave_address 7 --verbose",
+        "--model {model} set slave_address 7 --verbose --serial {} --slave 3",
         served.at
     );
     let (code, stdout, stderr) = outcome(&words(&line));
@@ -250,7 +234,7 @@ fn a_new_slave_address_is_read_back_where_the_device_answers() {
     assert!(stderr.contains(" -> 03 06 00 1F 00 07"), "{stderr}");
     assert!(stderr.contains(" -> 07 03 00 1F 00 01"), "{stderr}");
     assert!(stderr.contains("now answers at slave 7"), "{stderr}");
-    let values = common::json(&words(&served.serial("--slave 7 read slave_address")));
+    let values = common::json(&words(&served.serial("read slave_address --slave 7")));
     assert_eq!(values["slave_address"], 7);
     // LC-RS: only after save and a power cycle; the read-back goes to the old address.
     let (_served, stderr) = set_slave_address_7("lc-rs");
@@ -263,7 +247,7 @@ fn a_new_slave_address_is_read_back_where_the_device_answers() {
     for value in ["0", "248", "255", "256"] {
         refused(
             &["set", "slave_address", value],
-            FAILURE,
+            REFUSED,
             "`slave_address` does not take",
         );
     }
@@ -273,22 +257,22 @@ fn a_new_slave_address_is_read_back_where_the_device_answers() {
 fn set_of_a_drastic_register_needs_yes() {
     refused(
         &["set", "save_parameters", "1"],
-        FAILURE,
+        REFUSED,
         "writing 1 to `save_parameters` runs `save_parameters`",
     );
     refused(
         &["set", "network_reset_or_reboot", "170"],
-        FAILURE,
+        REFUSED,
         "runs `reboot`",
     );
     refused(
         &["set", "network_reset_or_reboot", "1"],
-        FAILURE,
+        REFUSED,
         "runs `reset_network`",
     );
     let error = refused(
         &["--model", "lc-rs", "set", "factory_reset", "5"],
-        FAILURE,
+        REFUSED,
         "`factory_reset` is the register of `factory_reset`",
     );
     assert!(error.contains("--yes"), "{error}");
@@ -306,64 +290,64 @@ fn baud_rates_come_from_the_manual_unless_any_baud() {
     let port = "/dev/nonexistent-port";
     for (line, message) in [
         (
-            "--baud 1 read distance_1",
+            "read distance_1 --baud 1",
             "--baud 1 is no baud rate a serial line can use: 50 to 4000000",
         ),
         (
-            "--baud 0 --any-baud read distance_1",
+            "read distance_1 --baud 0 --any-baud",
             "--baud 0 is no baud rate",
         ),
         (
-            "--baud 5000000 --any-baud read distance_1",
+            "read distance_1 --baud 5000000 --any-baud",
             "--baud 5000000 is no baud rate",
         ),
         (
-            "--baud 14400 read distance_1",
+            "read distance_1 --baud 14400",
             "its manual lists 9600, 19200, 38400, 57600, 115200; --any-baud",
         ),
         (
-            "--model ccf --baud 9600 dump",
+            "--model ccf dump --baud 9600",
             "ccf does not list 9600 baud",
         ),
-        ("--baud 1 set light_power 42", "--baud 1 is no baud rate"),
-        ("--baud 1 buffer --count 10", "--baud 1 is no baud rate"),
+        ("set light_power 42 --baud 1", "--baud 1 is no baud rate"),
+        ("buffer --count 10 --baud 1", "--baud 1 is no baud rate"),
         ("scan --bauds 9600,1", "--bauds 1 is no baud rate"),
         ("scan --bauds 14400", "p_series does not list 14400 baud"),
-        ("--baud 1 scan", "--baud 1 is no baud rate"),
+        ("scan --baud 1", "--baud 1 is no baud rate"),
     ] {
         let args = words(line);
         let mut args = args.clone();
         args.extend(["--serial", port]);
-        refused(&args, FAILURE, message);
+        refused(&args, REFUSED, message);
     }
     for (line, message) in [
         ("simulate --pty --baud 0", "--baud 0 is no baud rate"),
         ("simulate --pty --baud 14400", "does not list 14400 baud"),
     ] {
-        refused(&words(line), FAILURE, message);
+        refused(&words(line), REFUSED, message);
     }
     refused(
-        &["--baud", "nine", "read", "distance_1"],
+        &["read", "distance_1", "--baud", "nine"],
         USAGE,
         "invalid value 'nine'",
     );
     // Accepted rates get as far as the port.
     for args in [
-        vec!["--baud", "14400", "--any-baud", "read", "distance_1"],
+        vec!["read", "distance_1", "--baud", "14400", "--any-baud"],
         vec![
             "--model",
             "rangefinder",
-            "--baud",
-            "14400",
             "read",
             "distance",
+            "--baud",
+            "14400",
         ],
-        vec!["--baud", "9600", "read", "distance_1"],
+        vec!["read", "distance_1", "--baud", "9600"],
     ] {
         let mut args = args.clone();
         args.extend(["--serial", port]);
         let (code, _, stderr) = outcome(&args);
-        assert_eq!(code, Some(FAILURE), "{args:?}");
+        assert_eq!(code, Some(FAILED), "{args:?}");
         assert!(stderr.contains("cannot open"), "{args:?}: {stderr}");
     }
 }
@@ -371,12 +355,12 @@ fn baud_rates_come_from_the_manual_unless_any_baud() {
 #[test]
 fn parity_is_checked_without_serial_too() {
     refused(
-        &["--parity", "x", "read", "distance_1"],
+        &["read", "distance_1", "--parity", "x"],
         USAGE,
         "invalid value 'x' for '--parity <PARITY>'",
     );
     for parity in ["none", "n", "Even", "e", "ODD", "o"] {
-        ok(&["--parity", parity, "read", "distance_1"]);
+        ok(&["read", "distance_1", "--parity", parity]);
     }
 }
 
@@ -396,7 +380,7 @@ fn scan_lists_are_strict() {
     ] {
         refused(
             &["scan", "--serial", port, "--slaves", list],
-            FAILURE,
+            REFUSED,
             message,
         );
     }
@@ -408,7 +392,7 @@ fn scan_lists_are_strict() {
     ] {
         refused(
             &["scan", "--serial", port, "--bauds", list],
-            FAILURE,
+            REFUSED,
             message,
         );
     }
@@ -422,7 +406,7 @@ fn scan_lists_are_strict() {
         "--slaves",
         "1-3,7",
     ]);
-    assert_eq!(code, Some(FAILURE));
+    assert_eq!(code, Some(FAILED));
     assert!(stderr.contains("cannot open"), "{stderr}");
 }
 
@@ -431,13 +415,13 @@ fn buffer_counts_and_sources_are_checked_before_connecting() {
     for count in ["0", "2501", "65535"] {
         refused(
             &["buffer", "--count", count],
-            FAILURE,
+            REFUSED,
             "the P series buffers 1 to 2500 values",
         );
     }
     refused(
         &["buffer", "--count", "10", "--source", "nothing"],
-        FAILURE,
+        REFUSED,
         "`buffer_data_type` does not take `nothing`",
     );
     refused(

@@ -57,9 +57,8 @@ fn mbpoll_at(connection: &[&str], target: &str, options: &[&str], values: &[&str
 /// writes 300 and optobus reads 30.0 %; both read the factory IP address (input 150-153).
 fn exchange(optobus: &[&str], connection: &[&str], target: &str) {
     let with = |more: &[&str]| -> Vec<String> {
-        optobus
-            .iter()
-            .chain(more)
+        more.iter()
+            .chain(optobus)
             .map(|s| (*s).to_owned())
             .collect()
     };

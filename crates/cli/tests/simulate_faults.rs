@@ -237,7 +237,11 @@ fn bad_fault_specs_are_refused_before_serving() {
     ] {
         let output = common::run(&["simulate", "--tcp", "127.0.0.1:0", "--faults", faults]);
         let stderr = String::from_utf8_lossy(&output.stderr);
-        assert_eq!(output.status.code(), Some(1), "{faults}: {stderr}");
+        assert_eq!(
+            output.status.code(),
+            Some(common::REFUSED),
+            "{faults}: {stderr}"
+        );
         assert!(
             stderr.starts_with(&format!("optobus: --faults `{faults}`: ")),
             "{faults}: {stderr}"
@@ -253,7 +257,7 @@ fn bad_fault_specs_are_refused_before_serving() {
         &["simulate", "--faults", "drop=1", "--seed", "-1"][..],
     ] {
         let output = common::run(args);
-        assert_eq!(output.status.code(), Some(2), "{args:?}");
+        assert_eq!(output.status.code(), Some(common::USAGE), "{args:?}");
         assert!(output.stdout.is_empty(), "{args:?}");
     }
 }
@@ -262,7 +266,7 @@ fn bad_fault_specs_are_refused_before_serving() {
 fn line_timing_is_refused_for_modbus_tcp() {
     let output = common::run(&["simulate", "--tcp", "127.0.0.1:0", "--line-timing"]);
     let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert_eq!(output.status.code(), Some(common::REFUSED), "{stderr}");
     assert!(
         stderr.starts_with("optobus: --line-timing times an RTU serial line"),
         "{stderr}"

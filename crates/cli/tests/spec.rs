@@ -5,7 +5,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{fails, json, ok, outcome, Served, FAILURE};
+use common::{fails, json, ok, outcome, Served, REFUSED};
 
 fn repo_file(path: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -34,8 +34,8 @@ fn a_new_spec_is_read_from_its_own_simulator() {
     let spec = repo_file("codegen/tests/fixtures/mini.yaml");
     let served = Served::start(&["--spec", &spec, "--tcp", "127.0.0.1:0"]);
     let at = served.at.as_str();
-    ok(&["--spec", &spec, "--tcp", at, "set", "light_power", "42.5"]);
-    let values = json(&["--spec", &spec, "--tcp", at, "read", "light_power"]);
+    ok(&["--spec", &spec, "set", "light_power", "42.5", "--tcp", at]);
+    let values = json(&["--spec", &spec, "read", "light_power", "--tcp", at]);
     assert_eq!(values["light_power"]["exact"], "42.5", "{values}");
     let list = ok(&["--spec", &spec, "registers"]);
     assert!(list.contains("statistic_config"), "{list}");
@@ -47,7 +47,7 @@ fn a_broken_spec_prints_the_checkers_diagnostics() {
     let spec = repo_file("codegen/tests/fixtures/errors/range.yaml");
     for command in [&["registers"][..], &["simulate", "--duration", "1s"]] {
         let (code, stdout, stderr) = outcome(&[&["--spec", spec.as_str()], command].concat());
-        assert_eq!(code, Some(FAILURE), "{stderr}");
+        assert_eq!(code, Some(REFUSED), "{stderr}");
         assert!(stdout.is_empty(), "{stdout}");
         assert!(
             stderr.contains("error[range]: range of `light_power` has min 1000 > max 5"),
@@ -73,7 +73,7 @@ fn a_trial_spec_of_another_sensor_works_before_any_build() {
     assert_eq!(values["baud_rate"]["name"], "baud_115200", "{values}");
     assert!(values["distance"]["exact"].is_string(), "{values}");
     // Its simulator keeps reads to the two words the source reads at most.
-    let (code, stdout, stderr) = outcome(&["--spec", &spec, "--verbose", "dump"]);
+    let (code, stdout, stderr) = outcome(&["--spec", &spec, "dump", "--verbose"]);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(stdout.contains("baud_rate"), "{stdout}");
     assert!(stderr.contains("-> 01 03 00 00 00 02 C4 0B"), "{stderr}");

@@ -95,9 +95,9 @@ fn messages_on_a_closed_stderr_do_not_panic() {
     let served = common::Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     for (args, code) in [
         // Success with a note on stderr ("… registers in … requests").
-        (vec!["--tcp", served.at.as_str(), "dump"], 0),
+        (vec!["dump", "--tcp", served.at.as_str()], 0),
         // A refusal: its one line goes nowhere, the exit code still says so.
-        (vec!["--slave", "0", "read", "distance_1"], 1),
+        (vec!["read", "distance_1", "--slave", "0"], common::REFUSED),
     ] {
         let mut child = common::optobus()
             .args(&args)

@@ -10,6 +10,8 @@
 //!   decoded ([`Value`]), exception codes with the meanings the spec gives, and notes on
 //!   anything a device would refuse. It never panics, whatever the bytes. An
 //!   [`ExplainedFrame`] displays as the text `optobus frame decode` prints.
+//! - [`parse_number`] reads a 16-bit address or raw word in decimal or `0x` hex;
+//!   [`hex_and_decimal`] writes one back as `0x0010 (16)`.
 //! - [`parse_hex`] reads bytes written in hex however a capture or a person writes them;
 //!   [`hex`] writes them back as `01 04 0C`.
 //! - [`resolve`] finds the registers a name stands for (a register, a repeat member and its
@@ -28,6 +30,7 @@ mod explain;
 mod frame;
 mod hex;
 mod layout;
+mod number;
 mod parse;
 mod resolve;
 mod value;
@@ -37,6 +40,7 @@ pub use encode::{encode_read, encode_read_of, encode_write, encode_write_of, Enc
 pub use error::Error;
 pub use frame::{CrcCheck, ExplainedFrame, Field, FrameKind, Framing, RegisterValue};
 pub use hex::{hex, parse_hex, HexError};
+pub use number::{hex_and_decimal, parse_number};
 pub use optobus_codec::EncodeError;
 pub use parse::{code_list, parse_value, ParseError};
 pub use resolve::{resolve, resolve_one, resolve_readable, ResolveError};

@@ -4,7 +4,7 @@
 use std::fmt;
 use std::net::Ipv4Addr;
 
-use optobus_codec::value::Fixed;
+use optobus_codec::value::{Fixed, Scale};
 use optobus_device::{CodeInfo, RegisterInfo, ValueKind};
 use optobus_driver::{encode_code, encode_packed, Encode};
 
@@ -83,13 +83,9 @@ pub fn parse_value(register: &'static RegisterInfo, text: &str) -> Result<Vec<u1
             };
             encode_code(register, code)
         }
-        ValueKind::Scalar(_) => {
-            let value: Fixed = strip_unit(register, text).parse().map_err(|_| {
-                let unit = register.unit.map(|u| format!(" in {u}"));
-                refuse(format!("not a number{}", unit.unwrap_or_default()))
-            })?;
-            value.encode(register)
-        }
+        ValueKind::Scalar(_) => parse_quantity(register, text)
+            .map_err(refuse)?
+            .encode(register),
         ValueKind::Packed(fields) => {
             let mut bits = 0u32;
             for field in fields {
@@ -228,16 +224,65 @@ fn unit_spellings(unit: &str) -> &'static [&'static str] {
     }
 }
 
-/// `text` without a trailing unit the register is in.
-fn strip_unit<'t>(register: &RegisterInfo, text: &'t str) -> &'t str {
+/// SI prefixes people type, with their powers of ten (`u` and both micro signs alike).
+const PREFIXES: [(&str, i8); 8] = [
+    ("n", -9),
+    ("u", -6),
+    ("µ", -6),
+    ("μ", -6),
+    ("m", -3),
+    ("k", 3),
+    ("M", 6),
+    ("", 0),
+];
+
+/// SI units whose prefixed forms convert into one another (`ms` into `us`, `um` into `mm`).
+const SI_BASES: [&str; 5] = ["s", "m", "V", "A", "Hz"];
+
+/// `unit` as a power of ten of an SI base unit: `us` is (-6, `s`), `mm` (-3, `m`).
+fn si_parts(unit: &str) -> Option<(i8, &str)> {
+    PREFIXES.iter().find_map(|(prefix, power)| {
+        let base = unit.strip_prefix(prefix)?;
+        SI_BASES.contains(&base).then_some((*power, base))
+    })
+}
+
+/// The number in `text` in the register's unit, exactly: bare, with the register's own unit
+/// (`100us`, `100 µs`), or with another SI prefix of the same base unit (`0.2ms` for a `us`
+/// register, `1500 um` for a `mm` one). A result the register's steps cannot hold exactly is
+/// refused later, by the encoding.
+fn parse_quantity(register: &RegisterInfo, text: &str) -> Result<Fixed, String> {
     let text = text.trim();
-    let Some(unit) = register.unit else {
-        return text;
+    let split = text
+        .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | '-' | '+')))
+        .unwrap_or(text.len());
+    let (number, unit) = (text[..split].trim(), text[split..].trim());
+    let not_a_number = || {
+        let unit = register.unit.map(|u| format!(" in {u}"));
+        format!("not a number{}", unit.unwrap_or_default())
     };
-    for spelling in unit_spellings(unit).iter().copied().chain([unit]) {
-        if let Some(number) = text.strip_suffix(spelling) {
-            return number.trim_end();
-        }
+    let value: Fixed = number.parse().map_err(|_| not_a_number())?;
+    let own = register.unit.unwrap_or("");
+    if unit.is_empty() || unit == own || unit_spellings(own).contains(&unit) {
+        return Ok(value);
     }
-    text
+    let converted = match (si_parts(unit), si_parts(own), value.scale()) {
+        (Some((given, base)), Some((wanted, own_base)), Scale::Decimal { exponent })
+            if base == own_base =>
+        {
+            exponent
+                .checked_add(given)
+                .and_then(|e| e.checked_sub(wanted))
+                .map(|exponent| Fixed::new(value.raw(), Scale::Decimal { exponent }))
+        }
+        _ => None,
+    };
+    converted.ok_or_else(|| match (register.unit, si_parts(own)) {
+        (None, _) => format!("`{unit}` given, but the register has no unit"),
+        (Some(own), Some((_, base))) => format!(
+            "`{unit}` is not a unit of the register: it is in {own} (other prefixes of {base} \
+             convert, e.g. m{base}, u{base})"
+        ),
+        (Some(own), None) => format!("`{unit}` is not a unit of the register: it is in {own}"),
+    })
 }

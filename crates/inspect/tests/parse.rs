@@ -181,3 +181,31 @@ fn unknown_names_and_copies_are_refused_with_near_names() {
     let nothing_near = resolve(P, "zzz", None).err();
     assert!(matches!(nothing_near, Some(ResolveError::Unknown { near, .. }) if near.is_empty()));
 }
+
+#[test]
+fn other_si_prefixes_of_the_registers_unit_convert_exactly() {
+    // CCF exposure_time, channel 1: steps of 0.1 µs.
+    let channel_1 = resolve(CCF, "exposure_time", Some(1)).expect("channel 1")[0];
+    let exposure = |text: &str| parse_value(channel_1, text).map_err(|e| e.to_string());
+    assert_eq!(exposure("0.2ms"), Ok(vec![2000]));
+    assert_eq!(exposure("0.2 ms"), Ok(vec![2000]));
+    assert_eq!(exposure("200us"), Ok(vec![2000]));
+    assert_eq!(exposure("200000 ns"), Ok(vec![2000]));
+    assert_eq!(exposure("0.0002s"), Ok(vec![2000]));
+    // 0.00001 ms is 10 ns: not a whole 0.1 µs step, refused rather than rounded.
+    let error = exposure("0.00001ms").unwrap_err();
+    assert!(error.contains("whole steps of 1e-1 us"), "{error}");
+    // P-series position_1_offset: steps of 1 nm in mm.
+    let offset = |text: &str| parsed(P, "position_1_offset", text);
+    assert_eq!(offset("1.5 mm"), offset("1500um"));
+    assert_eq!(offset("-1500 um"), offset("-1.5"));
+    assert_eq!(offset("0.0015 m"), offset("1.5"));
+    let error = offset("0.5 nm").unwrap_err();
+    assert!(error.contains("whole steps"), "{error}");
+    // Another base unit is no conversion.
+    let error = exposure("2 mm").unwrap_err();
+    assert!(
+        error.contains("`mm` is not a unit of the register: it is in us"),
+        "{error}"
+    );
+}

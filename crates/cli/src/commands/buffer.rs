@@ -7,7 +7,7 @@ use clap::Args;
 use optobus_p_series::{MeasurementSource, PSeries, DEVICE};
 
 use crate::chart::{check_out, draw, Series};
-use crate::connect::Global;
+use crate::connect::{DeviceArgs, Global};
 use crate::error::{driver_error, CliError};
 use crate::log::note;
 use crate::render::{print, progress_bar};
@@ -30,6 +30,8 @@ pub(crate) struct BufferArgs {
     /// Also draw the values over their index as SVG here.
     #[arg(long, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
 }
 
 /// Buffers `--count` values of `--source`, downloads them and writes CSV (or JSON).

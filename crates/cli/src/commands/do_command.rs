@@ -4,7 +4,7 @@
 use clap::Args;
 use serde_json::json;
 
-use crate::connect::Global;
+use crate::connect::{DeviceArgs, Global};
 use crate::error::{driver_error, CliError};
 use crate::inputs;
 use crate::log::note;
@@ -20,6 +20,8 @@ pub(crate) struct DoArgs {
     /// Confirm commands that store, restart or reset the device.
     #[arg(long)]
     yes: bool,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
 }
 
 pub(crate) async fn run(global: &Global, args: &DoArgs) -> Result<(), CliError> {
@@ -45,6 +47,7 @@ pub(crate) async fn run(global: &Global, args: &DoArgs) -> Result<(), CliError> 
             info.busy_ms
         );
     }
+    global.note_if_simulated("do");
     let mut core = global.connect(device, slave).await?;
     core.run(info, register)
         .await

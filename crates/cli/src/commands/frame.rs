@@ -11,8 +11,9 @@ use optobus_inspect::{hex, parse_hex, EncodedFrame, ExplainedFrame, Framing, Hex
 use serde::Serialize;
 use serde_json::json;
 
-use crate::connect::Global;
+use crate::connect::Options;
 use crate::error::CliError;
+use crate::inputs;
 use crate::render::{pretty, print};
 
 /// `optobus frame …`.
@@ -21,8 +22,8 @@ pub(crate) enum FrameCommand {
     /// Print the exact request bytes of a read or a write, one frame per line, in the order
     /// they must be sent.
     Encode {
-        /// Sensor family (the list of models is added at startup).
-        #[arg(value_name = "MODEL")]
+        /// Sensor family (the list of models is added at startup); `--model` sets it too.
+        #[arg(id = "model", value_name = "MODEL")]
         family: String,
         /// What to encode.
         #[command(subcommand)]
@@ -34,16 +35,17 @@ pub(crate) enum FrameCommand {
     /// A request followed by its reply (as captured on the line) is decoded as a pair, so the
     /// reply's registers are named.
     Decode {
-        /// Sensor family (the list of models is added at startup).
-        #[arg(value_name = "MODEL")]
+        /// Sensor family (the list of models is added at startup); `--model` sets it too.
+        #[arg(id = "model", value_name = "MODEL")]
         family: String,
         /// The bytes in hex: one string or several, spaces optional, `0x` prefixes allowed.
         #[arg(required = true, value_name = "HEX")]
         hex: Vec<String>,
-        /// Modbus TCP framing (MBAP header, no CRC) instead of RTU; `--tcp HOST` implies it.
+        /// Modbus TCP framing (MBAP header, no CRC) instead of RTU.
         #[arg(long)]
         mbap: bool,
-        /// Start address of the read a lone reply answers (a reply does not carry it).
+        /// Start address of the read a lone reply answers (a reply does not carry it): 0-based,
+        /// decimal or 0x hex.
         #[arg(long, value_parser = parse_address)]
         address: Option<u16>,
     },
@@ -78,31 +80,28 @@ pub(crate) struct EncodeOptions {
     #[arg(long)]
     channel: Option<u8>,
     /// Modbus TCP framing (MBAP header, transaction ids from 1, unit id = slave) instead of
-    /// RTU; `--tcp HOST` implies it.
+    /// RTU.
     #[arg(long)]
     mbap: bool,
+    /// Slave address (unit id) in the frames, 0 to 247 (default: the model's factory
+    /// setting).
+    #[arg(long, value_parser = inputs::parse_slave)]
+    slave: Option<u8>,
 }
 
-/// Prints the frames (JSON with `--json`). The global `--slave` is the slave (default: the
-/// model's factory address); the global `--tcp` implies Modbus TCP framing like `--mbap`.
-pub(crate) fn run(global: &Global, command: &FrameCommand) -> Result<(), CliError> {
-    let framing = |mbap: bool| {
-        if mbap || global.target.tcp.is_some() {
-            Framing::Tcp
-        } else {
-            Framing::Rtu
-        }
-    };
+/// Prints the frames (JSON with `--json`).
+pub(crate) fn run(options: &Options, command: &FrameCommand) -> Result<(), CliError> {
+    let framing = |mbap: bool| if mbap { Framing::Tcp } else { Framing::Rtu };
     match command {
         FrameCommand::Encode { family, request } => {
-            let device = global.device_or(Some(family))?;
-            let slave = global.slave.unwrap_or(device.default_slave);
+            let device = options.device_or(Some(family))?;
+            let slave = |encode: &EncodeOptions| encode.slave.unwrap_or(device.default_slave);
             let frames = match request {
                 EncodeRequest::Read { name, options } => optobus_inspect::encode_read_of(
                     device,
                     name,
                     options.channel,
-                    slave,
+                    slave(options),
                     framing(options.mbap),
                 )?,
                 EncodeRequest::Set {
@@ -114,11 +113,11 @@ pub(crate) fn run(global: &Global, command: &FrameCommand) -> Result<(), CliErro
                     name,
                     options.channel,
                     value,
-                    slave,
+                    slave(options),
                     framing(options.mbap),
                 )?,
             };
-            print(&render(&frames, global.json, render_encoded));
+            print(&render(&frames, options.json, render_encoded));
         }
         FrameCommand::Decode {
             family,
@@ -126,25 +125,18 @@ pub(crate) fn run(global: &Global, command: &FrameCommand) -> Result<(), CliErro
             mbap,
             address,
         } => {
-            let device = global.device_or(Some(family))?;
+            let device = options.device_or(Some(family))?;
             let bytes = parse_hex(&hex.join(" ")).map_err(hex_refused)?;
             let frames = optobus_inspect::decode(device, &bytes, framing(*mbap), *address)?;
-            print(&render(&frames, global.json, render_decoded));
+            print(&render(&frames, options.json, render_decoded));
         }
     }
     Ok(())
 }
 
-/// `16`, or `0x10`.
-fn parse_address(text: &str) -> Result<u16, String> {
-    let text = text.trim();
-    let parsed = match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
-        Some(digits) => u16::from_str_radix(digits, 16),
-        None => text.parse(),
-    };
-    parsed.map_err(|_| {
-        format!("`{text}` is not a register address (0 to 65535, or 0x0000 to 0xFFFF)")
-    })
+/// A register address, `16` or `0x10`.
+fn parse_address(text: &str) -> Result<u16, optobus_inspect::Error> {
+    optobus_inspect::parse_number(text, "a register address")
 }
 
 /// A refused hex argument, with an example of what works.

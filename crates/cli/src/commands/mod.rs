@@ -7,6 +7,7 @@ mod do_command;
 mod frame;
 mod models;
 mod plot;
+mod raw;
 mod read;
 mod record;
 mod registers;
@@ -17,7 +18,7 @@ mod watch;
 
 use clap::Subcommand;
 
-use crate::connect::Global;
+use crate::connect::{DeviceArgs, Options};
 use crate::error::CliError;
 
 #[derive(Debug, Subcommand)]
@@ -35,7 +36,7 @@ pub(crate) enum Command {
     /// Draw a recording as SVG: each column over the elapsed time, with its unit.
     Plot(plot::PlotArgs),
     /// Every readable register, decoded, read in the fewest transactions.
-    Dump,
+    Dump(DeviceArgs),
     /// Write a register: engineering units (`100us`, `42.5`) or code names.
     Set(set::SetArgs),
     /// Run a command of the device (zero, reset, save, reboot…).
@@ -47,26 +48,31 @@ pub(crate) enum Command {
     /// Serve a virtual device for other Modbus tools: Modbus TCP on --tcp (default
     /// 127.0.0.1:5020), RTU on a new pty (--pty) or on an existing port (--serial).
     Simulate(simulate::SimulateArgs),
+    /// Read or write registers by address, for those a spec lacks (addresses 0-based).
+    #[command(subcommand)]
+    Raw(raw::RawCommand),
     /// Encode request bytes, or explain captured frames.
     #[command(subcommand)]
     Frame(frame::FrameCommand),
 }
 
-/// Runs one command line.
-pub(crate) async fn run(global: Global, command: Command) -> Result<(), CliError> {
+/// Runs one command line: the commands that talk to a device get the common options together
+/// with their device options.
+pub(crate) async fn run(options: Options, command: Command) -> Result<(), CliError> {
     match command {
-        Command::Models => models::run(&global),
-        Command::Registers(args) => registers::run(&global, &args),
-        Command::Read(args) => read::read(&global, &args).await,
-        Command::Watch(args) => watch::run(&global, &args).await,
-        Command::Record(args) => record::run(&global, &args).await,
+        Command::Models => models::run(&options),
+        Command::Registers(args) => registers::run(&options, &args),
+        Command::Read(args) => read::read(&options.with(&args.device), &args).await,
+        Command::Watch(args) => watch::run(&options.with(&args.device), &args).await,
+        Command::Record(args) => record::run(&options.with(&args.device), &args).await,
         Command::Plot(args) => plot::run(&args),
-        Command::Dump => read::dump(&global).await,
-        Command::Set(args) => set::run(&global, &args).await,
-        Command::Do(args) => do_command::run(&global, &args).await,
-        Command::Buffer(args) => buffer::run(&global, &args).await,
-        Command::Scan(args) => scan::run(&global, &args).await,
-        Command::Simulate(args) => simulate::run(&global, &args).await,
-        Command::Frame(command) => frame::run(&global, &command),
+        Command::Dump(device) => read::dump(&options.with(&device)).await,
+        Command::Set(args) => set::run(&options.with(&args.device), &args).await,
+        Command::Do(args) => do_command::run(&options.with(&args.device), &args).await,
+        Command::Buffer(args) => buffer::run(&options.with(&args.device), &args).await,
+        Command::Scan(args) => scan::run(&options.with(&args.device), &args).await,
+        Command::Simulate(args) => simulate::run(&options.with(&args.device), &args).await,
+        Command::Raw(command) => raw::run(&options, &command).await,
+        Command::Frame(command) => frame::run(&options, &command),
     }
 }

@@ -6,13 +6,13 @@ use optobus_device::TcpInfo;
 use optobus_driver::line_format;
 use serde_json::{json, Value as Json};
 
-use crate::connect::Global;
+use crate::connect::Options;
 use crate::error::CliError;
 use crate::models;
 use crate::render::{pretty, print};
 
-pub(crate) fn run(global: &Global) -> Result<(), CliError> {
-    print(&if global.json { json() } else { text() });
+pub(crate) fn run(options: &Options) -> Result<(), CliError> {
+    print(&if options.json { json() } else { text() });
     Ok(())
 }
 

@@ -6,7 +6,7 @@ use optobus_device::RegisterInfo;
 use optobus_driver::plan_reads;
 use serde_json::json;
 
-use crate::connect::{read_values, Global, Names};
+use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{pretty, print, values_json, values_text};
@@ -15,6 +15,8 @@ use crate::render::{pretty, print, values_json, values_text};
 pub(crate) struct ReadArgs {
     #[command(flatten)]
     names: Names,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
 }
 
 pub(crate) async fn read(global: &Global, args: &ReadArgs) -> Result<(), CliError> {

@@ -12,7 +12,7 @@ use optobus_driver::transport::timing::deadline_from;
 use optobus_inspect::Value;
 use tokio::time::Instant;
 
-use crate::connect::{read_values, Global, Names};
+use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::inputs;
 use crate::log::note;
@@ -22,6 +22,8 @@ use crate::render::progress_bar;
 pub(crate) struct RecordArgs {
     #[command(flatten)]
     names: Names,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
     /// Record for this long (at most 24 h).
     #[arg(long, value_parser = inputs::RUN_FOR.parser(), required_unless_present = "count", conflicts_with = "count")]
     duration: Option<Duration>,
@@ -62,11 +64,11 @@ fn cell(value: &Value) -> String {
 pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliError> {
     let (registers, mut core) = global.connect_to_read(&args.names, "record").await?;
     let file = File::create(&args.out)
-        .map_err(|e| CliError::new(format!("cannot write {}: {e}", args.out.display())))?;
+        .map_err(|e| CliError::failed(format!("cannot write {}: {e}", args.out.display())))?;
     let mut csv = BufWriter::new(file);
     let columns: Vec<String> = registers.iter().map(|r| header(r)).collect();
     let write_failed =
-        |e: std::io::Error| CliError::new(format!("cannot write {}: {e}", args.out.display()));
+        |e: std::io::Error| CliError::failed(format!("cannot write {}: {e}", args.out.display()));
     writeln!(csv, "time,elapsed [s],{}", columns.join(",")).map_err(write_failed)?;
     let length = match (args.count, args.duration) {
         (Some(count), _) => count,

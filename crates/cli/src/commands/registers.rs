@@ -5,7 +5,7 @@ use optobus_device::{DeviceInfo, RegisterInfo, ValueKind};
 use optobus_inspect::{code_list, range_text};
 use serde_json::{json, Value as Json};
 
-use crate::connect::Global;
+use crate::connect::Options;
 use crate::error::CliError;
 
 use crate::render::{pretty, print};
@@ -16,9 +16,9 @@ pub(crate) struct RegistersArgs {
     model: Option<String>,
 }
 
-pub(crate) fn run(global: &Global, args: &RegistersArgs) -> Result<(), CliError> {
-    let device = global.device_or(args.model.as_deref())?;
-    print(&text(device, global.json));
+pub(crate) fn run(options: &Options, args: &RegistersArgs) -> Result<(), CliError> {
+    let device = options.device_or(args.model.as_deref())?;
+    print(&text(device, options.json));
     Ok(())
 }
 

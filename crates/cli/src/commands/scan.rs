@@ -1,12 +1,14 @@
-//! `optobus scan`: which baud rate and slave address a device answers on.
+//! `optobus scan`: which baud rate and slave address a device answers on; the first one found
+//! ends the scan unless `--all`.
 
 use std::time::Duration;
 
 use clap::Args;
 use optobus_driver::Core;
 
-use crate::connect::Global;
+use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
+use crate::log::note;
 use crate::render::{print, progress_bar};
 use crate::{inputs, link};
 
@@ -18,6 +20,11 @@ pub(crate) struct ScanArgs {
     /// Slave addresses to try, e.g. 1-10,247 (default: the model's range).
     #[arg(long)]
     slaves: Option<String>,
+    /// Go on after the first device that answers, and list every one.
+    #[arg(long)]
+    all: bool,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
 }
 
 pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError> {
@@ -54,7 +61,7 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
         "scanning {msg} ({pos}/{len})",
     );
     let mut found = Vec::new();
-    for &baud in &bauds {
+    'bauds: for &baud in &bauds {
         let mut target = global.target.clone();
         target.baud = Some(baud);
         // A silent address costs the whole timeout: keep it short unless asked otherwise.
@@ -71,8 +78,19 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
                 Err(e) => e.exception().is_some(),
             };
             if answered {
-                progress.suspend(|| print(&format!("found: slave {slave} at {baud} baud")));
+                let line = format!("found: slave {slave} at {baud} baud");
+                // With --json, stdout carries the JSON only.
+                progress.suspend(|| {
+                    if global.json {
+                        note!("optobus: {line}");
+                    } else {
+                        print(&line);
+                    }
+                });
                 found.push((baud, slave));
+                if !args.all {
+                    break 'bauds;
+                }
             }
         }
     }
@@ -85,7 +103,7 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
         print(&serde_json::Value::Array(list).to_string());
     }
     if found.is_empty() {
-        return Err(CliError::new(format!("no device answered on {path}"))
+        return Err(CliError::failed(format!("no device answered on {path}"))
             .hint("check wiring and parity, or widen --bauds and --slaves"));
     }
     Ok(())

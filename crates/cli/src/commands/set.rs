@@ -6,7 +6,7 @@ use optobus_driver::{raw_bits, Encode};
 use optobus_inspect::{decode_value, parse_value};
 use serde_json::json;
 
-use crate::connect::Global;
+use crate::connect::{DeviceArgs, Global};
 use crate::error::{driver_error, CliError};
 use crate::inputs;
 use crate::log::note;
@@ -16,7 +16,8 @@ use crate::render::{pretty, print, value_json};
 pub(crate) struct SetArgs {
     /// Register name.
     name: String,
-    /// The value.
+    /// The value; negative ones need no `--` (`-1.5`).
+    #[arg(allow_hyphen_values = true)]
     value: String,
     /// Copy of a per-channel register.
     #[arg(long)]
@@ -25,6 +26,8 @@ pub(crate) struct SetArgs {
     /// device also writes.
     #[arg(long)]
     yes: bool,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
 }
 
 /// Names and values are checked first, so bad input is refused before any connection.
@@ -36,6 +39,7 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
     let new_address = new_slave_address(device, register, &words);
     confirm(device, register, &words, args.yes)?;
     let slave = global.writing_slave(device)?;
+    global.note_if_simulated("set");
     let mut core = global.connect(device, slave).await?;
     core.write(register, &Validated(words.clone()))
         .await

@@ -8,7 +8,7 @@ use optobus_device::DeviceInfo;
 use optobus_driver::serial_settings;
 use optobus_simulator::{Faults, FaultsError, Line, Simulator};
 
-use crate::connect::Global;
+use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
 use crate::log::Log;
 use crate::render::print;
@@ -40,6 +40,8 @@ pub(crate) struct SimulateArgs {
     /// With --line-timing, the device's reaction time after a request's t3.5 (at most 24 h).
     #[arg(long, requires = "line_timing", default_value = "0", value_parser = inputs::TURNAROUND.parser(), allow_hyphen_values = true)]
     turnaround: Duration,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
 }
 
 /// The faults `--faults` and `--seed` give; a bad spec is refused in one line.

@@ -7,7 +7,7 @@ use clap::Args;
 use crossterm::{cursor, terminal, QueueableCommand};
 use serde_json::json;
 
-use crate::connect::{read_values, Global, Names};
+use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::render::{values_json, values_text};
 use crate::{inputs, link};
@@ -22,6 +22,8 @@ pub(crate) struct WatchArgs {
     /// Stop after this many refreshes (default: until Ctrl-C).
     #[arg(long)]
     count: Option<u64>,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
 }
 
 /// Redraws the values every `--interval` until Ctrl-C (or `--count` refreshes).

@@ -53,8 +53,10 @@ pub fn json(args: &[&str]) -> serde_json::Value {
 
 /// Exit code of clap's usage errors (a value its parser refused).
 pub const USAGE: i32 = 2;
-/// Exit code of the tool's own refusals and failures.
-pub const FAILURE: i32 = 1;
+/// Exit code of the tool's own refusals: input checked and refused before anything was sent.
+pub const REFUSED: i32 = 3;
+/// Exit code of a failure of the device, the line or the system.
+pub const FAILED: i32 = 1;
 
 /// Runs `args`; gives (exit code, stdout, stderr).
 pub fn outcome(args: &[&str]) -> (Option<i32>, String, String) {
@@ -69,10 +71,12 @@ pub fn outcome(args: &[&str]) -> (Option<i32>, String, String) {
 /// Runs `args --verbose`: it must fail with `code` and a stderr containing `message`, without
 /// a panic, without sending a frame (` -> ` with --verbose) and without opening a connection
 /// (the built-in simulator's line, "cannot open", "cannot connect"); the tool's own refusals
-/// (`FAILURE`) in one line. Gives stderr.
+/// (`REFUSED`) in one line. Gives stderr. (`frame` sends nothing and takes no --verbose.)
 pub fn refused(args: &[&str], code: i32, message: &str) -> String {
     let mut verbose = args.to_vec();
-    verbose.push("--verbose");
+    if args.first() != Some(&"frame") {
+        verbose.push("--verbose");
+    }
     let (status, _, stderr) = outcome(&verbose);
     assert_eq!(status, Some(code), "{args:?}: {stderr}");
     assert!(stderr.contains(message), "{args:?}: {stderr}");
@@ -83,7 +87,7 @@ pub fn refused(args: &[&str], code: i32, message: &str) -> String {
             "{args:?} went as far as `{sign}`: {stderr}"
         );
     }
-    if code == FAILURE {
+    if code == REFUSED {
         assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
     }
     stderr
@@ -108,9 +112,10 @@ pub struct Served {
 }
 
 impl Served {
-    /// The command line `--serial <where it serves> rest`, for [`words`].
+    /// The command line `rest --serial <where it serves>`, for [`words`] (device options
+    /// follow the command).
     pub fn serial(&self, rest: &str) -> String {
-        format!("--serial {} {rest}", self.at)
+        format!("{rest} --serial {}", self.at)
     }
 
     pub fn start(args: &[&str]) -> Self {
