@@ -202,4 +202,3 @@ fn doc_alias(zh: Option<&str>) -> TokenStream {
 fn serde_derives() -> TokenStream {
     quote!(#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))])
 }
-

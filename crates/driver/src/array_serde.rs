@@ -65,7 +65,10 @@ mod tests {
         assert_eq!(serde_json::from_str::<Page>(&json).unwrap(), page);
         let short = r#"{"samples":[1,2,3]}"#;
         let error = serde_json::from_str::<Page>(short).unwrap_err().to_string();
-        assert!(error.contains("invalid length 3, expected a sequence of 40"), "{error}");
+        assert!(
+            error.contains("invalid length 3, expected a sequence of 40"),
+            "{error}"
+        );
         let long = format!(r#"{{"samples":[{}]}}"#, vec!["1"; 41].join(","));
         assert!(serde_json::from_str::<Page>(&long).is_err());
     }

@@ -210,7 +210,10 @@ mod tests {
         assert_eq!(serde_json::from_str::<Millimetres>(&json).unwrap(), d);
         let wrong_unit = serde_json::from_str::<Millimetres>(r#"{"value":"3.5","unit":"us"}"#);
         let error = wrong_unit.unwrap_err().to_string();
-        assert!(error.contains("a value in mm expected, got one in us"), "{error}");
+        assert!(
+            error.contains("a value in mm expected, got one in us"),
+            "{error}"
+        );
         let celsius: DegreesCelsius =
             serde_json::from_str(r#"{"value":"-12.5","unit":"°C"}"#).unwrap();
         assert_eq!(celsius.to_string(), "-12.5 °C");

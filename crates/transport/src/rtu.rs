@@ -263,7 +263,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                     }
                     return Err(Error::Timeout {
                         after: self.config.timeout,
-                    })
+                    });
                 }
                 Ok(Ok(0)) => return Err(Error::Closed),
                 Ok(Ok(n)) => {

@@ -101,7 +101,11 @@ fn a_request_and_its_reply_are_traced_in_hex() {
     let seen = traced(|| async {
         let (line, device) = tokio::io::duplex(64);
         // The Modbus specification's read of two holding registers, and a reply of 1 and 2.
-        answer(device, 8, &[0x01, 0x03, 0x04, 0x00, 0x01, 0x00, 0x02, 0x2A, 0x32]);
+        answer(
+            device,
+            8,
+            &[0x01, 0x03, 0x04, 0x00, 0x01, 0x00, 0x02, 0x2A, 0x32],
+        );
         let words = client(line).read_words(1, READ_TWO).await.unwrap();
         assert_eq!(words, [1, 2]);
     });
@@ -125,7 +129,11 @@ fn a_garbled_reply_is_traced_and_marked() {
     let seen = traced(|| async {
         let (line, device) = tokio::io::duplex(64);
         // The reply above with its checksum's bytes swapped.
-        answer(device, 8, &[0x01, 0x03, 0x04, 0x00, 0x01, 0x00, 0x02, 0x32, 0x2A]);
+        answer(
+            device,
+            8,
+            &[0x01, 0x03, 0x04, 0x00, 0x01, 0x00, 0x02, 0x32, 0x2A],
+        );
         let outcome = client(line).read_words(1, READ_TWO).await;
         assert!(matches!(outcome, Err(Error::Frame(_))), "{outcome:?}");
     });
