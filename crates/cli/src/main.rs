@@ -57,6 +57,9 @@ fn main() -> ExitCode {
     let mut command = with_models(Cli::command());
     let cli = Cli::from_arg_matches(&command.get_matches_mut())
         .unwrap_or_else(|error| error.format(&mut command).exit());
+    if cli.global.target.verbose {
+        log::show_frames();
+    }
     let runtime = match tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
