@@ -38,6 +38,7 @@ mod modbus;
 mod rtu;
 mod serial;
 mod shared;
+mod tap;
 #[cfg(feature = "tcp")]
 mod tcp;
 pub mod timing;
@@ -52,6 +53,7 @@ pub use serial::SerialSettings;
 #[cfg(feature = "serial")]
 pub use serial::SerialStream;
 pub use shared::Shared;
+pub use tap::{Flow, Observe, Tap};
 #[cfg(feature = "tcp")]
 pub use tcp::{resolve, Connect, TcpClient, TcpConfig};
 pub use transport::{ReadRequest, Transport, DEFAULT_TIMEOUT};
