@@ -353,9 +353,12 @@ fn compile(root: &Path, mutants: &[(String, String)]) -> Result<(), String> {
     let _ = std::fs::remove_dir_all(&src);
     std::fs::create_dir_all(&src).map_err(|e| e.to_string())?;
     let root = root.canonicalize().map_err(|e| e.to_string())?;
+    // A driver crate's manifest: its `serde` feature on, so that the serde impls compile too.
     let manifest = format!(
         "[package]\nname = \"optobus-mutants\"\nversion = \"0.0.0\"\nedition = \"2021\"\npublish = false\n\n\
+         [features]\ndefault = [\"serde\"]\nserde = [\"dep:serde\", \"optobus-driver/serde\"]\n\n\
          [dependencies]\n\
+         serde = {{ version = \"1\", features = [\"derive\"], optional = true }}\n\
          optobus-codec = {{ path = \"{0}/crates/codec\" }}\n\
          optobus-device = {{ path = \"{0}/crates/device\" }}\n\
          optobus-driver = {{ path = \"{0}/crates/driver\" }}\n\n[workspace]\n",

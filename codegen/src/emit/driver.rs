@@ -362,6 +362,13 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
         let (members, per_copy) = group_members(model, &member_names);
         let fields: Vec<Ident> = members.iter().map(|m| ident(&m.name)).collect();
         let field_docs = members.iter().map(|m| doc_text(m.register.doc.as_deref()));
+        // serde's own array impls stop at 32 elements; a buffer page holds more.
+        let field_serde = members.iter().map(|m| match (m.copies, &per_copy) {
+            (Some(_), None) => {
+                quote!(#[cfg_attr(feature = "serde", serde(with = "optobus_driver::array_serde"))])
+            }
+            _ => quote!(),
+        });
         let field_types = members.iter().map(|m| {
             let ty = read_type(m.register, names, imports);
             match (m.copies, &per_copy) {
@@ -402,12 +409,15 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
             ),
             None => (quote!(), quote!(self.core.read_declared_group(&#group))),
         };
+        let serde = super::serde_derives();
         group_types.push(quote! {
             #[doc = #struct_doc]
             #[derive(Clone, Debug, PartialEq)]
+            #serde
             pub struct #struct_ident {
                 #(
                     #[doc = #field_docs]
+                    #field_serde
                     pub #fields: #field_types,
                 )*
             }

@@ -137,5 +137,21 @@ pub(super) fn enum_type(def: &EnumDef, ident: &Ident, imports: &Imports) -> Toke
                 self.write_name(f)
             }
         }
+
+        /// `{"code": 0, "name": "…"}`, as `optobus --json` prints codes.
+        #[cfg(feature = "serde")]
+        impl serde::Serialize for #ident {
+            fn serialize<S: serde::Serializer>(&self, serializer: S) -> ::core::result::Result<S::Ok, S::Error> {
+                optobus_driver::code_serde::serialize(self, serializer)
+            }
+        }
+
+        /// The code, or the name alone; a contradiction between them is refused.
+        #[cfg(feature = "serde")]
+        impl<'de> serde::Deserialize<'de> for #ident {
+            fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> ::core::result::Result<Self, D::Error> {
+                optobus_driver::code_serde::deserialize(deserializer)
+            }
+        }
     }
 }

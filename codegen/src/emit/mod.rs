@@ -196,3 +196,9 @@ fn doc_alias(zh: Option<&str>) -> TokenStream {
         _ => quote!(),
     }
 }
+
+/// Serialize and Deserialize for a generated value type, when the driver crate's `serde`
+/// feature is on: the generated code compiles without serde.
+fn serde_derives() -> TokenStream {
+    quote!(#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))])
+}

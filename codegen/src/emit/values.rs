@@ -203,9 +203,11 @@ fn plain_struct(
         Order::Ordered => quote!(, PartialOrd, Ord),
         Order::Unordered => quote!(),
     };
+    let serde = super::serde_derives();
     quote! {
         #doc
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash #ord)]
+        #serde
         pub struct #ident {
             #(
                 #[doc = #docs]

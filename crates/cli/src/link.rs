@@ -1,5 +1,5 @@
-//! Connecting to a device: a serial port, a TCP address, or the built-in simulator; with
-//! `--verbose`, every frame sent and received is printed in hex with a timestamp.
+//! Connecting to a device: a serial port, a TCP address, or the built-in simulator. (With
+//! `--verbose` the transport's own frame events are shown: see `log::show_frames`.)
 
 use std::net::SocketAddr;
 use std::time::Duration;
@@ -7,54 +7,22 @@ use std::time::Duration;
 use clap::Args;
 use optobus_device::DeviceInfo;
 use optobus_driver::transport::{
-    self, Error as WireError, Flow, LineFormat, Observe, ReadRequest, RtuClient, SerialStream,
-    TapConnect, TcpClient, WriteValue,
+    self, Error as WireError, LineFormat, ReadRequest, RtuClient, SerialStream, TcpClient,
+    WriteValue,
 };
 use optobus_driver::{line_format, rtu_config, serial_settings, tcp_config, Transport};
-use optobus_inspect::hex;
 use optobus_simulator::Simulator;
 use tokio::io::DuplexStream;
 
 use crate::error::CliError;
 use crate::inputs::{self, ParityArg};
 
-/// `HH:MM:SS.mmm` (UTC) of now.
-pub(crate) fn timestamp() -> String {
-    jiff::Timestamp::now().strftime("%H:%M:%S%.3f").to_string()
-}
-
-/// `--verbose`: every frame sent and received, in hex with a timestamp, on stderr.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct FrameLog {
-    verbose: bool,
-}
-
-impl Observe for FrameLog {
-    fn observe(&mut self, flow: Flow, bytes: &[u8]) {
-        if self.verbose {
-            let arrow = match flow {
-                Flow::Sent => "->",
-                Flow::Received => "<-",
-            };
-            crate::log::note!("{} {arrow} {}", timestamp(), hex(bytes));
-        }
-    }
-}
-
-/// A stream whose frames `--verbose` prints.
-pub(crate) type Tap<S> = transport::Tap<S, FrameLog>;
-
-/// `stream`, logged when `verbose`.
-fn tap<S>(stream: S, verbose: bool) -> Tap<S> {
-    transport::Tap::new(stream, FrameLog { verbose })
-}
-
 /// Where requests go.
 #[derive(Debug)]
 pub(crate) enum Link {
-    Serial(RtuClient<Tap<SerialStream>>),
-    Simulator(RtuClient<Tap<DuplexStream>>),
-    Tcp(TcpClient<TapConnect<SocketAddr, FrameLog>>),
+    Serial(RtuClient<SerialStream>),
+    Simulator(RtuClient<DuplexStream>),
+    Tcp(TcpClient<SocketAddr>),
 }
 
 /// `$call` on the client of whichever link `$link` is.
@@ -102,7 +70,8 @@ pub(crate) struct Target {
     /// Reply timeout, e.g. 500ms or 2s (1 ms to 24 h).
     #[arg(long, default_value = "1s", value_parser = inputs::TIMEOUT.parser(), allow_hyphen_values = true)]
     pub(crate) timeout: Duration,
-    /// Print every frame sent and received, in hex with a timestamp, on stderr.
+    /// Print every frame sent and received, in hex with the local time, and the registers
+    /// read and written, on stderr.
     #[arg(long, short)]
     pub(crate) verbose: bool,
 }
@@ -142,6 +111,9 @@ pub(crate) async fn open(
     slave: u8,
     target: &Target,
 ) -> Result<Link, CliError> {
+    if target.verbose {
+        crate::log::show_frames();
+    }
     let mut config = rtu_config(device);
     config.timeout = target.timeout;
     if let Some(path) = &target.serial {
@@ -152,23 +124,14 @@ pub(crate) async fn open(
             CliError::failed(format!("cannot open {path}: {e}"))
                 .hint("check the path, that no other program holds the port, and your permissions")
         })?;
-        return Ok(Link::Serial(RtuClient::with_config(
-            tap(port, target.verbose),
-            config,
-        )));
+        return Ok(Link::Serial(RtuClient::with_config(port, config)));
     }
     if let Some(address) = &target.tcp {
         let port = device.tcp.map_or(502, |t| t.port);
         let address = resolve_tcp(address, port).await?;
         let mut config = tcp_config(device);
         config.timeout = target.timeout;
-        let connector = TapConnect::new(
-            address,
-            FrameLog {
-                verbose: target.verbose,
-            },
-        );
-        let mut client = TcpClient::new(connector, config);
+        let mut client = TcpClient::new(address, config);
         client.open().await.map_err(|e| {
             let why = match e {
                 WireError::Connect { source, .. } => source.to_string(),
@@ -191,8 +154,5 @@ pub(crate) async fn open(
     let (line, _server) = Simulator::new(device).slave(address).duplex();
     // The line is memory: no serial timing.
     config.line = None;
-    Ok(Link::Simulator(RtuClient::with_config(
-        tap(line, target.verbose),
-        config,
-    )))
+    Ok(Link::Simulator(RtuClient::with_config(line, config)))
 }

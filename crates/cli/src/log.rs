@@ -6,6 +6,9 @@
 //! every exchange from inside its connection tasks, so those lines go to a [`Log`]: a bounded
 //! channel to a writer thread of its own; when the channel is full, lines are dropped and
 //! counted, and the writer says how many as soon as it can.
+//!
+//! `--verbose` installs a `tracing` subscriber on stderr ([`show_frames`]): the transport's
+//! frame events and the driver's register events, one line each with the local time.
 
 use std::fmt;
 use std::io::Write;
@@ -29,6 +32,78 @@ macro_rules! note {
     };
 }
 pub(crate) use note;
+
+/// `--verbose`: every frame the transport sends and receives (TRACE, `optobus_transport`) and
+/// every register the driver reads or writes (DEBUG, `optobus_driver`), on stderr, as
+/// `14:23:54.822 +01:00 -> 01 03 00 1F 00 07 B5 CE`.
+pub(crate) fn show_frames() {
+    use tracing::level_filters::LevelFilter;
+    use tracing_subscriber::filter::Targets;
+    use tracing_subscriber::layer::SubscriberExt;
+
+    let targets = Targets::new()
+        .with_target(
+            optobus_driver::transport::frames::TARGET,
+            LevelFilter::TRACE,
+        )
+        .with_target(optobus_driver::TRACE_TARGET, LevelFilter::DEBUG);
+    let lines = tracing_subscriber::fmt::layer()
+        .event_format(EventLine)
+        .with_writer(std::io::stderr);
+    let subscriber = tracing_subscriber::registry().with(lines).with(targets);
+    // Only fails if a subscriber is already installed, which then shows the events.
+    let _ = tracing::subscriber::set_global_default(subscriber);
+}
+
+/// An event as one line: the local time, the message, and a reply's delay.
+struct EventLine;
+
+/// The parts of an event a line shows.
+#[derive(Default)]
+struct LineFields {
+    message: String,
+    elapsed_us: Option<u64>,
+}
+
+impl tracing::field::Visit for LineFields {
+    fn record_debug(&mut self, field: &tracing::field::Field, value: &dyn fmt::Debug) {
+        if field.name() == "message" {
+            self.message = format!("{value:?}");
+        }
+    }
+
+    fn record_u64(&mut self, field: &tracing::field::Field, value: u64) {
+        if field.name() == "elapsed_us" {
+            self.elapsed_us = Some(value);
+        }
+    }
+}
+
+impl<S, N> tracing_subscriber::fmt::FormatEvent<S, N> for EventLine
+where
+    S: tracing::Subscriber + for<'a> tracing_subscriber::registry::LookupSpan<'a>,
+    N: for<'a> tracing_subscriber::fmt::FormatFields<'a> + 'static,
+{
+    fn format_event(
+        &self,
+        _: &tracing_subscriber::fmt::FmtContext<'_, S, N>,
+        mut writer: tracing_subscriber::fmt::format::Writer<'_>,
+        event: &tracing::Event<'_>,
+    ) -> fmt::Result {
+        let mut fields = LineFields::default();
+        event.record(&mut fields);
+        write!(
+            writer,
+            "{} {}",
+            crate::render::time_of_day(),
+            fields.message
+        )?;
+        if let Some(us) = fields.elapsed_us {
+            write!(writer, " ({}.{:03} ms)", us / 1000, us % 1000)?;
+        }
+        writeln!(writer)
+    }
+}
 
 /// Lines the writer thread may hold back before new ones are dropped.
 const CAPACITY: usize = 1024;

@@ -9,6 +9,21 @@ use serde_json::{Map, Value as Json};
 
 use optobus_inspect::Value;
 
+/// The local time of day with its offset, for people: `14:23:54.822 +01:00`.
+pub(crate) fn time_of_day() -> String {
+    jiff::ZonedDateTime::now()
+        .strftime("%H:%M:%S%.3f %:z")
+        .to_string()
+}
+
+/// Now for scripts, RFC 3339 with the date and the local offset:
+/// `2026-11-23T14:23:54.822+01:00`.
+pub(crate) fn timestamp() -> String {
+    jiff::ZonedDateTime::now()
+        .strftime("%Y-%m-%dT%H:%M:%S%.3f%:z")
+        .to_string()
+}
+
 /// Prints `text` on stdout with a final newline, ignoring a closed stdout.
 pub(crate) fn print(text: &str) {
     let mut out = std::io::stdout().lock();

@@ -73,13 +73,16 @@ fn read_prints_values_with_units() {
     assert!(text.lines().all(|l| l.ends_with(" mm")), "{text}");
     let values = json(&["read", "distance_1", "laser", "ip_address"]);
     assert_eq!(values["distance_1"]["unit"], "mm");
-    assert!(values["distance_1"]["value"].as_f64().is_some());
+    // The exact decimal text, not a rounded float.
+    let exact = values["distance_1"]["value"].as_str().expect("exact text");
+    assert!(exact.parse::<f64>().is_ok(), "{exact}");
     assert_eq!(values["ip_address"], "192.168.0.10");
     assert!(values["laser_enabled"].is_boolean());
     // Per-channel registers and groups.
     let ccf = json(&["--model", "ccf", "read", "measurements", "--channel", "3"]);
     assert!(
-        ccf["channel_3_distance_1"]["value"].as_f64().is_some(),
+        ccf["channel_3_distance_1"]["value"].is_string()
+            && ccf["channel_3_distance_1"]["unit"] == "mm",
         "{ccf}"
     );
     let error = fails(&["read", "distance_9"]);
@@ -123,7 +126,7 @@ fn watch_refreshes_and_stops() {
         .map(|l| serde_json::from_str(l).expect("one JSON object per refresh"))
         .collect();
     assert_eq!(refreshes.len(), 2);
-    assert!(refreshes[1]["values"]["thickness"]["value"].is_number());
+    assert!(refreshes[1]["values"]["thickness"]["value"].is_string());
     // A device that does not answer: each refresh marks the error and watch carries on.
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
     let text = ok(&words(&served.serial(
@@ -161,7 +164,7 @@ fn set_takes_engineering_units_and_code_names() {
         "--channel",
         "2",
     ]);
-    assert_eq!(set["channel_2_exposure_time"]["exact"], "204.7");
+    assert_eq!(set["channel_2_exposure_time"]["value"], "204.7");
 }
 
 #[test]
@@ -235,7 +238,7 @@ fn simulate_over_tcp_serves_other_clients() {
     assert!(address.starts_with("127.0.0.1:"), "{address}");
     ok(&["set", "light_power", "33.3", "--tcp", &address]);
     let values = json(&["read", "light_power", "--tcp", &address]);
-    assert_eq!(values["light_power"]["exact"], "33.3");
+    assert_eq!(values["light_power"]["value"], "33.3");
 }
 
 #[test]
@@ -321,4 +324,60 @@ fn watch_over_tcp_carries_on_after_the_server_restarts() {
             .any(|l| l["values"]["laser_enabled"].is_boolean()),
         "values again after the restart: {lines:?}"
     );
+}
+
+#[test]
+fn dump_json_keeps_the_register_order() {
+    let dump = json(&["dump"]);
+    let dumped: Vec<&String> = dump["values"].as_object().expect("values").keys().collect();
+    let map = json(&["registers"]);
+    let listed: Vec<&str> = map["registers"]
+        .as_array()
+        .expect("registers")
+        .iter()
+        .filter_map(|r| r["name"].as_str())
+        .filter(|name| dumped.iter().any(|d| d == name))
+        .collect();
+    assert_eq!(dumped, listed);
+    // Not alphabetical: sample 2 comes before sample 10.
+    let at = |name: &str| dumped.iter().position(|d| *d == name).expect(name);
+    assert!(at("buffer_sample_2_buffered_value") < at("buffer_sample_10_buffered_value"));
+}
+
+#[test]
+fn watch_times_are_dated_with_their_offset() {
+    let line = ok(&["watch", "distance_1", "--count", "1", "--json"]);
+    let refresh: serde_json::Value = serde_json::from_str(line.trim()).expect("JSON");
+    let time = refresh["time"].as_str().expect("a time");
+    // RFC 3339: a date, a time to the millisecond and an offset; and it is now.
+    let when: jiff::Timestamp = time.parse().expect(time);
+    let age = jiff::Timestamp::now().duration_since(when).as_secs_f64();
+    assert!((0.0..60.0).contains(&age), "{time} is {age} s old");
+    assert_eq!(time.len(), "2026-11-23T14:23:54.822+01:00".len(), "{time}");
+    let text = ok(&["watch", "distance_1", "--count", "1"]);
+    let first = text.lines().next().expect("a heading");
+    // `14:23:54.822 +01:00  p_series · …`: the time of day labelled with its offset.
+    let (clock, offset) = (&first[..12], &first[12..19]);
+    assert!(
+        clock.as_bytes()[2] == b':' && clock.as_bytes()[8] == b'.',
+        "{first}"
+    );
+    assert!(
+        offset.starts_with(" +") || offset.starts_with(" -"),
+        "{first}"
+    );
+    assert_eq!(&offset[4..5], ":", "{first}");
+}
+
+#[test]
+fn verbose_frames_carry_the_local_time_and_the_reply_delay() {
+    let output = run(&["read", "laser_enabled", "--verbose"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let reply = stderr
+        .lines()
+        .find(|l| l.contains(" <- 01 03 02"))
+        .unwrap_or_else(|| panic!("{stderr}"));
+    // `14:23:54.830 +01:00 <- 01 03 02 00 00 B8 44 (0.074 ms)`
+    assert_eq!(&reply[12..14], " +", "{reply}");
+    assert!(reply.ends_with(" ms)"), "{reply}");
 }

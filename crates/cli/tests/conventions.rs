@@ -30,9 +30,9 @@ fn help(command: &str) -> String {
 #[test]
 fn negative_values_need_no_double_dash() {
     let values = json(&["set", "position_1_offset", "-1.5"]);
-    assert_eq!(values["position_1_offset"]["exact"], "-1.500000");
+    assert_eq!(values["position_1_offset"]["value"], "-1.500000");
     let values = json(&["set", "position_1_offset", "-1500um"]);
-    assert_eq!(values["position_1_offset"]["exact"], "-1.500000");
+    assert_eq!(values["position_1_offset"]["value"], "-1.500000");
     let text = ok(&[
         "frame",
         "encode",
@@ -129,7 +129,7 @@ fn raw_access_reads_and_writes_words_by_address() {
     let text = ok(&["raw", "write", "0x0002", "300", "--tcp", at]);
     assert_eq!(text.trim(), "holding 0x0002 (2)  0x012C (300): written");
     let values = json(&["read", "light_power", "--tcp", at]);
-    assert_eq!(values["light_power"]["exact"], "30.0");
+    assert_eq!(values["light_power"]["value"], "30.0");
     // The device's own refusal (an address it lacks) is the device's failure, exit 1.
     let (code, _, stderr) = outcome(&["raw", "read", "input", "0x7000", "--tcp", at]);
     assert_eq!(code, Some(FAILED), "{stderr}");
@@ -171,7 +171,7 @@ fn raw_access_refuses_before_the_wire() {
 #[test]
 fn units_convert_by_si_prefix() {
     let values = json(&["--model", "ccs", "set", "exposure_time", "0.2ms"]);
-    assert_eq!(values["exposure_time"]["exact"], "200.0");
+    assert_eq!(values["exposure_time"]["value"], "200.0");
     assert_eq!(values["exposure_time"]["unit"], "us");
     refused(
         &["--model", "ccs", "set", "exposure_time", "0.00001ms"],
@@ -179,7 +179,7 @@ fn units_convert_by_si_prefix() {
         "whole steps",
     );
     let values = json(&["set", "position_1_offset", "1.5 mm"]);
-    assert_eq!(values["position_1_offset"]["exact"], "1.500000");
+    assert_eq!(values["position_1_offset"]["value"], "1.500000");
 }
 
 #[test]

@@ -200,7 +200,7 @@ fn broadcast_writes_are_sent_once_and_not_waited_for() {
     assert!(!stderr.contains(" <- "), "no reply read: {stderr}");
     // The device at slave 3 carried it out.
     let values = common::json(&words(&served.serial("read light_power --slave 3")));
-    assert_eq!(values["light_power"]["exact"], "42.5");
+    assert_eq!(values["light_power"]["value"], "42.5");
     let (code, stdout, stderr) = outcome(&words(&served.serial("do zero_position_1 --slave 0")));
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(

@@ -70,7 +70,7 @@ fn exchange(optobus: &[&str], connection: &[&str], target: &str) {
     mbpoll_at(connection, target, &["-0", "-r", "2", "-t", "4"], &["300"]);
     let args = with(&["read", "light_power"]);
     let values = json(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert_eq!(values["light_power"]["exact"], "30.0");
+    assert_eq!(values["light_power"]["value"], "30.0");
     let ip = ["-0", "-r", "150", "-c", "4", "-t", "3", "-1"];
     assert_eq!(mbpoll_at(connection, target, &ip, &[]), [192, 168, 0, 10]);
 }

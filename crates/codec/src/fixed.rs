@@ -386,6 +386,36 @@ impl fmt::Display for Fixed {
     }
 }
 
+/// Exact decimal text, as `Display` writes it: `"3.584190"`, never a rounded float.
+#[cfg(feature = "serde")]
+impl serde::Serialize for Fixed {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_str(self)
+    }
+}
+
+/// Exact decimal text, in steps of its last digit (as [`FromStr`](core::str::FromStr)).
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for Fixed {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Text;
+
+        impl serde::de::Visitor<'_> for Text {
+            type Value = Fixed;
+
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("an exact decimal number as text, e.g. \"3.584190\"")
+            }
+
+            fn visit_str<E: serde::de::Error>(self, text: &str) -> Result<Fixed, E> {
+                text.parse().map_err(E::custom)
+            }
+        }
+
+        deserializer.deserialize_str(Text)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     extern crate std;
@@ -394,6 +424,17 @@ mod tests {
 
     const MICRO: Scale = Scale::Decimal { exponent: -6 };
     const TENTH: Scale = Scale::Decimal { exponent: -1 };
+
+    #[cfg(feature = "serde")]
+    #[test]
+    fn serialises_as_exact_text_and_back() {
+        let value = Fixed::new(3_584_190, MICRO);
+        let json = serde_json::to_string(&value).unwrap();
+        assert_eq!(json, "\"3.584190\"");
+        assert_eq!(serde_json::from_str::<Fixed>(&json).unwrap(), value);
+        assert!(serde_json::from_str::<Fixed>("\"3.5.1\"").is_err());
+        assert!(serde_json::from_str::<Fixed>("3.5").is_err());
+    }
 
     #[test]
     fn prints_exact_decimals() {

@@ -9,7 +9,7 @@ use optobus_codec::{FrameShape, Parity, ReadFunction};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[cfg_attr(
     feature = "serde",
-    derive(serde::Deserialize),
+    derive(serde::Deserialize, serde::Serialize),
     serde(rename_all = "snake_case")
 )]
 pub enum Table {
@@ -67,7 +67,7 @@ impl From<ReadFunction> for Table {
 
 /// Who may read and write a register.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[cfg_attr(feature = "serde", derive(serde::Deserialize))]
+#[cfg_attr(feature = "serde", derive(serde::Deserialize, serde::Serialize))]
 pub enum Access {
     /// Read only.
     #[cfg_attr(feature = "serde", serde(rename = "r"))]
@@ -179,6 +179,7 @@ impl Scalar {
 
 /// One code of an enumerated value.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct CodeInfo {
     /// The raw value.
     pub code: u32,
@@ -390,7 +391,7 @@ impl ReservedInfo {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(
     feature = "serde",
-    derive(serde::Deserialize),
+    derive(serde::Deserialize, serde::Serialize),
     serde(rename_all = "snake_case")
 )]
 pub enum Effect {
@@ -428,6 +429,7 @@ impl Effect {
 
 /// A write that acts rather than sets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct CommandInfo {
     /// snake_case name.
     pub name: &'static str,
@@ -447,6 +449,7 @@ pub struct CommandInfo {
 
 /// Registers read together.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct GroupInfo {
     /// snake_case name.
     pub name: &'static str,
@@ -484,7 +487,7 @@ pub struct TcpInfo {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(
     feature = "serde",
-    derive(serde::Deserialize),
+    derive(serde::Deserialize, serde::Serialize),
     serde(rename_all = "snake_case")
 )]
 pub enum Addressing {
@@ -498,7 +501,7 @@ pub enum Addressing {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(
     feature = "serde",
-    derive(serde::Deserialize),
+    derive(serde::Deserialize, serde::Serialize),
     serde(rename_all = "snake_case")
 )]
 pub enum LongWrites {
@@ -647,5 +650,32 @@ impl DeviceInfo {
             Table::Holding => self.holding_registers,
             Table::Input => self.input_registers,
         }
+    }
+}
+
+#[cfg(all(test, feature = "serde"))]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn descriptions_serialise_in_the_spec_language() {
+        let command = CommandInfo {
+            name: "zero_position",
+            doc: "Zeroes.",
+            register: "position_zero",
+            value: 1,
+            busy_ms: 0,
+            effect: Effect::Zero,
+            targets: &["distance_1"],
+        };
+        assert_eq!(
+            serde_json::to_string(&command).unwrap(),
+            r#"{"name":"zero_position","doc":"Zeroes.","register":"position_zero","value":1,"busy_ms":0,"effect":"zero","targets":["distance_1"]}"#
+        );
+        assert_eq!(
+            serde_json::to_string(&Access::ReadWrite).unwrap(),
+            r#""rw""#
+        );
+        assert_eq!(serde_json::to_string(&Table::Input).unwrap(), r#""input""#);
     }
 }

@@ -1,5 +1,6 @@
 //! The engine of every generated driver: reads, validated writes, groups, commands.
 
+use std::fmt;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -10,6 +11,20 @@ use optobus_transport::{ReadRequest, Transport};
 use crate::convert::{Decode, Encode};
 use crate::error::Error;
 use crate::plan::{plan_reads, plan_write, ReadSpan};
+
+/// The target of the driver's events: register names, words and decoded values at DEBUG.
+pub const TRACE_TARGET: &str = "optobus_driver";
+
+/// A register's words and the value decoded from them, for whoever listens.
+fn decoded(register: &RegisterInfo, words: &[u16], value: &impl fmt::Debug) {
+    tracing::debug!(
+        target: TRACE_TARGET,
+        register = register.name,
+        ?words,
+        "{} = {value:?}",
+        register.name
+    );
+}
 
 /// A transport, a slave address and the device description: what a generated driver wraps.
 #[derive(Debug)]
@@ -65,8 +80,11 @@ impl Readings {
     }
 
     /// The value of `register`.
-    pub fn get<V: Decode>(&self, register: &RegisterInfo) -> V {
-        V::decode(register, self.words(register))
+    pub fn get<V: Decode + fmt::Debug>(&self, register: &RegisterInfo) -> V {
+        let words = self.words(register);
+        let value = V::decode(register, words);
+        decoded(register, words, &value);
+        value
     }
 
     /// The requests that were made.
@@ -179,9 +197,14 @@ impl<T: Transport> Core<T> {
     }
 
     /// Reads one register as `V`.
-    pub async fn read<V: Decode>(&mut self, register: &'static RegisterInfo) -> Result<V, Error> {
+    pub async fn read<V: Decode + fmt::Debug>(
+        &mut self,
+        register: &'static RegisterInfo,
+    ) -> Result<V, Error> {
         let words = self.read_words(register).await?;
-        Ok(V::decode(register, &words))
+        let value = V::decode(register, &words);
+        decoded(register, &words, &value);
+        Ok(value)
     }
 
     /// Reads several registers in the fewest requests (see [`plan_reads`]).
@@ -290,6 +313,14 @@ impl<T: Transport> Core<T> {
         register: &'static RegisterInfo,
         words: &[u16],
     ) -> Result<(), Error> {
+        tracing::debug!(
+            target: TRACE_TARGET,
+            register = register.name,
+            ?words,
+            slave = self.slave,
+            "write {}",
+            register.name
+        );
         for step in plan_write(self.device, register, words) {
             self.transport
                 .write(self.slave, step.address, step.value)
@@ -306,6 +337,7 @@ impl<T: Transport> Core<T> {
         register: &'static RegisterInfo,
     ) -> Result<(), Error> {
         let words = crate::convert::encode_integer(register, i64::from(command.value))?;
+        tracing::debug!(target: TRACE_TARGET, command = command.name, "run {}", command.name);
         self.write_words(register, &words).await?;
         if command.busy_ms > 0 {
             tokio::time::sleep(Duration::from_millis(u64::from(command.busy_ms))).await;

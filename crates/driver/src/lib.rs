@@ -12,9 +12,17 @@
 //!   sent.
 //! - [`units`] holds the exact fixed-point quantities readings come in (`Millimetres`, …).
 //!
+//! Register reads and writes are `tracing` events at DEBUG, target `optobus_driver` (register
+//! name, words, decoded value); the transport's frames are at TRACE, target
+//! `optobus_transport`.
+//!
 //! Nothing here knows about sockets: the bytes go through an [`optobus_transport::Transport`].
 #![forbid(unsafe_code)]
 
+#[cfg(feature = "serde")]
+pub mod array_serde;
+#[cfg(feature = "serde")]
+pub mod code_serde;
 mod connect;
 mod convert;
 mod core;
@@ -25,7 +33,7 @@ pub mod units;
 #[cfg(feature = "tcp")]
 pub use crate::connect::tcp_config;
 pub use crate::connect::{line_format, rtu_config, serial_settings};
-pub use crate::core::{Core, Readings};
+pub use crate::core::{Core, Readings, TRACE_TARGET};
 pub use convert::{
     encode_code, encode_integer, encode_packed, raw_bits, word_array, CodeEnum, Decode, Encode,
     RawValue,

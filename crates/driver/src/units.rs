@@ -39,11 +39,59 @@ fn shift(value: Fixed, shift: i8) -> Fixed {
     }
 }
 
+/// A quantity as scripts see it: exact decimal text and the unit's symbol.
+#[cfg(feature = "serde")]
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Quantity<'a> {
+    value: Fixed,
+    #[serde(borrow)]
+    unit: std::borrow::Cow<'a, str>,
+}
+
+#[cfg(feature = "serde")]
+impl Quantity<'_> {
+    /// The value, if it is given in `symbol`: a value in another unit is refused rather than
+    /// taken as this one.
+    fn expect<E: serde::de::Error>(self, symbol: &str) -> Result<Fixed, E> {
+        if self.unit == symbol {
+            Ok(self.value)
+        } else {
+            Err(E::custom(format_args!(
+                "a value in {symbol} expected, got one in {}",
+                self.unit
+            )))
+        }
+    }
+}
+
 macro_rules! unit {
     ($(#[$doc:meta])* $name:ident, $symbol:literal, $accessor:ident $(, $other:ident = $shift:literal)*) => {
         $(#[$doc])*
-        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        #[derive(Clone, Copy, PartialEq, Eq, Hash)]
         pub struct $name(Fixed);
+
+        /// `Millimetres(3.584190)`: the exact value, not its raw steps.
+        impl fmt::Debug for $name {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, "{}({})", stringify!($name), self.0)
+            }
+        }
+
+        /// `{"value": "3.584190", "unit": "mm"}`: exact text, never a rounded float.
+        #[cfg(feature = "serde")]
+        impl serde::Serialize for $name {
+            fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+                serde::Serialize::serialize(&Quantity { value: self.0, unit: Self::SYMBOL.into() }, serializer)
+            }
+        }
+
+        /// The shape it serialises to; refused unless the unit is this one.
+        #[cfg(feature = "serde")]
+        impl<'de> serde::Deserialize<'de> for $name {
+            fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+                <Quantity<'_> as serde::Deserialize>::deserialize(deserializer)?.expect(Self::SYMBOL).map(Self)
+            }
+        }
 
         impl $name {
             /// The unit's symbol.
@@ -150,5 +198,24 @@ mod tests {
         assert_eq!(d.nanometres().to_string(), "3584190");
         let parsed: Millimetres = "-1.5".parse().unwrap();
         assert_eq!(parsed.micrometres().to_string(), "-1500");
+        assert_eq!(format!("{d:?}"), "Millimetres(3.584190)");
+    }
+
+    #[cfg(feature = "serde")]
+    #[test]
+    fn quantities_serialise_as_exact_text_with_their_unit() {
+        let d = Millimetres::new(Fixed::new(3_584_190, Scale::Decimal { exponent: -6 }));
+        let json = serde_json::to_string(&d).unwrap();
+        assert_eq!(json, r#"{"value":"3.584190","unit":"mm"}"#);
+        assert_eq!(serde_json::from_str::<Millimetres>(&json).unwrap(), d);
+        let wrong_unit = serde_json::from_str::<Millimetres>(r#"{"value":"3.5","unit":"us"}"#);
+        let error = wrong_unit.unwrap_err().to_string();
+        assert!(
+            error.contains("a value in mm expected, got one in us"),
+            "{error}"
+        );
+        let celsius: DegreesCelsius =
+            serde_json::from_str(r#"{"value":"-12.5","unit":"°C"}"#).unwrap();
+        assert_eq!(celsius.to_string(), "-12.5 °C");
     }
 }

@@ -55,21 +55,24 @@ impl fmt::Display for Value {
     }
 }
 
-/// For scripts: numbers as numbers (quantities with their exact text and unit), codes with
-/// their names, fields as an object, invalid readings as `null`.
+/// For scripts, as the drivers' `serde` feature writes typed readings: integers as numbers,
+/// quantities as exact text with their unit (`{"value": "3.584190", "unit": "mm"}`, a
+/// quantity without unit as its text alone), codes with their names, fields as an object,
+/// invalid readings as `null`.
 impl Serialize for Value {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         match self {
             Self::Invalid => serializer.serialize_none(),
             Self::Bool(value) => serializer.serialize_bool(*value),
             Self::Integer(value) => serializer.serialize_i64(*value),
-            Self::Quantity(value, unit) => {
-                let mut map = serializer.serialize_map(Some(3))?;
-                map.serialize_entry("exact", &value.to_string())?;
+            // The shapes of the drivers' `serde` feature: exact text, never a rounded float.
+            Self::Quantity(value, Some(unit)) => {
+                let mut map = serializer.serialize_map(Some(2))?;
+                map.serialize_entry("value", &value.to_string())?;
                 map.serialize_entry("unit", unit)?;
-                map.serialize_entry("value", &value.to_f64())?;
                 map.end()
             }
+            Self::Quantity(value, None) => serializer.collect_str(value),
             Self::Code(code, name) => {
                 let mut map = serializer.serialize_map(Some(2))?;
                 map.serialize_entry("code", code)?;

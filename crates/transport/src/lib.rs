@@ -21,6 +21,9 @@
 //! repeatable reads may be retried, writes and reads with a side effect never are. [`Shared`]
 //! serialises transactions of several drivers (several slaves on one port) used from
 //! different tasks.
+//!
+//! Every frame sent and received is a `tracing` event at TRACE, target `optobus_transport`
+//! (see [`frames`]): install a subscriber (`RUST_LOG=optobus_transport=trace`) to see them.
 #![forbid(unsafe_code)]
 
 pub use optobus_codec::{
@@ -29,6 +32,7 @@ pub use optobus_codec::{
 };
 
 mod error;
+pub mod frames;
 #[cfg(feature = "tokio-modbus")]
 mod modbus;
 mod rtu;
@@ -51,5 +55,5 @@ pub use serial::SerialStream;
 pub use shared::Shared;
 pub use tap::{Flow, Observe, Tap};
 #[cfg(feature = "tcp")]
-pub use tcp::{resolve, Connect, TapConnect, TcpClient, TcpConfig};
+pub use tcp::{resolve, Connect, TcpClient, TcpConfig};
 pub use transport::{ReadRequest, Transport, DEFAULT_TIMEOUT};

@@ -10,6 +10,7 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};
 use tokio::time::{timeout_at, Instant};
 
 use crate::error::Error;
+use crate::frames;
 use crate::timing::{deadline_from, sleep_until_precise};
 use crate::transact::{Reply, Transact};
 use crate::transport::DEFAULT_TIMEOUT;
@@ -152,6 +153,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                 None => return Ok(discarded),
                 Some(Ok(())) if buf.filled().is_empty() => return Err(Error::Closed),
                 Some(Ok(())) => {
+                    frames::discarded(buf.filled());
                     discarded = true;
                     self.last_activity = Some(Instant::now());
                 }
@@ -173,7 +175,10 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             match timeout_at(until, self.stream.read(&mut self.buffer[..])).await {
                 Err(_quiet) => break,
                 Ok(Ok(0)) => return Err(Error::Closed),
-                Ok(Ok(_)) => heard = Instant::now(),
+                Ok(Ok(n)) => {
+                    frames::discarded(&self.buffer[..n]);
+                    heard = Instant::now();
+                }
                 Ok(Err(error)) => return Err(error.into()),
             }
             self.last_activity = Some(heard);
@@ -212,7 +217,9 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         ));
         self.stream.write_all(&frame[..len]).await?;
         self.stream.flush().await?;
-        self.last_activity = Some(sent.max(Instant::now()));
+        let written = Instant::now();
+        frames::sent(slave, &frame[..len]);
+        self.last_activity = Some(sent.max(written));
         if slave == BROADCAST {
             self.unsettled = None;
             return Ok(None);
@@ -226,6 +233,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                 self.config.exception,
             ) {
                 Ok(Decoded::Frame { frame, consumed }) => {
+                    frames::received(slave, &self.buffer[..filled], written.elapsed(), None);
                     // Bytes behind a good reply mean something else is talking: recover
                     // before the next request.
                     self.unsettled = (consumed < filled).then(Instant::now);
@@ -233,6 +241,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                 }
                 Ok(Decoded::NeedMore { .. }) => {}
                 Err(DecodeError::Exception { function, code }) => {
+                    frames::received(slave, &self.buffer[..filled], written.elapsed(), None);
                     self.unsettled = None;
                     return Err(Error::Exception { function, code });
                 }
@@ -240,15 +249,21 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                     // The device may still be sending, or this was another slave's reply
                     // and ours is yet to come: quiet is counted from now.
                     self.unsettled = Some(Instant::now());
+                    let bytes = &self.buffer[..filled];
+                    frames::received(slave, bytes, written.elapsed(), Some("garbled"));
                     return Err(Error::Frame(error));
                 }
             }
             let room = &mut self.buffer[filled..];
             match timeout_at(deadline, self.stream.read(room)).await {
                 Err(_) => {
+                    if filled > 0 {
+                        let bytes = &self.buffer[..filled];
+                        frames::received(slave, bytes, written.elapsed(), Some("incomplete"));
+                    }
                     return Err(Error::Timeout {
                         after: self.config.timeout,
-                    })
+                    });
                 }
                 Ok(Ok(0)) => return Err(Error::Closed),
                 Ok(Ok(n)) => {

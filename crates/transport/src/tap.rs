@@ -27,8 +27,8 @@ impl<F: FnMut(Flow, &[u8]) + Unpin> Observe for F {
     }
 }
 
-/// A byte stream that hands every byte read or written to an observer, e.g. to log frames in
-/// hex (`optobus --verbose`) or count what crossed a line.
+/// A byte stream that hands every byte read or written to an observer, e.g. to count or time
+/// what crossed a line (frames in hex are the [`frames`](crate::frames) events).
 #[derive(Debug)]
 pub struct Tap<S, O> {
     inner: S,

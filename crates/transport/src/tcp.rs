@@ -12,7 +12,7 @@ use tokio::net::TcpStream;
 use tokio::time::{sleep_until, timeout_at, Instant};
 
 use crate::error::Error;
-use crate::tap::{Observe, Tap};
+use crate::frames;
 use crate::timing::deadline_after;
 use crate::transact::{Reply, Transact};
 use crate::transport::DEFAULT_TIMEOUT;
@@ -24,30 +24,6 @@ pub trait Connect: Send {
 
     /// Opens a new connection.
     fn connect(&mut self) -> impl Future<Output = io::Result<Self::Stream>> + Send;
-}
-
-/// A connector whose every connection is a [`Tap`]: an observer (a frame log) that outlives
-/// reconnects.
-#[derive(Clone, Debug)]
-pub struct TapConnect<C, O> {
-    connect: C,
-    observer: O,
-}
-
-impl<C: Connect, O: Observe + Clone + Send> TapConnect<C, O> {
-    /// Connections of `connect`, each observed by a clone of `observer`.
-    pub fn new(connect: C, observer: O) -> Self {
-        Self { connect, observer }
-    }
-}
-
-impl<C: Connect, O: Observe + Clone + Send> Connect for TapConnect<C, O> {
-    type Stream = Tap<C::Stream, O>;
-
-    async fn connect(&mut self) -> io::Result<Self::Stream> {
-        let stream = self.connect.connect().await?;
-        Ok(Tap::new(stream, self.observer.clone()))
-    }
 }
 
 /// The first socket address `address` resolves to: `host`, `host:port`, an IP address or
@@ -290,12 +266,14 @@ impl<C: Connect> TcpClient<C> {
         if let Err(error) = written {
             return Err(self.broken(error.into()));
         }
+        let written = Instant::now();
+        frames::sent(unit, &frame[..len]);
         if unit == BROADCAST && matches!(request, Request::Write { .. }) {
             // Nothing answers a broadcast; a gateway's reply would be skipped as stale.
             return Ok(None);
         }
         loop {
-            if let Some(outcome) = self.take_reply(header, &request) {
+            if let Some(outcome) = self.take_reply(header, &request, written) {
                 return outcome.map(Some);
             }
             let Some(stream) = self.stream.as_mut() else {
@@ -309,6 +287,8 @@ impl<C: Connect> TcpClient<C> {
                     };
                     // Half a frame waiting means the stream lost a part: out of step.
                     if !self.pending.is_empty() {
+                        let elapsed = written.elapsed();
+                        frames::received(unit, &self.pending, elapsed, Some("incomplete"));
                         return Err(self.broken(error));
                     }
                     return Err(error);
@@ -326,7 +306,9 @@ impl<C: Connect> TcpClient<C> {
         &mut self,
         header: tcp::Header,
         request: &Request,
+        written: Instant,
     ) -> Option<Result<Reply, Error>> {
+        let unit = header.unit;
         loop {
             let decoded =
                 tcp::decode_response(&self.pending, header, request, self.config.exception);
@@ -334,6 +316,8 @@ impl<C: Connect> TcpClient<C> {
             let outcome = match decoded {
                 Ok(Decoded::NeedMore { .. }) => return None,
                 Ok(Decoded::Frame { frame, consumed }) => {
+                    let bytes = &self.pending[..consumed];
+                    frames::received(unit, bytes, written.elapsed(), None);
                     let reply = Reply::from(frame);
                     self.pending.drain(..consumed);
                     return Some(Ok(reply));
@@ -341,6 +325,8 @@ impl<C: Connect> TcpClient<C> {
                 // A reply to an earlier request: skip it whole and keep waiting.
                 Err(DecodeError::UnexpectedTransaction { .. }) => match whole_frame {
                     Some(len) => {
+                        let stale = &self.pending[..len];
+                        frames::received(unit, stale, written.elapsed(), Some("stale"));
                         self.pending.drain(..len);
                         continue;
                     }
@@ -350,6 +336,7 @@ impl<C: Connect> TcpClient<C> {
                     error @ (DecodeError::BadProtocolId { .. } | DecodeError::BadLength { .. }),
                 ) => {
                     // No frame boundary can be trusted any more.
+                    frames::received(unit, &self.pending, written.elapsed(), Some("garbled"));
                     return Some(Err(self.broken(Error::Frame(error))));
                 }
                 Err(DecodeError::Exception { function, code }) => {
@@ -361,10 +348,16 @@ impl<C: Connect> TcpClient<C> {
             // by its MBAP length, which was checked.
             return match whole_frame {
                 Some(len) => {
+                    let bytes = &self.pending[..len];
+                    let what = matches!(outcome, Err(Error::Frame(_))).then_some("garbled");
+                    frames::received(unit, bytes, written.elapsed(), what);
                     self.pending.drain(..len);
                     Some(outcome)
                 }
-                None => Some(outcome.map_err(|error| self.broken(error))),
+                None => {
+                    frames::received(unit, &self.pending, written.elapsed(), Some("garbled"));
+                    Some(outcome.map_err(|error| self.broken(error)))
+                }
             };
         }
     }

@@ -106,7 +106,7 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
     let log = Log::start();
     let mut sim = Simulator::new(device).slave(slave).observe({
         let log = log.clone();
-        move |exchange| log.line(format!("{} {exchange}", link::timestamp()))
+        move |exchange| log.line(format!("{} {exchange}", crate::render::time_of_day()))
     });
     if let Some(faults) = &faults {
         sim = sim.faults(faults.clone());

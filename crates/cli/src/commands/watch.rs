@@ -9,8 +9,8 @@ use serde_json::json;
 
 use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
-use crate::render::{values_json, values_text};
-use crate::{inputs, link};
+use crate::inputs;
+use crate::render::{time_of_day, timestamp, values_json, values_text};
 
 #[derive(Debug, Args)]
 pub(crate) struct WatchArgs {
@@ -43,27 +43,28 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
             _ = &mut ctrl_c => break,
         };
         refresh += 1;
-        let stamp = link::timestamp();
         let block = match &outcome {
             Ok(values) if global.json => {
-                json!({"time": stamp, "values": values_json(values)}).to_string() + "\n"
+                json!({"time": timestamp(), "values": values_json(values)}).to_string() + "\n"
             }
             Ok(values) => {
                 let text = values_text(values);
                 last = Some(text.clone());
                 format!(
-                    "{stamp}  {} · slave {} · every {} ms\n{text}",
+                    "{}  {} · slave {} · every {} ms\n{text}",
+                    time_of_day(),
                     device.family,
                     core.slave(),
                     args.interval.as_millis()
                 )
             }
             Err(error) if global.json => {
-                json!({"time": stamp, "error": error.to_string()}).to_string() + "\n"
+                json!({"time": timestamp(), "error": error.to_string()}).to_string() + "\n"
             }
             // Keep the last values on screen, marked, and try again.
             Err(error) => format!(
-                "{stamp}  ! {error} — retrying\n{}",
+                "{}  ! {error} — retrying\n{}",
+                time_of_day(),
                 last.as_deref().unwrap_or("")
             ),
         };
