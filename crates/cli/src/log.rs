@@ -47,8 +47,10 @@ pub(crate) fn show_frames() {
             LevelFilter::TRACE,
         )
         .with_target(optobus_driver::TRACE_TARGET, LevelFilter::DEBUG);
+    // A closed stderr loses the lines; reporting that on stderr would panic.
     let lines = tracing_subscriber::fmt::layer()
         .event_format(EventLine)
+        .log_internal_errors(false)
         .with_writer(std::io::stderr);
     let subscriber = tracing_subscriber::registry().with(lines).with(targets);
     // Only fails if a subscriber is already installed, which then shows the events.
