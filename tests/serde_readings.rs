@@ -101,20 +101,12 @@ async fn codes_serialise_with_code_and_name_and_read_back_from_either() {
 #[tokio::test]
 async fn every_family_reads_its_first_group_back_equal() {
     let (_sim, client) = simulated(&optobus_ccs::DEVICE);
-    round_trip(
-        &optobus_ccs::Ccs::with_default_slave(client)
-            .read_measurements()
-            .await
-            .unwrap(),
-    );
+    let mut ccs = optobus_ccs::Ccs::with_default_slave(client);
+    round_trip(&ccs.read_measurements().await.unwrap());
     let (_sim, client) = simulated(&optobus_rangefinder::DEVICE);
     let mut rangefinder = optobus_rangefinder::Rangefinder::with_default_slave(client);
     round_trip(&rangefinder.read_measurements().await.unwrap());
     let (_sim, client) = simulated(&optobus_lc_rs::DEVICE);
-    round_trip(
-        &optobus_lc_rs::LcRs::with_default_slave(client)
-            .read_measurements()
-            .await
-            .unwrap(),
-    );
+    let mut lc_rs = optobus_lc_rs::LcRs::with_default_slave(client);
+    round_trip(&lc_rs.read_measurements().await.unwrap());
 }

@@ -92,6 +92,21 @@ fn model(
     }
 }
 
+/// Options of the commands that write (`set`, `do`): the copy of a per-channel register, the
+/// confirmation a drastic write needs, and the device.
+#[derive(Debug, Args)]
+pub(crate) struct WriteArgs {
+    /// Copy of a per-channel register or command (CCF channels 1 to 4).
+    #[arg(long)]
+    pub(crate) channel: Option<u8>,
+    /// Confirm a write that stores, restarts or resets the device, or that writes a register
+    /// such a command writes.
+    #[arg(long)]
+    pub(crate) yes: bool,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
+}
+
 /// The registers a reading command names: registers, repeat members or groups.
 #[derive(Debug, Args)]
 pub(crate) struct Names {

@@ -96,24 +96,31 @@ fn client(line: DuplexStream) -> RtuClient<DuplexStream> {
     )
 }
 
-#[test]
-fn a_request_and_its_reply_are_traced_in_hex() {
-    let seen = traced(|| async {
+/// Reads two holding registers from slave 1 of a device that answers `reply`: the outcome
+/// and the transport's trace events.
+fn read_two_traced(reply: &'static [u8]) -> (Result<Vec<u16>, Error>, Vec<Seen>) {
+    let outcome = Arc::new(Mutex::new(None));
+    let kept = Arc::clone(&outcome);
+    let seen = traced(|| async move {
         let (line, device) = tokio::io::duplex(64);
-        // The Modbus specification's read of two holding registers, and a reply of 1 and 2.
-        answer(
-            device,
-            8,
-            &[0x01, 0x03, 0x04, 0x00, 0x01, 0x00, 0x02, 0x2A, 0x32],
-        );
-        let words = client(line).read_words(1, READ_TWO).await.unwrap();
-        assert_eq!(words, [1, 2]);
+        answer(device, 8, reply);
+        let read = client(line).read_words(1, READ_TWO).await;
+        *kept.lock().unwrap() = Some(read);
     });
-    let frames: Vec<&Seen> = seen
-        .iter()
+    let outcome = outcome.lock().unwrap().take().expect("the read ended");
+    let frames = seen
+        .into_iter()
         .filter(|s| s.target == "optobus_transport")
         .collect();
-    assert_eq!(frames.len(), 2, "{seen:?}");
+    (outcome, frames)
+}
+
+#[test]
+fn a_request_and_its_reply_are_traced_in_hex() {
+    // The Modbus specification's read of two holding registers, and a reply of 1 and 2.
+    let (words, frames) = read_two_traced(&[0x01, 0x03, 0x04, 0x00, 0x01, 0x00, 0x02, 0x2A, 0x32]);
+    assert_eq!(words.unwrap(), [1, 2]);
+    assert_eq!(frames.len(), 2, "{frames:?}");
     assert_eq!(frames[0].message, "-> 01 03 00 00 00 02 C4 0B");
     assert_eq!(frames[0].level, Some(Level::TRACE));
     assert_eq!(frames[0].slave, Some(1));
@@ -126,22 +133,11 @@ fn a_request_and_its_reply_are_traced_in_hex() {
 
 #[test]
 fn a_garbled_reply_is_traced_and_marked() {
-    let seen = traced(|| async {
-        let (line, device) = tokio::io::duplex(64);
-        // The reply above with its checksum's bytes swapped.
-        answer(
-            device,
-            8,
-            &[0x01, 0x03, 0x04, 0x00, 0x01, 0x00, 0x02, 0x32, 0x2A],
-        );
-        let outcome = client(line).read_words(1, READ_TWO).await;
-        assert!(matches!(outcome, Err(Error::Frame(_))), "{outcome:?}");
-    });
-    let messages: Vec<&str> = seen
-        .iter()
-        .filter(|s| s.target == "optobus_transport")
-        .map(|s| s.message.as_str())
-        .collect();
+    // The reply above with its checksum's bytes swapped.
+    let (outcome, frames) =
+        read_two_traced(&[0x01, 0x03, 0x04, 0x00, 0x01, 0x00, 0x02, 0x32, 0x2A]);
+    assert!(matches!(outcome, Err(Error::Frame(_))), "{outcome:?}");
+    let messages: Vec<&str> = frames.iter().map(|s| s.message.as_str()).collect();
     assert_eq!(
         messages,
         [

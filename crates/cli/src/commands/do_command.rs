@@ -4,7 +4,7 @@
 use clap::Args;
 use serde_json::json;
 
-use crate::connect::{DeviceArgs, Global};
+use crate::connect::{Global, WriteArgs};
 use crate::error::{driver_error, CliError};
 use crate::inputs;
 use crate::log::note;
@@ -14,14 +14,8 @@ use crate::render::print;
 pub(crate) struct DoArgs {
     /// Command name (`optobus models` and `optobus registers` list them).
     command: String,
-    /// Channel of a per-channel command.
-    #[arg(long)]
-    channel: Option<u8>,
-    /// Confirm commands that store, restart or reset the device.
-    #[arg(long)]
-    yes: bool,
     #[command(flatten)]
-    pub(crate) device: DeviceArgs,
+    pub(crate) write: WriteArgs,
 }
 
 pub(crate) async fn run(global: &Global, args: &DoArgs) -> Result<(), CliError> {
@@ -33,13 +27,13 @@ pub(crate) async fn run(global: &Global, args: &DoArgs) -> Result<(), CliError> 
         CliError::new(format!("`{command}` is no command of {}", device.family))
             .hint(format!("commands: {}", names.join(", ")))
     })?;
-    if info.effect.is_drastic() && !args.yes {
+    if info.effect.is_drastic() && !args.write.yes {
         return Err(CliError::new(format!(
             "`{command}` {}; add --yes to go ahead",
             inputs::effect_text(info)
         )));
     }
-    let register = optobus_inspect::resolve_one(device, info.register, args.channel)?;
+    let register = optobus_inspect::resolve_one(device, info.register, args.write.channel)?;
     let slave = global.writing_slave(device)?;
     if info.busy_ms > 0 && !global.json {
         note!(

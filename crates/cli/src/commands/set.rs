@@ -6,7 +6,7 @@ use optobus_driver::{raw_bits, Encode};
 use optobus_inspect::{decode_value, parse_value};
 use serde_json::json;
 
-use crate::connect::{DeviceArgs, Global};
+use crate::connect::{Global, WriteArgs};
 use crate::error::{driver_error, CliError};
 use crate::inputs;
 use crate::log::note;
@@ -19,25 +19,18 @@ pub(crate) struct SetArgs {
     /// The value; negative ones need no `--` (`-1.5`).
     #[arg(allow_hyphen_values = true)]
     value: String,
-    /// Copy of a per-channel register.
-    #[arg(long)]
-    channel: Option<u8>,
-    /// Confirm a write to a register that a command storing, restarting or resetting the
-    /// device also writes.
-    #[arg(long)]
-    yes: bool,
     #[command(flatten)]
-    pub(crate) device: DeviceArgs,
+    pub(crate) write: WriteArgs,
 }
 
 /// Names and values are checked first, so bad input is refused before any connection.
 pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
-    let register = optobus_inspect::resolve_one(device, &args.name, args.channel)?;
+    let register = optobus_inspect::resolve_one(device, &args.name, args.write.channel)?;
     let words = parse_value(register, &args.value)?;
     let new_address = new_slave_address(device, register, &words);
-    confirm(device, register, &words, args.yes)?;
+    confirm(device, register, &words, args.write.yes)?;
     let slave = global.writing_slave(device)?;
     global.note_if_simulated("set");
     let mut core = global.connect(device, slave).await?;
