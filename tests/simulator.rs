@@ -403,11 +403,11 @@ async fn pty_speaks_rtu() {
 fn answers_every_readable_register(family: &str, device: &'static DeviceInfo) {
     let sim = Simulator::new(device);
     for register in device.readable_registers() {
-        let function = match register.table {
-            Table::Holding => ReadFunction::Holding,
-            Table::Input => ReadFunction::Input,
-        };
-        let request = read(function, register.address, register.words);
+        let request = read(
+            register.table.read_function(),
+            register.address,
+            register.words,
+        );
         match sim.request(sim.address(), &request) {
             Reply::Read { words, .. } => assert_eq!(words.len(), usize::from(register.words)),
             other => panic!("{family} {}: {other:?}", register.name),

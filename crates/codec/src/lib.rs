@@ -11,12 +11,14 @@
 
 pub mod crc;
 mod fixed;
+mod hex;
 mod line;
 mod pdu;
 pub mod rtu;
 pub mod tcp;
 pub mod value;
 
+pub use hex::Hex;
 pub use line::{LineFormat, LineFormatError, Parity};
 pub use pdu::{
     exception_function, function_name, DecodeError, Decoded, EncodeError, ExceptionCode,

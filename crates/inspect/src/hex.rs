@@ -3,10 +3,11 @@
 
 use std::fmt;
 
+use optobus_codec::Hex;
+
 /// `01 04 0C`: bytes in hex, space separated.
 pub fn hex(bytes: &[u8]) -> String {
-    let shown: Vec<String> = bytes.iter().map(|b| format!("{b:02X}")).collect();
-    shown.join(" ")
+    Hex(bytes).to_string()
 }
 
 /// Why [`parse_hex`] refused a text; `Display` gives one line for people.

@@ -4,26 +4,12 @@
 //! The message is the frame as a person reads it (`-> 01 03 00 1F 00 07 …`); the fields carry
 //! the same for a program: `slave`, and `elapsed_us` on received bytes.
 
-use std::fmt;
 use std::time::Duration;
+
+use optobus_codec::Hex;
 
 /// The target of every frame event.
 pub const TARGET: &str = "optobus_transport";
-
-/// Bytes as `01 03 00 1F`, written only if an event is enabled.
-pub(crate) struct Hex<'a>(pub(crate) &'a [u8]);
-
-impl fmt::Display for Hex<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        for (i, byte) in self.0.iter().enumerate() {
-            if i > 0 {
-                f.write_str(" ")?;
-            }
-            write!(f, "{byte:02X}")?;
-        }
-        Ok(())
-    }
-}
 
 /// A request left for `slave`.
 pub(crate) fn sent(slave: u8, frame: &[u8]) {

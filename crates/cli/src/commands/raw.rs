@@ -2,7 +2,8 @@
 //! same link as every other command. Addresses are 0-based, as on the wire.
 
 use clap::{Subcommand, ValueEnum};
-use optobus_driver::transport::{ReadFunction, ReadRequest, WriteValue};
+use optobus_device::Table;
+use optobus_driver::transport::{ReadRequest, WriteValue};
 use optobus_driver::Transport;
 use optobus_inspect::{hex_and_decimal, parse_number};
 use serde_json::json;
@@ -48,17 +49,11 @@ pub(crate) enum RawTable {
 }
 
 impl RawTable {
-    const fn function(self) -> ReadFunction {
+    /// The device table it names (its read function and name are the device crate's facts).
+    const fn table(self) -> Table {
         match self {
-            Self::Holding => ReadFunction::Holding,
-            Self::Input => ReadFunction::Input,
-        }
-    }
-
-    const fn name(self) -> &'static str {
-        match self {
-            Self::Holding => "holding",
-            Self::Input => "input",
+            Self::Holding => Table::Holding,
+            Self::Input => Table::Input,
         }
     }
 }
@@ -107,13 +102,16 @@ async fn read(
     let mut core = global.connect(device, slave).await?;
     let subject = format!(
         "{} {}..={}",
-        table.name(),
+        table.table().as_str(),
         hex_and_decimal(address),
         hex_and_decimal(last)
     );
     let words = core
         .transport_mut()
-        .read_words(slave, ReadRequest::new(table.function(), address, count))
+        .read_words(
+            slave,
+            ReadRequest::new(table.table().read_function(), address, count),
+        )
         .await
         .map_err(|e| transport_error(e, &subject))?;
     let at = (address..=last).zip(&words);
@@ -121,13 +119,15 @@ async fn read(
         let list: Vec<_> = at
             .map(|(address, word)| json!({"address": address, "value": word}))
             .collect();
-        print(&pretty(&json!({"table": table.name(), "words": list})));
+        print(&pretty(
+            &json!({"table": table.table().as_str(), "words": list}),
+        ));
     } else {
         let lines: Vec<String> = at
             .map(|(address, word)| {
                 format!(
                     "{} {}  {}",
-                    table.name(),
+                    table.table().as_str(),
                     hex_and_decimal(address),
                     hex_and_decimal(*word)
                 )
