@@ -48,6 +48,21 @@ fn a_recording_is_drawn_with_its_units() {
 }
 
 #[test]
+fn a_recording_is_drawn_as_png_with_its_text() {
+    let (csv, out) = (scratch("png.csv"), scratch("run.png"));
+    ok(&["record", "distance_1", "--count", "20", "--out", &csv]);
+    ok(&["plot", &csv, "--out", &out]);
+    let _ = std::fs::remove_file(&csv);
+    let bytes = std::fs::read(&out).expect("the chart was written");
+    let _ = std::fs::remove_file(&out);
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "a PNG signature");
+    // IHDR: width and height, big-endian, right after the signature and the chunk header.
+    let width = u32::from_be_bytes([bytes[16], bytes[17], bytes[18], bytes[19]]);
+    let height = u32::from_be_bytes([bytes[20], bytes[21], bytes[22], bytes[23]]);
+    assert_eq!((width, height), (1000, 260), "one panel");
+}
+
+#[test]
 fn a_buffer_download_is_drawn_over_its_index() {
     let out = scratch("buffer.svg");
     ok(&["buffer", "--count", "120", "--wait", "0", "--plot", &out]);
@@ -62,15 +77,15 @@ fn what_cannot_be_drawn_is_refused() {
     std::fs::write(&csv, "index,value_mm\n0,1.0\n").expect("write");
     let stderr = fails(&["plot", &csv, "--out", &scratch("x.svg")]);
     assert!(stderr.contains("no recording"), "{stderr}");
-    let stderr = fails(&["plot", &csv, "--out", &scratch("x.png")]);
-    assert!(stderr.contains("written as SVG"), "{stderr}");
+    let stderr = fails(&["plot", &csv, "--out", &scratch("x.pdf")]);
+    assert!(stderr.contains("written as SVG or PNG"), "{stderr}");
     let _ = std::fs::remove_file(&csv);
     let stderr = fails(&["plot", &scratch("missing.csv"), "--out", &scratch("x.svg")]);
     assert!(stderr.contains("cannot read"), "{stderr}");
     // Refused before the download starts.
     let stderr = fails(&["buffer", "--count", "10", "--plot", &scratch("x.pdf")]);
     assert!(
-        stderr.contains("written as SVG") && !stderr.contains("buffering"),
+        stderr.contains("written as SVG or PNG") && !stderr.contains("buffering"),
         "{stderr}"
     );
 }

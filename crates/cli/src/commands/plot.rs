@@ -1,4 +1,4 @@
-//! `optobus plot`: a file `optobus record` wrote, drawn as SVG: each value column over the
+//! `optobus plot`: a file `optobus record` wrote, drawn as SVG or PNG: each value column over the
 //! elapsed seconds, with the units of its header.
 
 use std::path::PathBuf;
@@ -13,7 +13,7 @@ use crate::log::note;
 pub(crate) struct PlotArgs {
     /// A CSV file of `optobus record` (time, elapsed [s], one column per register).
     file: PathBuf,
-    /// The chart to write (`.svg`).
+    /// The chart to write: `.svg` or `.png`.
     #[arg(long)]
     out: PathBuf,
 }
