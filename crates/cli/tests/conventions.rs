@@ -126,6 +126,8 @@ fn raw_access_reads_and_writes_words_by_address() {
     assert_eq!(read["table"], "holding");
     assert_eq!(read["words"][1]["address"], 2);
     assert_eq!(read["words"][1]["value"], 425);
+    let text = ok(&["raw", "write", "20", "1", "--yes", "--tcp", at]);
+    assert_eq!(text.trim(), "holding 0x0014 (20)  0x0001 (1): written");
     let text = ok(&["raw", "write", "0x0002", "300", "--tcp", at]);
     assert_eq!(text.trim(), "holding 0x0002 (2)  0x012C (300): written");
     let values = json(&["read", "light_power", "--tcp", at]);
@@ -162,6 +164,12 @@ fn raw_access_refuses_before_the_wire() {
         ),
         ("raw write 2 -1", "`-1` is not a register value"),
         ("raw write 2 1.5", "`1.5` is not a register value"),
+        // Holding 20 is `save_parameters`: a raw write there is a save, and needs --yes.
+        (
+            "raw write 20 1",
+            "writing 1 to `save_parameters` runs `save_parameters`",
+        ),
+        ("raw write 0x14 7", "add --yes to go ahead"),
     ] {
         refused(&words(args), REFUSED, message);
     }

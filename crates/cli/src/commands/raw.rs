@@ -8,6 +8,7 @@ use optobus_driver::Transport;
 use optobus_inspect::{hex_and_decimal, parse_number};
 use serde_json::json;
 
+use super::set::confirm;
 use crate::connect::{DeviceArgs, Global, Options};
 use crate::error::{transport_error, CliError};
 use crate::render::{pretty, print};
@@ -34,6 +35,9 @@ pub(crate) enum RawCommand {
         /// The word to write, 0 to 65535: decimal or 0x hex.
         #[arg(allow_hyphen_values = true)]
         value: String,
+        /// Confirm a write to a register that the spec's save, restart or reset commands write.
+        #[arg(long)]
+        yes: bool,
         #[command(flatten)]
         device: DeviceArgs,
     },
@@ -69,8 +73,9 @@ pub(crate) async fn run(options: &Options, command: &RawCommand) -> Result<(), C
         RawCommand::Write {
             address,
             value,
+            yes,
             device,
-        } => write(&options.with(device), address, value).await,
+        } => write(&options.with(device), address, value, *yes).await,
     }
 }
 
@@ -139,11 +144,16 @@ async fn read(
 }
 
 /// Writes `value` to the holding register at `address` (FC06); broadcast with `--slave 0`.
-async fn write(global: &Global, address: &str, value: &str) -> Result<(), CliError> {
+/// An address the spec knows as a drastic command's register needs `yes`, as `set` does.
+async fn write(global: &Global, address: &str, value: &str, yes: bool) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
     let address = parse_number(address, "a register address")?;
     let value = parse_number(value, "a register value")?;
+    if let Some((register, offset)) = device.register_at(Table::Holding, address) {
+        let whole = offset == 0 && register.span(device.addressing) == 1;
+        confirm(device, register, whole.then_some(u32::from(value)), yes)?;
+    }
     let slave = global.writing_slave(device)?;
     global.note_if_simulated("raw write");
     let mut core = global.connect(device, slave).await?;

@@ -30,7 +30,7 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
     let register = optobus_inspect::resolve_one(device, &args.name, args.write.channel)?;
     let words = parse_value(register, &args.value)?;
     let new_address = new_slave_address(device, register, &words);
-    confirm(device, register, &words, args.write.yes)?;
+    confirm(device, register, Some(raw_bits(register, &words)), args.write.yes)?;
     let slave = global.writing_slave(device)?;
     global.note_if_simulated("set");
     let mut core = global.connect(device, slave).await?;
@@ -91,12 +91,12 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
     Ok(())
 }
 
-/// `set` of a register that a drastic command writes (save, reboot, resets) needs `--yes`,
-/// as `do` of the command does.
-fn confirm(
+/// A write of `raw` (unknown: part of a wider register) to a register that a drastic command
+/// writes (save, reboot, resets) needs `--yes`, as `do` of the command does.
+pub(crate) fn confirm(
     device: &DeviceInfo,
     register: &'static RegisterInfo,
-    words: &[u16],
+    raw: Option<u32>,
     yes: bool,
 ) -> Result<(), CliError> {
     if yes {
@@ -108,11 +108,14 @@ fn confirm(
         .filter(|c| c.effect.is_drastic())
         .filter(|c| c.register == register.name || register.member_name() == Some(c.register))
         .collect();
-    let raw = raw_bits(register, words);
-    match (drastic.iter().find(|c| c.value == raw), drastic.as_slice()) {
+    match (
+        raw.and_then(|raw| drastic.iter().find(|c| c.value == raw)),
+        drastic.as_slice(),
+    ) {
         (_, []) => Ok(()),
         (Some(command), _) => Err(CliError::new(format!(
-            "writing {raw} to `{}` runs `{}`: it {}; add --yes to go ahead",
+            "writing {} to `{}` runs `{}`: it {}; add --yes to go ahead",
+            command.value,
             register.name,
             command.name,
             inputs::effect_text(command)
