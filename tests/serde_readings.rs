@@ -1,10 +1,13 @@
 //! Readings to JSON and back (feature `serde` of the driver crates): quantities as exact text
 //! with their unit, codes with their names, every group of every family equal after the
-//! round trip.
+//! round trip; and the tool's generic values (`optobus --json`) in the very same JSON.
 
 use optobus_ccf::{Ccf, Channel, MovingAverageWindow, SamplingInterval};
+use optobus_device::DeviceInfo;
+use optobus_driver::Core;
 use optobus_p_series::PSeries;
-use optobus_tests::e2e::simulated;
+use optobus_simulator::Simulator;
+use optobus_tests::e2e::{rtu, simulated};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::{json, Value};
@@ -109,4 +112,67 @@ async fn every_family_reads_its_first_group_back_equal() {
     let (_sim, client) = simulated(&optobus_lc_rs::DEVICE);
     let mut lc_rs = optobus_lc_rs::LcRs::with_default_slave(client);
     round_trip(&lc_rs.read_measurements().await.unwrap());
+}
+
+/// The registers of `group` read from `sim` through the generic runtime and decoded as the
+/// `optobus` tool does for `--json` (`optobus_inspect::decode_value`), as one object.
+async fn generic_json(sim: &Simulator, device: &'static DeviceInfo, group: &str) -> Value {
+    let group = device.group(group).expect("group");
+    let registers: Vec<_> = group
+        .registers
+        .iter()
+        .map(|name| device.register(name).expect("register"))
+        .collect();
+    let mut core = Core::new(rtu(sim), device.default_slave, device).unwrap();
+    let readings = core.read_group(&registers).await.unwrap();
+    let values = registers.iter().map(|r| {
+        let value = optobus_inspect::decode_value(r, readings.words(r));
+        (r.name.to_owned(), serde_json::to_value(value).unwrap())
+    });
+    Value::Object(values.collect())
+}
+
+#[tokio::test]
+async fn the_tools_json_is_the_typed_readings_json() {
+    // Settings, which hold still between two reads: quantities, codes, packed fields, an
+    // IPv4 address and integers.
+    let (sim, client) = simulated(&optobus_p_series::DEVICE);
+    let mut p = PSeries::with_default_slave(client);
+    let typed = serde_json::to_value(p.read_filters().await.unwrap()).unwrap();
+    assert_eq!(
+        typed,
+        generic_json(&sim, &optobus_p_series::DEVICE, "filters").await
+    );
+    let typed = serde_json::to_value(p.read_network_info().await.unwrap()).unwrap();
+    assert_eq!(
+        typed,
+        generic_json(&sim, &optobus_p_series::DEVICE, "network_info").await
+    );
+    let typed = serde_json::to_value(p.read_laser().await.unwrap()).unwrap();
+    assert_eq!(
+        typed,
+        generic_json(&sim, &optobus_p_series::DEVICE, "laser").await
+    );
+
+    let (sim, client) = simulated(&optobus_ccf::DEVICE);
+    let mut ccf = Ccf::with_default_slave(client);
+    let typed = serde_json::to_value(ccf.read_measurement_settings().await.unwrap()).unwrap();
+    let generic = generic_json(&sim, &optobus_ccf::DEVICE, "measurement_settings").await;
+    assert_eq!(typed, generic);
+
+    // A version: named parts, as the typed struct serialises.
+    let (sim, client) = simulated(&optobus_lc_rs::DEVICE);
+    let mut lc_rs = optobus_lc_rs::LcRs::with_default_slave(client);
+    let typed = serde_json::to_value(lc_rs.firmware_version().await.unwrap()).unwrap();
+    let register = optobus_lc_rs::DEVICE.register("firmware_version").unwrap();
+    let mut core = Core::new(rtu(&sim), 1, &optobus_lc_rs::DEVICE).unwrap();
+    let words = core.read_words(register).await.unwrap();
+    let generic = serde_json::to_value(optobus_inspect::decode_value(register, &words)).unwrap();
+    assert_eq!(typed, generic);
+    assert_eq!(typed, json!({"major": 1, "minor": 0, "patch": 0}));
+    let typed = serde_json::to_value(lc_rs.read_serial_settings().await.unwrap()).unwrap();
+    assert_eq!(
+        typed,
+        generic_json(&sim, &optobus_lc_rs::DEVICE, "serial_settings").await
+    );
 }

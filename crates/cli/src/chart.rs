@@ -69,10 +69,11 @@ fn format_of(out: &Path) -> Result<Format, CliError> {
     match extension.to_ascii_lowercase().as_str() {
         "svg" => Ok(Format::Svg),
         "png" => Ok(Format::Png),
-        _ => Err(
-            CliError::new(format!("{}: charts are written as SVG or PNG", out.display()))
-                .hint("name the output file `….svg` or `….png`"),
-        ),
+        _ => Err(CliError::new(format!(
+            "{}: charts are written as SVG or PNG",
+            out.display()
+        ))
+        .hint("name the output file `….svg` or `….png`")),
     }
 }
 
@@ -87,10 +88,18 @@ pub(crate) fn draw(out: &Path, x_label: &str, series: &[Series]) -> Result<(), C
     let size = (1000, PANEL_HEIGHT.saturating_mul(count));
     let failed = |e: String| CliError::failed(format!("cannot draw {}: {e}", out.display()));
     match format_of(out)? {
-        Format::Svg => panels(SVGBackend::new(out, size).into_drawing_area(), x_label, series),
+        Format::Svg => panels(
+            SVGBackend::new(out, size).into_drawing_area(),
+            x_label,
+            series,
+        ),
         Format::Png => {
             use_bundled_font().map_err(failed)?;
-            panels(BitMapBackend::new(out, size).into_drawing_area(), x_label, series)
+            panels(
+                BitMapBackend::new(out, size).into_drawing_area(),
+                x_label,
+                series,
+            )
         }
     }
     .map_err(failed)

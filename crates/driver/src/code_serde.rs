@@ -6,14 +6,7 @@ use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::convert::CodeEnum;
-
-/// The serialised shape.
-#[derive(Serialize, Deserialize)]
-struct Code<'a> {
-    code: Option<u32>,
-    #[serde(borrow, default)]
-    name: Option<std::borrow::Cow<'a, str>>,
-}
+use crate::shapes::Code;
 
 /// `{"code": 0, "name": "distance"}`.
 pub fn serialize<V: CodeEnum, S: Serializer>(value: &V, serializer: S) -> Result<S::Ok, S::Error> {

@@ -28,6 +28,8 @@ mod convert;
 mod core;
 mod error;
 mod plan;
+#[cfg(feature = "serde")]
+pub mod shapes;
 pub mod units;
 
 #[cfg(feature = "tcp")]

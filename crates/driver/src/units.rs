@@ -39,31 +39,6 @@ fn shift(value: Fixed, shift: i8) -> Fixed {
     }
 }
 
-/// A quantity as scripts see it: exact decimal text and the unit's symbol.
-#[cfg(feature = "serde")]
-#[derive(serde::Serialize, serde::Deserialize)]
-struct Quantity<'a> {
-    value: Fixed,
-    #[serde(borrow)]
-    unit: std::borrow::Cow<'a, str>,
-}
-
-#[cfg(feature = "serde")]
-impl Quantity<'_> {
-    /// The value, if it is given in `symbol`: a value in another unit is refused rather than
-    /// taken as this one.
-    fn expect<E: serde::de::Error>(self, symbol: &str) -> Result<Fixed, E> {
-        if self.unit == symbol {
-            Ok(self.value)
-        } else {
-            Err(E::custom(format_args!(
-                "a value in {symbol} expected, got one in {}",
-                self.unit
-            )))
-        }
-    }
-}
-
 macro_rules! unit {
     ($(#[$doc:meta])* $name:ident, $symbol:literal, $accessor:ident $(, $other:ident = $shift:literal)*) => {
         $(#[$doc])*
@@ -81,7 +56,7 @@ macro_rules! unit {
         #[cfg(feature = "serde")]
         impl serde::Serialize for $name {
             fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-                serde::Serialize::serialize(&Quantity { value: self.0, unit: Self::SYMBOL.into() }, serializer)
+                serde::Serialize::serialize(&crate::shapes::Quantity { value: self.0, unit: Self::SYMBOL.into() }, serializer)
             }
         }
 
@@ -89,7 +64,7 @@ macro_rules! unit {
         #[cfg(feature = "serde")]
         impl<'de> serde::Deserialize<'de> for $name {
             fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-                <Quantity<'_> as serde::Deserialize>::deserialize(deserializer)?.expect(Self::SYMBOL).map(Self)
+                <crate::shapes::Quantity<'_> as serde::Deserialize>::deserialize(deserializer)?.expect(Self::SYMBOL).map(Self)
             }
         }
 

@@ -1,10 +1,12 @@
 //! A register's words decoded for people (`Display`) and scripts (`Serialize`).
 
+use std::borrow::Cow;
 use std::fmt;
 use std::net::Ipv4Addr;
 
 use optobus_codec::value::{join_u32, Fixed, Scale};
 use optobus_device::{CodeInfo, FieldInfo, RegisterInfo, Scalar, ValueKind};
+use optobus_driver::shapes::{Code, Quantity};
 use optobus_driver::Decode;
 use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
@@ -26,8 +28,8 @@ pub enum Value {
     Fields(Vec<(&'static str, Value)>),
     /// An IPv4 address.
     Ipv4(Ipv4Addr),
-    /// A version, its parts joined with dots.
-    Version(String),
+    /// A version: its named parts, major first (shown joined with dots).
+    Version(Vec<(&'static str, u8)>),
 }
 
 impl fmt::Display for Value {
@@ -50,35 +52,35 @@ impl fmt::Display for Value {
                 Ok(())
             }
             Self::Ipv4(address) => write!(f, "{address}"),
-            Self::Version(text) => f.write_str(text),
+            Self::Version(parts) => {
+                let numbers: Vec<String> = parts.iter().map(|(_, n)| n.to_string()).collect();
+                f.write_str(&numbers.join("."))
+            }
         }
     }
 }
 
-/// For scripts, as the drivers' `serde` feature writes typed readings: integers as numbers,
-/// quantities as exact text with their unit (`{"value": "3.584190", "unit": "mm"}`, a
-/// quantity without unit as its text alone), codes with their names, fields as an object,
-/// invalid readings as `null`.
+/// For scripts, in the shapes of the drivers' `serde` feature ([`optobus_driver::shapes`]):
+/// integers as numbers, quantities as exact text with their unit (`{"value": "3.584190",
+/// "unit": "mm"}`, a quantity without unit as its text alone), codes with their names,
+/// fields and version parts as an object, invalid readings as `null`.
 impl Serialize for Value {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         match self {
             Self::Invalid => serializer.serialize_none(),
             Self::Bool(value) => serializer.serialize_bool(*value),
             Self::Integer(value) => serializer.serialize_i64(*value),
-            // The shapes of the drivers' `serde` feature: exact text, never a rounded float.
-            Self::Quantity(value, Some(unit)) => {
-                let mut map = serializer.serialize_map(Some(2))?;
-                map.serialize_entry("value", &value.to_string())?;
-                map.serialize_entry("unit", unit)?;
-                map.end()
+            Self::Quantity(value, Some(unit)) => Quantity {
+                value: *value,
+                unit: Cow::Borrowed(unit),
             }
-            Self::Quantity(value, None) => serializer.collect_str(value),
-            Self::Code(code, name) => {
-                let mut map = serializer.serialize_map(Some(2))?;
-                map.serialize_entry("code", code)?;
-                map.serialize_entry("name", name)?;
-                map.end()
+            .serialize(serializer),
+            Self::Quantity(value, None) => value.serialize(serializer),
+            Self::Code(code, name) => Code {
+                code: Some(*code),
+                name: name.map(Cow::Borrowed),
             }
+            .serialize(serializer),
             Self::Fields(fields) => {
                 let mut map = serializer.serialize_map(Some(fields.len()))?;
                 for (name, value) in fields {
@@ -87,7 +89,13 @@ impl Serialize for Value {
                 map.end()
             }
             Self::Ipv4(address) => serializer.collect_str(address),
-            Self::Version(text) => serializer.serialize_str(text),
+            Self::Version(parts) => {
+                let mut map = serializer.serialize_map(Some(parts.len()))?;
+                for (name, number) in parts {
+                    map.serialize_entry(name, number)?;
+                }
+                map.end()
+            }
         }
     }
 }
@@ -131,13 +139,8 @@ pub fn decode_value(register: &'static RegisterInfo, words: &[u16]) -> Value {
         ValueKind::Ipv4 => Value::Ipv4(Ipv4Addr::decode(register, words)),
         ValueKind::Version(parts) => {
             let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_be_bytes()).collect();
-            let shown: Vec<String> = parts
-                .iter()
-                .zip(&bytes)
-                .filter(|(part, _)| **part != "ignore")
-                .map(|(_, byte)| byte.to_string())
-                .collect();
-            Value::Version(shown.join("."))
+            let named = parts.iter().copied().zip(bytes);
+            Value::Version(named.filter(|(part, _)| *part != "ignore").collect())
         }
         ValueKind::Record(members) => {
             let mut at = 0usize;

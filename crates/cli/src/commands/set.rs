@@ -30,7 +30,12 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
     let register = optobus_inspect::resolve_one(device, &args.name, args.write.channel)?;
     let words = parse_value(register, &args.value)?;
     let new_address = new_slave_address(device, register, &words);
-    confirm(device, register, Some(raw_bits(register, &words)), args.write.yes)?;
+    confirm(
+        device,
+        register,
+        Some(raw_bits(register, &words)),
+        args.write.yes,
+    )?;
     let slave = global.writing_slave(device)?;
     global.note_if_simulated("set");
     let mut core = global.connect(device, slave).await?;
