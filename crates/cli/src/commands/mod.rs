@@ -33,7 +33,7 @@ pub(crate) enum Command {
     Watch(watch::WatchArgs),
     /// Sample registers or groups into a CSV file (time, elapsed seconds, values in units).
     Record(record::RecordArgs),
-    /// Draw a recording as SVG: each column over the elapsed time, with its unit.
+    /// Draw a recording as SVG or PNG: each column over the elapsed time, with its unit.
     Plot(plot::PlotArgs),
     /// Every readable register, decoded, read in the fewest transactions.
     Dump(DeviceArgs),
