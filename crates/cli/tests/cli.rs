@@ -106,6 +106,41 @@ fn dump_reads_everything_in_few_requests() {
 }
 
 #[test]
+fn watch_charts_each_number_beside_it() {
+    let text = ok(&[
+        "watch",
+        "distance_1",
+        "light_power",
+        "--chart",
+        "--count",
+        "5",
+        "--interval",
+        "1ms",
+    ]);
+    let last = |name: &str| text.lines().rev().find(|l| l.starts_with(name)).unwrap();
+    // The simulated distance moves: five readings between the lowest and the highest.
+    let distance: Vec<char> = last("distance_1")
+        .split_whitespace()
+        .last()
+        .unwrap()
+        .chars()
+        .collect();
+    assert_eq!(distance.len(), 5, "{text}");
+    assert!(distance.contains(&'▁') && distance.contains(&'█'), "{text}");
+    // The light power holds still: a flat line.
+    let power = last("light_power");
+    assert!(
+        power.contains("0.5 %") && power.ends_with("  ▄▄▄▄▄"),
+        "{text}"
+    );
+    refused(
+        &words("--json watch distance_1 --chart"),
+        REFUSED,
+        "--chart draws for people",
+    );
+}
+
+#[test]
 fn watch_refreshes_and_stops() {
     let text = ok(&["watch", "distance_1", "--count", "3", "--interval", "20ms"]);
     assert_eq!(

@@ -1,5 +1,7 @@
-//! `optobus watch`: registers or groups read again and again, redrawn in place.
+//! `optobus watch`: registers or groups read again and again, redrawn in place; with
+//! `--chart`, each number's recent history as a sparkline beside it.
 
+use std::collections::VecDeque;
 use std::io::{IsTerminal, Write};
 use std::time::Duration;
 
@@ -11,6 +13,8 @@ use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::inputs;
 use crate::render::{time_of_day, timestamp, values_json, values_text};
+use optobus_device::RegisterInfo;
+use optobus_inspect::Value;
 
 #[derive(Debug, Args)]
 pub(crate) struct WatchArgs {
@@ -22,18 +26,28 @@ pub(crate) struct WatchArgs {
     /// Stop after this many refreshes (default: until Ctrl-C).
     #[arg(long)]
     count: Option<u64>,
+    /// Beside each number, a sparkline of its last 40 readings (gaps where invalid).
+    #[arg(long)]
+    chart: bool,
     #[command(flatten)]
     pub(crate) device: DeviceArgs,
 }
 
 /// Redraws the values every `--interval` until Ctrl-C (or `--count` refreshes).
 pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliError> {
+    if args.chart && global.json {
+        return Err(
+            CliError::new("--chart draws for people; --json prints data")
+                .hint("plot JSON data with your own tools, or a recording with `optobus plot`"),
+        );
+    }
     let (registers, mut core) = global.connect_to_read(&args.names, "watch").await?;
     let device = core.device();
     let terminal = std::io::stdout().is_terminal() && !global.json;
     let mut drawn_lines = 0u16;
     let mut last: Option<String> = None;
     let mut refresh = 0u64;
+    let mut history = vec![VecDeque::new(); registers.len()];
     let ctrl_c = tokio::signal::ctrl_c();
     tokio::pin!(ctrl_c);
     loop {
@@ -48,7 +62,11 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
                 json!({"time": timestamp(), "values": values_json(values)}).to_string() + "\n"
             }
             Ok(values) => {
-                let text = values_text(values);
+                let text = if args.chart {
+                    chart_text(values, &mut history)
+                } else {
+                    values_text(values)
+                };
                 last = Some(text.clone());
                 format!(
                     "{}  {} · slave {} · every {} ms\n{text}",
@@ -87,6 +105,57 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
     Ok(())
 }
 
+/// Readings a sparkline shows.
+const CHART_WIDTH: usize = 40;
+
+/// `name  value  ▃▄▅▆▇` lines: `values` added to `history`, each number's recent readings
+/// drawn between their lowest and highest.
+fn chart_text(
+    values: &[(&'static RegisterInfo, Value)],
+    history: &mut [VecDeque<Option<f64>>],
+) -> String {
+    let shown: Vec<String> = values.iter().map(|(_, v)| v.to_string()).collect();
+    let name_width = values.iter().map(|(r, _)| r.name.len()).max().unwrap_or(0);
+    let value_width = shown.iter().map(|v| v.chars().count()).max().unwrap_or(0);
+    let mut text = String::new();
+    for (((register, value), shown), past) in values.iter().zip(&shown).zip(history) {
+        let number = match value {
+            Value::Quantity(number, _) => Some(number.to_f64()),
+            Value::Integer(number) => Some(*number as f64),
+            _ => None,
+        };
+        if past.len() == CHART_WIDTH {
+            past.pop_front();
+        }
+        past.push_back(number);
+        let line = format!(
+            "{:<name_width$}  {shown:<value_width$}  {}",
+            register.name,
+            sparkline(past)
+        );
+        text.push_str(line.trim_end());
+        text.push('\n');
+    }
+    text
+}
+
+/// One block per reading, from `▁` (the lowest shown) to `█` (the highest); a space where a
+/// reading was no number; all `▄` when they are equal.
+fn sparkline(readings: &VecDeque<Option<f64>>) -> String {
+    const BLOCKS: [char; 8] = ['▁', '▂', '▃', '▄', '▅', '▆', '▇', '█'];
+    let numbers = readings.iter().flatten();
+    let low = numbers.clone().fold(f64::INFINITY, |a, &b| a.min(b));
+    let high = numbers.fold(f64::NEG_INFINITY, |a, &b| a.max(b));
+    readings
+        .iter()
+        .map(|reading| match reading {
+            None => ' ',
+            Some(_) if high <= low => BLOCKS[3],
+            Some(v) => BLOCKS[(((v - low) / (high - low)) * 7.0).round() as usize],
+        })
+        .collect()
+}
+
 /// Replaces the last drawing (`drawn` lines) with `block`, cut to a terminal of `rows` rows
 /// so that the cursor can always climb back over it (a taller block would scroll and smear
 /// the scrollback); gives the lines drawn.
@@ -104,7 +173,16 @@ fn redraw(out: &mut impl Write, drawn: u16, block: &str, rows: u16) -> u16 {
 
 #[cfg(test)]
 mod tests {
-    use super::redraw;
+    use super::{redraw, sparkline};
+
+    #[test]
+    fn a_sparkline_spans_its_readings_lowest_to_highest_with_gaps() {
+        let readings = [Some(1.0), Some(8.0), None, Some(4.5), Some(1.0)];
+        assert_eq!(sparkline(&readings.into_iter().collect()), "▁█ ▅▁");
+        let flat = [Some(2.0), Some(2.0)];
+        assert_eq!(sparkline(&flat.into_iter().collect()), "▄▄");
+        assert_eq!(sparkline(&[None, None].into_iter().collect()), "  ");
+    }
 
     #[test]
     fn a_block_taller_than_the_terminal_is_cut_and_climbed_back_over() {
