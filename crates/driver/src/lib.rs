@@ -1,6 +1,6 @@
 //! The runtime under every generated optobus driver.
 //!
-//! `optobus-codegen` turns a spec into a typed driver (`PSeries<T>`, `Ccf<T>`, …) whose methods
+//! `optobus-codegen` turns a spec into a typed driver (`Ccs<T>`, `Ccf<T>`, …) whose methods
 //! are thin: each names its register's [`RegisterInfo`] in the generated `DEVICE` table and
 //! the Rust type of its value. Everything else happens here, once for all families:
 //!

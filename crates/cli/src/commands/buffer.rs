@@ -17,12 +17,10 @@ use crate::{inputs, link, models};
 
 #[derive(Debug, Args)]
 pub(crate) struct BufferArgs {
-    /// Values to buffer and download (at most what the model's buffer hands out, 2500 on the
-    /// P series).
+    /// Values to buffer and download (at most what the model's buffer hands out).
     #[arg(long)]
     count: u16,
-    /// What to buffer: a code of the buffer's source register (default: its first code, the
-    /// P series' distance_1).
+    /// What to buffer: a code of the buffer's source register (default: its first code).
     #[arg(long)]
     source: Option<String>,
     /// How long to let the sensor buffer before reading out (at most 24 h).
@@ -136,7 +134,7 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
     Ok(())
 }
 
-/// The model as the manual names it: its title up to any parenthesis (`P series`).
+/// The model as the manual names it: its title up to any parenthesis.
 fn short_title(device: &DeviceInfo) -> &'static str {
     device
         .title
