@@ -6,8 +6,7 @@ use std::time::Duration;
 
 use optobus_driver::transport::Error as WireError;
 use optobus_driver::units::Percent;
-use optobus_driver::{Error, Fixed, Transport};
-use optobus_p_series::download::DownloadProgress;
+use optobus_driver::{DownloadProgress, Error, Fixed, Transport};
 use optobus_p_series::{MeasurementSource, MedianFilterWidth, PSeries, DEVICE};
 use optobus_simulator::Simulator;
 use optobus_tests::e2e;

@@ -35,6 +35,16 @@ fn matches_dump(device: &DeviceInfo) {
         device.groups.len(),
         dump["groups"].as_array().map_or(0, Vec::len)
     );
+    let buffer = &dump["buffer"];
+    match device.buffer {
+        Some(info) => {
+            assert_eq!(buffer["count"], info.count, "{}", device.family);
+            assert_eq!(buffer["most"], u64::from(info.most), "{}", device.family);
+            assert_eq!(buffer["page"], info.page, "{}", device.family);
+            assert_eq!(buffer["values"], info.values, "{}", device.family);
+        }
+        None => assert!(buffer.is_null(), "{}", device.family),
+    }
 }
 
 /// `generated_code::<family>`: the compiled `DEVICE` equals the runtime description of the

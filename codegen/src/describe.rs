@@ -7,8 +7,8 @@
 //! each. The description is leaked to `'static`: a tool describes a handful of specs once.
 
 use optobus_device::{
-    CodeInfo, CommandInfo, DeviceInfo, ExceptionShape, FieldInfo, FrameShape, GroupInfo,
-    RegisterInfo, RepeatCopy, ReservedInfo, RtuInfo, Scale, TcpInfo, ValueKind,
+    BufferInfo, CodeInfo, CommandInfo, DeviceInfo, ExceptionShape, FieldInfo, FrameShape,
+    GroupInfo, RegisterInfo, RepeatCopy, ReservedInfo, RtuInfo, Scale, TcpInfo, ValueKind,
 };
 
 use crate::model::{
@@ -169,6 +169,22 @@ impl<'m> Describer<'m> {
                 name: text(&g.name),
                 doc: doc(g.doc.as_deref()),
                 registers: leak_each(&g.registers, |(n, _)| text(n)),
+            }),
+            buffer: model.buffer.as_ref().map(|b| {
+                leak(BufferInfo {
+                    section: text(b.section.as_deref().unwrap_or("")),
+                    doc: doc(b.doc.as_deref()),
+                    source: b.source.as_ref().map(|n| text(&n.name)),
+                    count: text(&b.count.name),
+                    most: b.most.0,
+                    lock: text(&b.lock.name),
+                    unlock: text(&b.unlock.name),
+                    page: text(&b.page.name),
+                    read_count: text(&b.read_count.name),
+                    valid_count: text(&b.valid_count.name),
+                    values: text(&b.values.name),
+                    interval: b.interval.as_ref().map(|n| text(&n.name)),
+                })
             }),
         }
     }

@@ -2,7 +2,8 @@
 //!
 //! Field names are part of the interface: `family`, `device`, `registers[]` with `name`,
 //! `table`, `address`, `words`, `access`, `type`, `scale`, `unit`, `enum`, `range`,
-//! `allowed_values`, `action`, `sentinel`, `section`, then `commands` and `groups`.
+//! `allowed_values`, `action`, `sentinel`, `section`, then `commands`, `groups` and `buffer`
+//! (its keys as in the spec; `null` without one).
 
 use serde_json::{json, Map, Value};
 
@@ -101,5 +102,18 @@ pub fn dump(model: &Model) -> Value {
             "registers": g.registers.iter().map(|(name, _)| name.clone()).collect::<Vec<_>>(),
             "doc": g.doc,
         })).collect::<Vec<_>>(),
+        "buffer": model.buffer.as_ref().map(|b| json!({
+            "source": b.source.as_ref().map(|n| n.name.clone()),
+            "count": b.count.name,
+            "most": b.most.0,
+            "lock": b.lock.name,
+            "unlock": b.unlock.name,
+            "page": b.page.name,
+            "read_count": b.read_count.name,
+            "valid_count": b.valid_count.name,
+            "values": b.values.name,
+            "interval": b.interval.as_ref().map(|n| n.name.clone()),
+            "doc": b.doc,
+        })),
     })
 }

@@ -5,9 +5,9 @@ use optobus_codec::value::{WordOrder, WriteOrder};
 
 use crate::diagnostic::Diagnostic;
 use crate::model::{
-    Address, Code, Command, Device, Effect, EnumDef, EnumRef, Field, Group, Kind, Manual, Model,
-    Protocol, Register, Repeat, RepeatCopy, Reserved, Rtu, Scalar, ScaleSpec, Table, Tcp,
-    WordCount,
+    Address, Buffer, Code, Command, Device, Effect, EnumDef, EnumRef, Field, Group, Kind, Manual,
+    Model, NameRef, Protocol, Register, Repeat, RepeatCopy, Reserved, Rtu, Scalar, ScaleSpec,
+    Table, Tcp, WordCount,
 };
 use crate::rules::scale::parse_scale;
 use crate::source::Path;
@@ -184,6 +184,29 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
         })
         .collect();
 
+    let buffer = spec.buffer.as_ref().map(|decl| {
+        let path = root.key("buffer");
+        let name = |key: &str, name: &String| NameRef {
+            name: name.clone(),
+            path: path.key(key),
+        };
+        Buffer {
+            section: decl.section.clone(),
+            doc: decl.doc.clone(),
+            source: decl.source.as_ref().map(|n| name("source", n)),
+            count: name("count", &decl.count),
+            most: (decl.most, path.key("most")),
+            lock: name("lock", &decl.lock),
+            unlock: name("unlock", &decl.unlock),
+            page: name("page", &decl.page),
+            read_count: name("read_count", &decl.read_count),
+            valid_count: name("valid_count", &decl.valid_count),
+            values: name("values", &decl.values),
+            interval: decl.interval.as_ref().map(|n| name("interval", n)),
+            path: path.clone(),
+        }
+    });
+
     let device = lowering.device(&spec);
     let protocol = Protocol {
         addressing: spec.protocol.addressing,
@@ -224,6 +247,7 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
         commands,
         groups,
         repeats,
+        buffer,
         unread,
     };
     (model, lowering.diagnostics)

@@ -287,6 +287,46 @@ pub struct Group {
     pub path: Path,
 }
 
+/// A name the spec refers to, and where it is written.
+#[derive(Clone, Debug)]
+pub struct NameRef {
+    /// The name.
+    pub name: String,
+    /// Where it is written.
+    pub path: Path,
+}
+
+/// The data buffer (`buffer:`): which registers, commands and group take part.
+#[derive(Clone, Debug)]
+pub struct Buffer {
+    /// Manual section.
+    pub section: Option<String>,
+    /// English doc.
+    pub doc: Option<String>,
+    /// Enum register choosing what is buffered.
+    pub source: Option<NameRef>,
+    /// Writable register: how many values to buffer.
+    pub count: NameRef,
+    /// Most values that may be read out, and where it is written.
+    pub most: (u32, Path),
+    /// Command locking the buffer for read-out.
+    pub lock: NameRef,
+    /// Command unlocking (clearing) it.
+    pub unlock: NameRef,
+    /// Group read once per page.
+    pub page: NameRef,
+    /// Page member: values handed out since the lock.
+    pub read_count: NameRef,
+    /// Page member: valid values in this page.
+    pub valid_count: NameRef,
+    /// Repeat member of the page: the values.
+    pub values: NameRef,
+    /// Enum register whose code meanings are durations.
+    pub interval: Option<NameRef>,
+    /// Where it is declared.
+    pub path: Path,
+}
+
 /// A repeat block.
 #[derive(Clone, Debug)]
 pub struct Repeat {
@@ -420,6 +460,8 @@ pub struct Model {
     pub groups: Vec<Group>,
     /// Repeat blocks.
     pub repeats: Vec<Repeat>,
+    /// The data buffer, if the device has one.
+    pub buffer: Option<Buffer>,
     /// Names of items a reading error left out (already reported): references to them, or
     /// to names they start (a block's copies), are not reported again.
     pub unread: BTreeSet<String>,

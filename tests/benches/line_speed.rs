@@ -25,7 +25,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use optobus_p_series::download::MAX_DOWNLOAD;
 use optobus_p_series::transport::{Flow, LineFormat, RtuClient, RtuConfig, Tap, Transport};
 use optobus_p_series::{rtu_config, MeasurementSource, PSeries, DEVICE};
 use optobus_simulator::{Line, LineStats, Simulator};
@@ -184,8 +183,11 @@ async fn fill_time<T: Transport>(sensor: &mut PSeries<T>, count: u16) -> Duratio
     Duration::from_secs_f64(interval / per_second * f64::from(count))
 }
 
-/// The buffer download of `MAX_DOWNLOAD` values at 115200 baud against its line time.
+/// The buffer download of the most values the spec lets be read out, at 115200 baud, against
+/// its line time.
 async fn download() {
+    let most = DEVICE.buffer.map_or(0, |buffer| buffer.most);
+    let most = u16::try_from(most).expect("the buffer count is one word");
     let format = LineFormat::new(115_200);
     let sim = Simulator::new(&DEVICE);
     let line = Line::new(format).turnaround(TURNAROUND);
@@ -199,11 +201,11 @@ async fn download() {
     let mut sensor =
         PSeries::with_default_slave(RtuClient::with_config(stream, our_config(format)));
     sensor
-        .start_buffering(MeasurementSource::ALL[0], MAX_DOWNLOAD)
+        .start_buffering(MeasurementSource::ALL[0], most)
         .await
         .expect("start buffering");
     // Unlocking after a download clears the buffer and buffering starts anew.
-    let fill = fill_time(&mut sensor, MAX_DOWNLOAD).await;
+    let fill = fill_time(&mut sensor, most).await;
     let gap = format.frame_gap();
     let per_transaction = gap * 2 + TURNAROUND;
     let mut ratios = Vec::new();
@@ -235,7 +237,7 @@ async fn download() {
         );
     }
     println!(
-        "download of {MAX_DOWNLOAD} values at 115200 baud, turnaround {} us, buffered in {:.1} ms:",
+        "download of {most} values at 115200 baud, turnaround {} us, buffered in {:.1} ms:",
         TURNAROUND.as_micros(),
         fill.as_secs_f64() * 1e3
     );

@@ -528,6 +528,7 @@ fn device_info(model: &Model, names: &TypeNames, imports: &Imports) -> TokenStre
     });
     let commands = model.commands.iter().map(|c| command_path(&c.name));
     let groups = model.groups.iter().map(|g| group_path(&g.name));
+    let buffer = buffer_tokens(model, imports);
     let doc =
         format!("Everything `specs/{family}.yaml` says about the {title}, for generic tools.");
     let device_info = imports.get("optobus_device::DeviceInfo");
@@ -560,6 +561,44 @@ fn device_info(model: &Model, names: &TypeNames, imports: &Imports) -> TokenStre
             reserved: &[#(#reserved),*],
             commands: &[#(#commands),*],
             groups: &[#(#groups),*],
+            buffer: #buffer,
         };
     }
+}
+
+/// `Some(&BufferInfo { … })` for a spec with a data buffer, else `None`.
+fn buffer_tokens(model: &Model, imports: &Imports) -> TokenStream {
+    let Some(buffer) = &model.buffer else {
+        return quote!(None);
+    };
+    let ty = imports.get("optobus_device::BufferInfo");
+    let section = buffer.section.as_deref().unwrap_or("");
+    let doc = doc_text(buffer.doc.as_deref());
+    let source = option_str(buffer.source.as_ref().map(|n| n.name.as_str()));
+    let most = lit(buffer.most.0);
+    let interval = option_str(buffer.interval.as_ref().map(|n| n.name.as_str()));
+    let [count, lock, unlock, page, read_count, valid_count, values] = [
+        &buffer.count,
+        &buffer.lock,
+        &buffer.unlock,
+        &buffer.page,
+        &buffer.read_count,
+        &buffer.valid_count,
+        &buffer.values,
+    ]
+    .map(|n| n.name.as_str());
+    quote!(Some(&#ty {
+        section: #section,
+        doc: #doc,
+        source: #source,
+        count: #count,
+        most: #most,
+        lock: #lock,
+        unlock: #unlock,
+        page: #page,
+        read_count: #read_count,
+        valid_count: #valid_count,
+        values: #values,
+        interval: #interval,
+    }))
 }

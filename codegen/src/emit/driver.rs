@@ -306,6 +306,9 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
     .collect();
     // Commands keep the manual's names; a register accessor of the same name gets `_state`.
     taken.extend(model.commands.iter().map(|c| c.name.clone()));
+    if model.buffer.is_some() {
+        taken.extend(BUFFER_METHODS.map(str::to_owned));
+    }
     let copy_param = format_ident!("copy");
     let unit = quote!(());
 
@@ -463,6 +466,8 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
         });
     }
 
+    methods.extend(buffer_methods(model, names, imports));
+
     let struct_doc = format!(
         "Driver for the {title}: one async method per register, command and group of `specs/{}.yaml`.",
         model.family
@@ -527,4 +532,97 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
             #(#methods)*
         }
     }
+}
+
+/// The methods a spec with a `buffer:` section gets.
+const BUFFER_METHODS: [&str; 2] = ["start_buffering", "download_buffer"];
+
+/// `start_buffering` and `download_buffer`, typed from the buffer's registers, over the
+/// runtime's one download procedure.
+fn buffer_methods(model: &Model, names: &TypeNames, imports: &Imports) -> Vec<TokenStream> {
+    let Some(buffer) = &model.buffer else {
+        return Vec::new();
+    };
+    let (Some(count), Some(values)) = (
+        model.register(&buffer.count.name),
+        model.resolve(&buffer.values.name),
+    ) else {
+        return Vec::new();
+    };
+    let about = doc_text(buffer.doc.as_deref());
+    let manual = buffer
+        .section
+        .as_ref()
+        .map(|section| format!("Manual: {section}."));
+    let source = buffer
+        .source
+        .as_ref()
+        .and_then(|source| model.register(&source.name));
+    let (source_param, source_arg, writes) = match source {
+        Some(register) => {
+            let ty = value_type(register, names, imports);
+            (
+                quote!(source: #ty,),
+                quote!(Some(&source)),
+                format!("`{}` and `{}`", register.name, count.name),
+            )
+        }
+        None => (quote!(), quote!(None), format!("`{}`", count.name)),
+    };
+    let what = if source.is_some() {
+        "values of `source`"
+    } else {
+        "values"
+    };
+    let start_doc = [
+        format!("Starts buffering `count` {what}."),
+        String::new(),
+        about.clone(),
+        String::new(),
+        format!(
+            "Writes {writes}, then runs `{}`; 0 turns buffering off. A count above {} (the most that may be read out) is refused with `Error::OutOfRange` before anything is sent.",
+            buffer.unlock.name, buffer.most.0
+        ),
+    ];
+    let download_doc = [
+        "Reads the data buffer out, oldest value first.".to_owned(),
+        String::new(),
+        about,
+        String::new(),
+        format!(
+            "Runs `{}`, reads `{}` until the count in `{}` (at most {}) is reached or a page holds no valid value, and runs `{}`, also when a read fails. `progress` is called after every page.",
+            buffer.lock.name, buffer.page.name, count.name, buffer.most.0, buffer.unlock.name
+        ),
+        String::new(),
+        format!(
+            "A page read is never retried (reading it turns the page), and `{}` is checked against the values received: a lost page fails the download with `Error::OutOfStep` rather than return fewer values.",
+            buffer.read_count.name
+        ),
+    ];
+    let manual = manual.map(|m| vec![String::new(), m]).unwrap_or_default();
+    let count_ty = value_type(count, names, imports);
+    let value_ty = read_type(values, names, imports);
+    let vec = imports.prelude("std::vec::Vec");
+    let progress = imports.get("optobus_driver::DownloadProgress");
+    let started = imports.result(quote!(()));
+    let downloaded = imports.result(quote!(#vec<#value_ty>));
+    vec![
+        quote! {
+            #(#[doc = #start_doc])*
+            #(#[doc = #manual])*
+            pub async fn start_buffering(&mut self, #source_param count: #count_ty) -> #started {
+                self.core.start_buffering(#source_arg, u32::from(count)).await
+            }
+        },
+        quote! {
+            #(#[doc = #download_doc])*
+            #(#[doc = #manual])*
+            pub async fn download_buffer(
+                &mut self,
+                progress: impl FnMut(#progress),
+            ) -> #downloaded {
+                self.core.download_buffer(progress).await
+            }
+        },
+    ]
 }

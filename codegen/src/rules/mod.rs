@@ -6,6 +6,7 @@ use crate::model::Model;
 
 pub mod action;
 pub mod allowed_values;
+pub mod buffer;
 pub mod commands;
 pub mod device;
 pub mod docs;
@@ -105,6 +106,10 @@ pub const RULES: &[Rule] = &[
     Rule {
         name: groups::RULE,
         check: groups::check,
+    },
+    Rule {
+        name: buffer::RULE,
+        check: buffer::check,
     },
     Rule {
         name: docs::RULE,

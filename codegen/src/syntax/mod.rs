@@ -106,6 +106,26 @@ record! {
         commands: Items<CommandDecl> = default,
         groups: Items<GroupDecl> = default,
         repeats: Items<RepeatDecl> = default,
+        buffer: Option<BufferDecl>,
+    }
+}
+
+record! {
+    /// A data buffer read out in pages: the names of the items taking part.
+    pub(crate) struct BufferDecl {
+        section: Option<String>,
+        doc: Option<String>,
+        source: Option<String>,
+        count: String,
+        most: u32,
+        lock: String,
+        unlock: String,
+        page: String,
+        read_count: String,
+        valid_count: String,
+        values: String,
+        interval: Option<String>,
+        note: Option<String>,
     }
 }
 

@@ -459,6 +459,40 @@ pub struct GroupInfo {
     pub registers: &'static [&'static str],
 }
 
+/// A data buffer the device fills by itself and hands out in pages (the spec's `buffer:`
+/// section): which registers, commands and group take part, by name.
+///
+/// Buffering starts by writing the source (if any) and the count, then unlocking; a download
+/// locks, reads `page` until `count` values or an empty page, and unlocks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub struct BufferInfo {
+    /// Manual section describing the buffer.
+    pub section: &'static str,
+    /// English description.
+    pub doc: &'static str,
+    /// Enum register choosing what is buffered; its code names are the registers buffered.
+    pub source: Option<&'static str>,
+    /// Writable register: how many values to buffer (0 turns buffering off).
+    pub count: &'static str,
+    /// Most values that may be read out.
+    pub most: u32,
+    /// Command freezing the buffer for read-out.
+    pub lock: &'static str,
+    /// Command clearing the buffer and buffering anew.
+    pub unlock: &'static str,
+    /// Group read once per page; reading it turns the page.
+    pub page: &'static str,
+    /// Page member: values handed out since the lock, this page included.
+    pub read_count: &'static str,
+    /// Page member: valid values in this page.
+    pub valid_count: &'static str,
+    /// Repeat member of the page: the page's values, oldest first.
+    pub values: &'static str,
+    /// Enum register whose code meanings are the intervals between buffered values.
+    pub interval: Option<&'static str>,
+}
+
 /// Serial line settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RtuInfo {
@@ -565,6 +599,8 @@ pub struct DeviceInfo {
     pub commands: &'static [CommandInfo],
     /// Groups.
     pub groups: &'static [GroupInfo],
+    /// The data buffer, if the device has one.
+    pub buffer: Option<&'static BufferInfo>,
 }
 
 impl DeviceInfo {

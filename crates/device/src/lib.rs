@@ -10,10 +10,12 @@
 
 mod check;
 mod description;
+mod duration;
 mod words;
 
 pub use check::Invalid;
 pub use description::*;
+pub use duration::parse_duration;
 pub use optobus_codec::value::{Scale, WordOrder, WriteOrder};
 pub use optobus_codec::{ExceptionShape, FrameShape, Parity, ReadFunction};
 pub use words::RawWords;

@@ -308,7 +308,7 @@ impl<T: Transport> Core<T> {
     }
 
     /// Writes already validated words, as [`plan_write`] plans them.
-    async fn write_words(
+    pub(crate) async fn write_words(
         &mut self,
         register: &'static RegisterInfo,
         words: &[u16],

@@ -1,12 +1,13 @@
 //! The runtime under every generated optobus driver.
 //!
-//! `optobus-codegen` turns a spec into a typed driver (`PSeries<T>`, `Ccf<T>`, …) whose methods
+//! `optobus-codegen` turns a spec into a typed driver (`Ccs<T>`, `Ccf<T>`, …) whose methods
 //! are thin: each names its register's [`RegisterInfo`] in the generated `DEVICE` table and
 //! the Rust type of its value. Everything else happens here, once for all families:
 //!
 //! - [`Core`] reads a register or a group (merging adjacent registers into the fewest reads,
 //!   split at the device's maximum), writes one register (two words in the spec's write
-//!   order, or the rangefinder's 4-byte FC06), runs commands and waits out their busy time.
+//!   order, or the rangefinder's 4-byte FC06), runs commands and waits out their busy time,
+//!   and downloads a data buffer page by page where the spec describes one.
 //! - [`Decode`] and [`Encode`] turn words into typed values and back; every write is
 //!   validated (range, defined codes, fits its bits, exactly representable) before a byte is
 //!   sent.
@@ -21,6 +22,7 @@
 
 #[cfg(feature = "serde")]
 pub mod array_serde;
+mod buffer;
 #[cfg(feature = "serde")]
 pub mod code_serde;
 mod connect;
@@ -32,6 +34,7 @@ mod plan;
 pub mod shapes;
 pub mod units;
 
+pub use crate::buffer::DownloadProgress;
 #[cfg(feature = "tcp")]
 pub use crate::connect::tcp_config;
 pub use crate::connect::{line_format, rtu_config, serial_settings};
@@ -42,6 +45,6 @@ pub use convert::{
 };
 pub use error::Error;
 pub use optobus_codec::value::{Fixed, ParseFixedError, Scale};
-pub use optobus_device::{CommandInfo, DeviceInfo, GroupInfo, RegisterInfo};
+pub use optobus_device::{BufferInfo, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo};
 pub use optobus_transport::{self as transport, Transport};
 pub use plan::{plan_reads, plan_write, ReadSpan, WritePart, WriteStep};

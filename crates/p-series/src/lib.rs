@@ -30,5 +30,3 @@
 
 // The driver, its types, `DEVICE` and the runtime items the crate re-exports.
 include!(concat!(env!("OUT_DIR"), "/p_series.rs"));
-
-pub mod download;

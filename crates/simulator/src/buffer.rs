@@ -1,27 +1,20 @@
-//! The P series' data buffer (manual 4.1.2 registers 0022-0024, 4.2.2 notes 3-5, 5.4 and
-//! appendix 3), found from the device description rather than by family:
+//! A device's data buffer, laid out as its spec's `buffer:` section names it
+//! ([`BufferInfo`]; the P series: manual 4.1.2 registers 0022-0024, 4.2.2 notes 3-5, 5.4 and
+//! appendix 3): the lock flag is the register the lock command writes, the source's code
+//! names are the registers buffered, the page's read count, valid count and values are named.
 //!
-//! - the lock register is the one the `buffer_lock` command writes;
-//! - the group that holds the lock register also holds the report count (its unsigned
-//!   integer member) and the data type (its enum member whose code names are registers);
-//! - the page is the group of input registers made of two plain registers (read count, valid
-//!   count) followed by repeat copies (the buffered values, in order);
-//! - the sampling interval is the enum register whose code meanings are durations (`100us`).
-//!
-//! Behaviour: while unlocked and the report count N is non-zero, one value of the data type's
+//! Behaviour: while unlocked and the count N is non-zero, one value of the source's
 //! register is buffered per sampling interval, up to N (appendix 3 (1), (5)). Locking freezes
 //! what is buffered (appendix 3 (2)) and restarts the read-out. Every read that covers a
-//! buffered-value register returns the next page: up to 60 values, the valid count of this
-//! page and the total read so far, including this page (appendix 3 (3)-(4), 5.4 (5): 1000
+//! buffered-value register returns the next page: up to a page of values, the valid count of
+//! this page and the total read so far, including this page (appendix 3 (3)-(4), 5.4 (5): 1000
 //! values take 17 reads, the 17th with 40 valid); values past the valid count read as the
 //! value register's sentinel. A read of the two counts alone does not turn the page. Unlocking
-//! clears the buffer and starts buffering anew; changing the report count, the data type or
-//! the sampling interval resets the buffer and the lock flag (4.2.2 note 5). Unlocked, the
+//! clears the buffer and starts buffering anew; changing the count, the source or the
+//! sampling interval resets the buffer and the lock flag (4.2.2 note 5). Unlocked, the
 //! counts read 0 and every value is invalid.
 
-use optobus_device::{Access, DeviceInfo, Effect, Scalar, Table, ValueKind};
-
-use crate::layout::group_members;
+use optobus_device::{BufferInfo, DeviceInfo};
 
 /// What a register of the page is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,9 +32,9 @@ pub(crate) enum Role {
 pub(crate) struct BufferLayout {
     /// The lock flag register.
     pub(crate) lock: usize,
-    /// The report count register.
+    /// The count register.
     pub(crate) report_count: usize,
-    /// The data type register, if any (else the first code's register is buffered).
+    /// The source register, if any (else the first code's register is buffered).
     pub(crate) data_type: Option<usize>,
     /// The sampling interval register, if any (else 1 ms).
     pub(crate) interval: Option<usize>,
@@ -50,84 +43,31 @@ pub(crate) struct BufferLayout {
     values: Vec<usize>,
 }
 
-/// Seconds in a duration written as `6.25us`, `1ms` or `2s`.
-pub(crate) fn parse_duration(text: &str) -> Option<f64> {
-    let text = text.trim();
-    let (number, per_second) = if let Some(n) = text.strip_suffix("us") {
-        (n, 1e6)
-    } else if let Some(n) = text.strip_suffix("µs") {
-        (n, 1e6)
-    } else if let Some(n) = text.strip_suffix("ms") {
-        (n, 1e3)
-    } else if let Some(n) = text.strip_suffix('s') {
-        (n, 1.0)
-    } else {
-        return None;
-    };
-    let value: f64 = number.trim().parse().ok()?;
-    (value > 0.0).then_some(value / per_second)
-}
-
-/// The page: a group of input registers, two plain ones followed by repeat copies.
-fn page(device: &DeviceInfo) -> Option<Vec<usize>> {
-    device.groups.iter().find_map(|group| {
-        let members = group_members(device, group);
-        let registers: Vec<_> = members.iter().map(|&i| &device.registers[i]).collect();
-        let plain = registers.iter().take_while(|r| r.copy.is_none()).count();
-        let ok = plain == 2
-            && registers.len() > 2
-            && registers.iter().all(|r| r.table == Table::Input)
-            && registers.iter().skip(2).all(|r| r.copy.is_some());
-        ok.then_some(members)
-    })
-}
-
 impl BufferLayout {
-    /// The buffer of `device`, if it has one.
+    /// The buffer of `device`, if its spec describes one whose names all resolve.
     pub(crate) fn find(device: &'static DeviceInfo) -> Option<Self> {
+        let info: &BufferInfo = device.buffer?;
         let index = |name: &str| device.registers.iter().position(|r| r.name == name);
-        let lock_command = device
-            .commands
+        let lock = index(device.command(info.lock)?.register)?;
+        let mut copies: Vec<(u8, usize)> = device
+            .registers
             .iter()
-            .find(|c| c.effect == Effect::BufferLock)?;
-        let lock = index(lock_command.register)?;
-        let settings = device
-            .groups
-            .iter()
-            .find(|g| g.registers.contains(&lock_command.register))?;
-        let members = group_members(device, settings);
-        let report_count = members.iter().copied().find(|&i| {
-            i != lock
-                && matches!(
-                    device.registers[i].kind,
-                    ValueKind::Scalar(Scalar::U16 | Scalar::U32)
-                )
-        })?;
-        let data_type = members.iter().copied().find(|&i| {
-            let register = &device.registers[i];
-            register.kind == ValueKind::Enum
-                && register
-                    .codes
-                    .iter()
-                    .all(|code| device.register(code.name).is_some())
-        });
-        let interval = device.registers.iter().position(|r| {
-            r.kind == ValueKind::Enum
-                && r.access == Access::ReadWrite
-                && !r.codes.is_empty()
-                && r.codes.iter().all(|c| parse_duration(c.meaning).is_some())
-        });
-        let page = page(device)?;
-        let (read_count, valid_count) = (*page.first()?, *page.get(1)?);
-        let values = page.get(2..)?.to_vec();
+            .enumerate()
+            .filter_map(|(i, r)| {
+                let copy = r.copy?;
+                (copy.member == info.values).then_some((copy.number, i))
+            })
+            .collect();
+        copies.sort_unstable();
+        let values: Vec<usize> = copies.into_iter().map(|(_, i)| i).collect();
         Some(Self {
             lock,
-            report_count,
-            data_type,
-            interval,
-            read_count,
-            valid_count,
-            values,
+            report_count: index(info.count)?,
+            data_type: info.source.and_then(index),
+            interval: info.interval.and_then(index),
+            read_count: index(info.read_count)?,
+            valid_count: index(info.valid_count)?,
+            values: (!values.is_empty()).then_some(values)?,
         })
     }
 
@@ -237,18 +177,5 @@ impl Buffer {
             let n = locked.page_start + slot;
             (locked.source, locked.first + f64::from(n) * locked.period)
         })
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn durations() {
-        assert_eq!(parse_duration("6.25us"), Some(6.25e-6));
-        assert_eq!(parse_duration("1ms"), Some(1e-3));
-        assert_eq!(parse_duration("=1 5Hz"), None);
-        assert_eq!(parse_duration("us"), None);
     }
 }

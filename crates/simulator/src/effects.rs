@@ -25,10 +25,9 @@
 
 use std::time::Duration;
 
-use optobus_device::{CommandInfo, Effect};
+use optobus_device::{parse_duration, CommandInfo, Effect};
 use tokio::time::Instant;
 
-use crate::buffer::parse_duration;
 use crate::layout::{command_copy, stored_words};
 use crate::model::Device;
 use crate::names;

@@ -3,7 +3,7 @@
 
 use std::collections::HashMap;
 
-use optobus_device::{CommandInfo, DeviceInfo, GroupInfo, RegisterInfo, Table};
+use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo, Table};
 
 /// What one address holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -90,30 +90,6 @@ pub(crate) fn command_copy(
     }
     let copy = register.copy?;
     (copy.member == command.register).then(|| Some(format!("{}_{}_", copy.repeat, copy.number)))
-}
-
-/// The registers a group names, in order; a repeat member's base name stands for every copy,
-/// in copy order.
-pub(crate) fn group_members(device: &DeviceInfo, group: &GroupInfo) -> Vec<usize> {
-    let mut members = Vec::new();
-    for name in group.registers {
-        if let Some(index) = device.registers.iter().position(|r| r.name == *name) {
-            members.push(index);
-            continue;
-        }
-        let mut copies: Vec<(u8, usize)> = device
-            .registers
-            .iter()
-            .enumerate()
-            .filter_map(|(index, register)| {
-                let copy = register.copy?;
-                (copy.member == *name).then_some((copy.number, index))
-            })
-            .collect();
-        copies.sort_unstable();
-        members.extend(copies.into_iter().map(|(_, index)| index));
-    }
-    members
 }
 
 /// The stored words of `register` holding `raw`: its raw value in the register's words,

@@ -1,10 +1,12 @@
-//! `optobus buffer`: the P series' buffered download, with a progress bar, as CSV or JSON.
+//! `optobus buffer`: the buffered download of any model whose spec has a data buffer, with a
+//! progress bar, as CSV or JSON.
 
 use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
-use optobus_p_series::{MeasurementSource, PSeries, DEVICE};
+use optobus_device::{BufferInfo, DeviceInfo, RegisterInfo};
+use optobus_driver::{Core, Encode, Fixed};
 
 use crate::chart::{check_out, draw, Series};
 use crate::connect::{DeviceArgs, Global};
@@ -15,16 +17,16 @@ use crate::{inputs, link, models};
 
 #[derive(Debug, Args)]
 pub(crate) struct BufferArgs {
-    /// Values to buffer and download (at most 2500).
+    /// Values to buffer and download (at most what the model's buffer hands out).
     #[arg(long)]
     count: u16,
-    /// Measurement to buffer: distance_1, distance_2 or thickness.
-    #[arg(long, default_value = "distance_1")]
-    source: String,
+    /// What to buffer: a code of the buffer's source register (default: its first code).
+    #[arg(long)]
+    source: Option<String>,
     /// How long to let the sensor buffer before reading out (at most 24 h).
     #[arg(long, default_value = "1s", value_parser = inputs::WAIT.parser(), allow_hyphen_values = true)]
     wait: Duration,
-    /// Write `index,value_mm` CSV here instead of stdout.
+    /// Write `index,value_<unit>` CSV here instead of stdout.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Also draw the values over their index as SVG here.
@@ -34,37 +36,49 @@ pub(crate) struct BufferArgs {
     pub(crate) device: DeviceArgs,
 }
 
+/// What is buffered: the source register's code chosen, by raw value and name.
+struct Source {
+    code: u32,
+    name: String,
+}
+
 /// Buffers `--count` values of `--source`, downloads them and writes CSV (or JSON).
 pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliError> {
     let device = global.device()?;
-    // The download is the P-series driver's own procedure: only its model has it.
-    if *device != DEVICE {
-        return Err(CliError::new(format!(
-            "`buffer` is the P series' buffered download; {} has no data buffer",
+    let buffer = device.buffer.ok_or_else(|| {
+        let with: Vec<String> = models::all()
+            .iter()
+            .filter(|d| d.buffer.is_some())
+            .map(|d| models::name(d))
+            .collect();
+        CliError::new(format!(
+            "`buffer` downloads a model's data buffer; {} has no data buffer",
             device.family
         ))
-        .hint(format!("use --model {}", models::name(&DEVICE))));
-    }
+        .hint(format!("use --model {}", with.join(" or --model ")))
+    })?;
     if let Some(path) = &args.plot {
         check_out(path)?;
     }
     let (count, wait) = (args.count, args.wait);
-    let source = input(count, &args.source)?;
+    let values_register = input_count(device, buffer, count)?;
+    let source = input_source(device, buffer, args.source.as_deref())?;
     let slave = global.answering_slave(device, "buffer")?;
     global.check_line(device)?;
     let link = link::open(device, slave, &global.target).await?;
-    let mut sensor = PSeries::new(link, slave)?;
-    sensor
-        .start_buffering(source, count)
+    let mut core = Core::new(link, slave, device).map_err(|e| driver_error(e, None))?;
+    let code = source.as_ref().map(|s| s.code);
+    core.start_buffering(code.as_ref().map(|c| c as &dyn Encode), u32::from(count))
         .await
-        .map_err(|e| driver_error(e, Some("buffer_report_count")))?;
+        .map_err(|e| driver_error(e, Some(buffer.count)))?;
+    let what = source.as_ref().map_or("", |s| s.name.as_str());
     note!(
-        "optobus: buffering {count} values of {source}; reading out in {} ms",
+        "optobus: buffering {count} values of {what}; reading out in {} ms",
         wait.as_millis()
     );
     tokio::time::sleep(wait).await;
     let bar = progress_bar(u64::from(count), "[{bar:30}] {pos}/{len} values, {msg}");
-    let values = sensor
+    let values: Vec<Option<Fixed>> = core
         .download_buffer(|p| {
             bar.set_length(p.expected as u64);
             bar.set_position(p.received as u64);
@@ -73,11 +87,17 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
         .await
         .map_err(|e| driver_error(e, Some("buffer")))?;
     bar.finish();
+    let unit = values_register.unit.unwrap_or("");
     if let Some(path) = &args.plot {
         let points = values.iter().enumerate();
         let points = points.map(|(i, v)| (i as f64, v.as_ref().map(|v| v.to_f64())));
+        let label = if unit.is_empty() {
+            what.to_owned()
+        } else {
+            format!("{what} [{unit}]")
+        };
         let series = Series {
-            label: format!("{} [mm]", args.source),
+            label,
             points: points.collect(),
         };
         draw(path, "index", &[series])?;
@@ -87,12 +107,16 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
             .iter()
             .map(|v| serde_json::json!(v.as_ref().map(|v| v.to_f64())))
             .collect();
-        print(&serde_json::json!({"unit": "mm", "values": list}).to_string());
+        print(&serde_json::json!({"unit": unit, "values": list}).to_string());
         return Ok(());
     }
-    let mut csv = String::from("index,value_mm\n");
+    let mut csv = if unit.is_empty() {
+        String::from("index,value\n")
+    } else {
+        format!("index,value_{unit}\n")
+    };
     for (index, value) in values.iter().enumerate() {
-        let value = value.as_ref().map(|v| v.millimetres().to_string());
+        let value = value.as_ref().map(Fixed::to_string);
         csv.push_str(&format!("{index},{}\n", value.unwrap_or_default()));
     }
     match &args.out {
@@ -110,20 +134,67 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
     Ok(())
 }
 
-/// The measurement `source` names, with `count` checked against the values the P series lets
-/// be read out (appendix 3): both refused before anything is opened or sent.
-fn input(count: u16, source: &str) -> Result<MeasurementSource, CliError> {
-    let most = optobus_p_series::download::MAX_DOWNLOAD;
-    if !(1..=most).contains(&count) {
+/// The model as the manual names it: its title up to any parenthesis.
+fn short_title(device: &DeviceInfo) -> &'static str {
+    device
+        .title
+        .split(" (")
+        .next()
+        .unwrap_or(device.title)
+        .trim()
+}
+
+/// Checks `count` against the values the buffer hands out, before anything is opened or sent;
+/// gives the register the values are read from.
+fn input_count(
+    device: &'static DeviceInfo,
+    buffer: &BufferInfo,
+    count: u16,
+) -> Result<&'static RegisterInfo, CliError> {
+    let most = buffer.most;
+    if !(1..=most).contains(&u32::from(count)) {
         return Err(CliError::new(format!(
-            "--count {count}: the P series buffers 1 to {most} values for reading out"
+            "--count {count}: the {} buffers 1 to {most} values for reading out",
+            short_title(device)
         )));
     }
-    let register = DEVICE
-        .register("buffer_data_type")
-        .ok_or_else(|| CliError::new("the P-series spec has no buffer_data_type"))?;
-    let words = optobus_inspect::parse_value(register, source)?;
-    Ok(MeasurementSource::from_raw(u32::from(
-        words.first().copied().unwrap_or(0),
-    )))
+    device
+        .members(buffer.values)
+        .next()
+        .ok_or_else(|| CliError::new(format!("the spec has no `{}`", buffer.values)))
+}
+
+/// The code `source` names (default: the source register's first code), checked before
+/// anything is opened or sent; `None` for a buffer without a source register.
+fn input_source(
+    device: &'static DeviceInfo,
+    buffer: &BufferInfo,
+    source: Option<&str>,
+) -> Result<Option<Source>, CliError> {
+    let Some(name) = buffer.source else {
+        return match source {
+            Some(_) => Err(CliError::new(format!(
+                "--source: the {} buffers one kind of value only",
+                short_title(device)
+            ))),
+            None => Ok(None),
+        };
+    };
+    let register = device
+        .register(name)
+        .ok_or_else(|| CliError::new(format!("the spec has no `{name}`")))?;
+    let code = match source {
+        Some(text) => register.raw(&optobus_inspect::parse_value(register, text)?),
+        None => register
+            .codes
+            .first()
+            .map(|c| c.code)
+            .ok_or_else(|| CliError::new(format!("`{name}` has no codes to choose from")))?,
+    };
+    let name = register
+        .codes
+        .iter()
+        .find(|c| c.code == code)
+        .map_or_else(|| code.to_string(), |c| c.name.to_owned());
+    Ok(Some(Source { code, name }))
 }

@@ -1,0 +1,227 @@
+//! `buffer`: the data buffer names what it needs: a writable unsigned count register whose
+//! range holds `most` (not 0), lock and unlock commands, a page group holding the read count,
+//! the valid count and a repeat member of values, an enum source register and an enum interval
+//! register whose codes are durations.
+
+use optobus_device::parse_duration;
+
+use crate::diagnostic::Diagnostic;
+use crate::model::{Kind, Model, NameRef, Register, Scalar};
+
+/// Rule name.
+pub const RULE: &str = "buffer";
+
+/// The register `reference` names, or a diagnostic saying it names none (none when a reading
+/// error already left it out).
+fn register<'m>(
+    model: &'m Model,
+    reference: &NameRef,
+    role: &str,
+    out: &mut Vec<Diagnostic>,
+) -> Option<&'m Register> {
+    let found = model.register(&reference.name);
+    if found.is_none() && !model.is_unread(&reference.name) {
+        out.push(
+            Diagnostic::at(
+                RULE,
+                &reference.path,
+                format!(
+                    "the buffer's {role} names unknown register `{}`",
+                    reference.name
+                ),
+            )
+            .label("no such register"),
+        );
+    }
+    found
+}
+
+/// An enum register, else a diagnostic.
+fn enum_register<'m>(
+    model: &'m Model,
+    reference: &NameRef,
+    role: &str,
+    out: &mut Vec<Diagnostic>,
+) -> Option<&'m Register> {
+    let register = register(model, reference, role, out)?;
+    if matches!(register.kind, Kind::Enum(_)) && register.access.writable() {
+        return Some(register);
+    }
+    out.push(
+        Diagnostic::at(
+            RULE,
+            &reference.path,
+            format!(
+                "the buffer's {role} `{}` is not a writable enum register",
+                reference.name
+            ),
+        )
+        .label(format!("a {} register", register.kind.name()))
+        .also(&register.path.key("name"), "register defined here"),
+    );
+    None
+}
+
+/// Checks the buffer section.
+pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+    let Some(buffer) = &model.buffer else {
+        return;
+    };
+    if let Some(count) = register(model, &buffer.count, "count", out) {
+        let unsigned = matches!(count.kind, Kind::Scalar(Scalar::U16 | Scalar::U32));
+        if !unsigned || count.scale.is_some() || !count.access.writable() {
+            out.push(
+                Diagnostic::at(
+                    RULE,
+                    &buffer.count.path,
+                    format!(
+                        "the buffer's count `{}` is not a writable unsigned integer register",
+                        count.name
+                    ),
+                )
+                .label(format!(
+                    "a {} {} register{}",
+                    access_name(count),
+                    count.kind.name(),
+                    if count.scale.is_some() {
+                        " with a scale"
+                    } else {
+                        ""
+                    }
+                ))
+                .also(&count.path.key("name"), "register defined here"),
+            );
+        } else {
+            let (most, most_path) = &buffer.most;
+            let max = count
+                .range
+                .map_or_else(|| count.scalar().map_or(0, |s| s.bounds().1), |r| r.1);
+            if *most == 0 || i64::from(*most) > max {
+                let message = if *most == 0 {
+                    "the buffer's `most` is 0: no value could ever be read out".to_owned()
+                } else {
+                    format!(
+                        "the buffer hands out at most {most} values, but `{}` takes counts up to {max}",
+                        count.name
+                    )
+                };
+                out.push(
+                    Diagnostic::at(RULE, most_path, message)
+                        .label("not a count the register takes")
+                        .help("`most` is the largest count that may be read out, 1 or more"),
+                );
+            }
+        }
+    }
+    for (reference, role) in [(&buffer.lock, "lock"), (&buffer.unlock, "unlock")] {
+        if !model.commands.iter().any(|c| c.name == reference.name)
+            && !model.is_unread(&reference.name)
+        {
+            let known: Vec<&str> = model.commands.iter().map(|c| c.name.as_str()).collect();
+            out.push(
+                Diagnostic::at(
+                    RULE,
+                    &reference.path,
+                    format!("the buffer's {role} `{}` is not a command", reference.name),
+                )
+                .label("no such command")
+                .help(format!("commands: {}", known.join(", "))),
+            );
+        }
+    }
+    let page = model.groups.iter().find(|g| g.name == buffer.page.name);
+    match page {
+        None if model.is_unread(&buffer.page.name) => {}
+        None => out.push(
+            Diagnostic::at(
+                RULE,
+                &buffer.page.path,
+                format!("the buffer's page `{}` is not a group", buffer.page.name),
+            )
+            .label("no such group"),
+        ),
+        Some(page) => {
+            let members = [
+                (&buffer.read_count, "read count"),
+                (&buffer.valid_count, "valid count"),
+                (&buffer.values, "values"),
+            ];
+            for (reference, role) in members {
+                if !page.registers.iter().any(|(n, _)| *n == reference.name) {
+                    out.push(
+                        Diagnostic::at(
+                            RULE,
+                            &reference.path,
+                            format!(
+                                "the buffer's {role} `{}` is not a member of its page `{}`",
+                                reference.name, page.name
+                            ),
+                        )
+                        .label("not in the page")
+                        .also(&page.path.key("registers"), "the page's members"),
+                    );
+                }
+            }
+            let is_repeat_member = model.register(&buffer.values.name).is_none()
+                && model.registers.iter().any(|r| {
+                    r.repeat
+                        .as_ref()
+                        .is_some_and(|c| c.base == buffer.values.name)
+                });
+            if !is_repeat_member {
+                out.push(
+                    Diagnostic::at(
+                        RULE,
+                        &buffer.values.path,
+                        format!(
+                            "the buffer's values `{}` are not a repeat block's register",
+                            buffer.values.name
+                        ),
+                    )
+                    .label("one value per page is no page")
+                    .help("name a register of a `repeats:` block: one copy per value of a page"),
+                );
+            }
+        }
+    }
+    if let Some(source) = &buffer.source {
+        enum_register(model, source, "source", out);
+    }
+    if let Some(interval) = &buffer.interval {
+        let register = enum_register(model, interval, "interval", out);
+        let def = register.and_then(|r| match &r.kind {
+            Kind::Enum(reference) => model.enum_def(reference),
+            _ => None,
+        });
+        for code in def.into_iter().flat_map(|def| &def.codes) {
+            let meaning = code.meaning.as_deref().unwrap_or("");
+            if parse_duration(meaning).is_none() {
+                let at = match code.meaning {
+                    Some(_) => code.path.key("meaning"),
+                    None => code.path.clone(),
+                };
+                out.push(
+                    Diagnostic::at(
+                        RULE,
+                        &at,
+                        format!(
+                            "the buffer's interval `{}` has code `{}` meaning `{meaning}`, not a duration",
+                            interval.name, code.name
+                        ),
+                    )
+                    .label("not a duration")
+                    .also(&interval.path, "named as the interval here")
+                    .help("write the interval as `100us`, `1ms` or `2s`"),
+                );
+            }
+        }
+    }
+}
+
+fn access_name(register: &Register) -> &'static str {
+    if register.access.writable() {
+        "writable"
+    } else {
+        "read-only"
+    }
+}

@@ -1,0 +1,232 @@
+//! The one buffer download (`Core::start_buffering`, `Core::download_buffer`), driven by the
+//! spec's `buffer:` section: the guarantees of the procedure, through a transport that
+//! watches every request, against the simulator.
+
+use std::time::Duration;
+
+use optobus_driver::transport::{
+    Error as WireError, ReadRequest, RtuClient, Transport, WriteValue,
+};
+use optobus_driver::{Core, DownloadProgress, Error, Fixed};
+use optobus_p_series::{MeasurementSource, DEVICE};
+use optobus_simulator::Simulator;
+use optobus_tests::{e2e, specs};
+
+/// Passes requests on and keeps what went by: the writes (address, value) and the reads that
+/// turn a page; fails the page read numbered `fail_page` (1-based) with a timeout.
+struct Watched<T> {
+    inner: T,
+    writes: Vec<(u16, WriteValue)>,
+    page_reads: usize,
+    reads: usize,
+    fail_page: Option<usize>,
+}
+
+impl<T> Watched<T> {
+    fn new(inner: T) -> Self {
+        Self {
+            inner,
+            writes: Vec::new(),
+            page_reads: 0,
+            reads: 0,
+            fail_page: None,
+        }
+    }
+
+    fn requests(&self) -> usize {
+        self.reads + self.writes.len()
+    }
+}
+
+impl<T: Transport> Transport for Watched<T> {
+    async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, WireError> {
+        self.reads += 1;
+        if !read.repeatable {
+            self.page_reads += 1;
+            if Some(self.page_reads) == self.fail_page {
+                return Err(WireError::Timeout {
+                    after: Duration::from_millis(100),
+                });
+            }
+        }
+        self.inner.read_words(slave, read).await
+    }
+
+    async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), WireError> {
+        self.writes.push((address, value));
+        self.inner.write(slave, address, value).await
+    }
+}
+
+/// A driver core on the simulated P series, through a watching transport.
+fn watched_core(sim: &Simulator) -> Core<Watched<RtuClient<tokio::io::DuplexStream>>> {
+    Core::with_default_slave(Watched::new(e2e::rtu(sim)), sim.device())
+}
+
+fn buffer_locked(sim: &Simulator) -> Vec<u16> {
+    sim.register("buffer_locked").expect("lock flag").words
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_count_above_most_or_an_undefined_source_is_refused_before_anything_is_sent() {
+    let sim = Simulator::new(&DEVICE);
+    let mut core = watched_core(&sim);
+    let most = DEVICE.buffer.expect("the P series buffers").most;
+    let error = core
+        .start_buffering(Some(&MeasurementSource::Distance1), most + 1)
+        .await
+        .unwrap_err();
+    match error {
+        Error::OutOfRange {
+            register, raw, max, ..
+        } => assert_eq!((register, raw, max), ("buffer_report_count", 2501, 2500)),
+        other => panic!("{other:?}"),
+    }
+    let undefined = MeasurementSource::ALL.len() as u32 + 10;
+    let error = core
+        .start_buffering(Some(&undefined), 10)
+        .await
+        .unwrap_err();
+    assert!(
+        matches!(
+            error,
+            Error::OutOfRange {
+                register: "buffer_data_type",
+                ..
+            } | Error::UndefinedCode { .. }
+        ),
+        "{error:?}"
+    );
+    assert_eq!(core.transport_mut().requests(), 0, "nothing may be sent");
+}
+
+#[tokio::test(start_paused = true)]
+async fn starting_writes_source_and_count_then_unlocks() {
+    let sim = Simulator::new(&DEVICE);
+    let mut core = watched_core(&sim);
+    core.start_buffering(Some(&MeasurementSource::Thickness), 120)
+        .await
+        .unwrap();
+    let address = |name: &str| DEVICE.register(name).expect(name).address;
+    let thickness = DEVICE.register("buffer_data_type").unwrap().codes;
+    let thickness = thickness
+        .iter()
+        .find(|c| c.name == "thickness")
+        .unwrap()
+        .code;
+    let writes: Vec<(u16, WriteValue)> = core.transport_mut().writes.clone();
+    assert_eq!(
+        writes,
+        [
+            (
+                address("buffer_data_type"),
+                WriteValue::Word(u16::try_from(thickness).unwrap())
+            ),
+            (address("buffer_report_count"), WriteValue::Word(120)),
+            (address("buffer_locked"), WriteValue::Word(0)),
+        ]
+    );
+    assert_eq!(sim.register("buffer_report_count").unwrap().words, [120]);
+}
+
+#[tokio::test(start_paused = true)]
+async fn no_more_pages_than_the_count_needs_and_values_past_it_are_ignored() {
+    let sim = Simulator::new(&DEVICE).sentinel_every(0);
+    let mut core = watched_core(&sim);
+    core.start_buffering(Some(&MeasurementSource::Distance1), 90)
+        .await
+        .unwrap();
+    // Long enough for far more than 90 values; the device stops at its count.
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let mut seen = Vec::new();
+    let values: Vec<Option<Fixed>> = core
+        .download_buffer(|p: DownloadProgress| seen.push(p))
+        .await
+        .unwrap();
+    assert_eq!(values.len(), 90);
+    let pages = core.transport_mut().page_reads;
+    assert_eq!(pages, 2, "ceil(90 / 60) page reads, each read once");
+    assert_eq!(
+        seen.iter()
+            .map(|p| (p.received, p.pages))
+            .collect::<Vec<_>>(),
+        [(60, 1), (90, 2)]
+    );
+    let scale = DEVICE
+        .register("buffer_sample_1_buffered_value")
+        .and_then(|r| r.scale)
+        .expect("a scaled value");
+    assert!(values
+        .iter()
+        .all(|v| v.is_some_and(|v| v.scale() == scale && (3.0..7.0).contains(&v.to_f64()))));
+    assert_eq!(buffer_locked(&sim), [0], "unlocked after the download");
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_failed_page_read_still_unlocks_and_is_not_retried() {
+    let sim = Simulator::new(&DEVICE);
+    let mut core = watched_core(&sim);
+    core.start_buffering(Some(&MeasurementSource::Distance1), 300)
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    core.transport_mut().fail_page = Some(2);
+    let error = core
+        .download_buffer::<Option<Fixed>>(|_| {})
+        .await
+        .unwrap_err();
+    assert!(
+        matches!(error, Error::Transport(WireError::Timeout { .. })),
+        "{error:?}"
+    );
+    assert_eq!(
+        core.transport_mut().page_reads,
+        2,
+        "the failed page is not read again"
+    );
+    let lock = DEVICE.register("buffer_locked").unwrap().address;
+    let writes = &core.transport_mut().writes;
+    assert_eq!(
+        writes[writes.len() - 2..],
+        [(lock, WriteValue::Word(1)), (lock, WriteValue::Word(0))],
+        "locked, then unlocked after the failure"
+    );
+    assert_eq!(buffer_locked(&sim), [0]);
+}
+
+#[tokio::test(start_paused = true)]
+async fn the_spec_loaded_at_run_time_downloads_through_the_same_procedure() {
+    let device = specs::describe("p_series");
+    let sim = Simulator::new(device).sentinel_every(0);
+    let mut core = Core::with_default_slave(e2e::rtu(&sim), device);
+    let source = device.buffer.and_then(|b| b.source).expect("a source");
+    let first = device.register(source).expect("source register").codes[0].code;
+    core.start_buffering(Some(&first), 1000).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let mut pages = 0;
+    let values: Vec<Option<Fixed>> = core.download_buffer(|p| pages = p.pages).await.unwrap();
+    assert_eq!(
+        (values.len(), pages),
+        (1000, 17),
+        "17 pages of at most 60 (5.4)"
+    );
+    assert!(values
+        .iter()
+        .all(|v| v.is_some_and(|v| (3.0..7.0).contains(&v.to_f64()))));
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_device_without_a_buffer_is_refused_without_a_request() {
+    let device = &optobus_ccs::DEVICE;
+    assert!(device.buffer.is_none());
+    let sim = Simulator::new(device);
+    let mut core = Core::with_default_slave(Watched::new(e2e::rtu(&sim)), device);
+    let error = core.start_buffering(None, 10).await.unwrap_err();
+    assert!(matches!(error, Error::NotAllowed { .. }), "{error:?}");
+    let error = core
+        .download_buffer::<Option<Fixed>>(|_| {})
+        .await
+        .unwrap_err();
+    assert!(error.to_string().contains("no such buffer"), "{error}");
+    assert_eq!(core.transport_mut().requests(), 0);
+}
