@@ -29,8 +29,8 @@ pub(crate) struct BufferArgs {
     /// Write `index,value_<unit>` CSV here instead of stdout.
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Also draw the values over their index as SVG here.
-    #[arg(long, value_name = "FILE.svg")]
+    /// Also draw the values over their index here, as SVG or PNG (by the extension).
+    #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
     #[command(flatten)]
     pub(crate) device: DeviceArgs,

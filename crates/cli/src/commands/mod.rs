@@ -41,7 +41,8 @@ pub(crate) enum Command {
     Set(set::SetArgs),
     /// Run a command of the device (zero, reset, save, reboot…).
     Do(do_command::DoArgs),
-    /// P series: buffer and download measurements, with a progress bar.
+    /// Buffer measurements in the device and download them, with a progress bar (models whose
+    /// spec describes a data buffer).
     Buffer(buffer::BufferArgs),
     /// Find the slave address and baud rate a device answers on.
     Scan(scan::ScanArgs),
