@@ -1,11 +1,11 @@
 //! Command-line values checked before anything is sent: durations with a bound per option,
-//! slave addresses, baud rates, parity, scan lists, and which commands are drastic.
+//! slave addresses, baud rates, parity, scan lists, and which writes are drastic (need --yes).
 
 use std::time::Duration;
 
 use clap::ValueEnum;
 use jiff::SignedDuration;
-use optobus_device::{CommandInfo, DeviceInfo};
+use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
 use optobus_driver::transport::Parity;
 
 use crate::error::CliError;
@@ -258,4 +258,46 @@ pub(crate) fn parse_slaves(text: &str) -> Result<Vec<u8>, CliError> {
 /// What a command does, in words for a sentence (`stores the current parameters…`).
 pub(crate) fn effect_text(command: &CommandInfo) -> String {
     command.doc.trim_end_matches('.').to_lowercase()
+}
+
+/// A write of `raw` (unknown: part of a wider register) to a register that a drastic command
+/// writes (save, reboot, resets) needs `--yes`, as `do` of the command does.
+pub(crate) fn confirm(
+    device: &DeviceInfo,
+    register: &'static RegisterInfo,
+    raw: Option<u32>,
+    yes: bool,
+) -> Result<(), CliError> {
+    if yes {
+        return Ok(());
+    }
+    let drastic: Vec<&CommandInfo> = device
+        .commands
+        .iter()
+        .filter(|c| c.effect.is_drastic())
+        .filter(|c| c.register == register.name || register.member_name() == Some(c.register))
+        .collect();
+    match (
+        raw.and_then(|raw| drastic.iter().find(|c| c.value == raw)),
+        drastic.as_slice(),
+    ) {
+        (_, []) => Ok(()),
+        (Some(command), _) => Err(CliError::new(format!(
+            "writing {} to `{}` runs `{}`: it {}; add --yes to go ahead",
+            command.value,
+            register.name,
+            command.name,
+            effect_text(command)
+        ))
+        .hint(format!("or run it as `optobus do {} --yes`", command.name))),
+        (None, commands) => {
+            let names: Vec<String> = commands.iter().map(|c| format!("`{}`", c.name)).collect();
+            Err(CliError::new(format!(
+                "`{}` is the register of {}, which store, restart or reset the device; add --yes \
+                 to go ahead",
+                register.name,
+                names.join(" and ")
+            )))
+        }
+    }
 }

@@ -8,9 +8,9 @@ use optobus_driver::Transport;
 use optobus_inspect::{hex_and_decimal, parse_number};
 use serde_json::json;
 
-use super::set::confirm;
 use crate::connect::{DeviceArgs, Global, Options};
 use crate::error::{transport_error, CliError};
+use crate::inputs;
 use crate::render::{pretty, print};
 
 /// `optobus raw …`.
@@ -152,7 +152,7 @@ async fn write(global: &Global, address: &str, value: &str, yes: bool) -> Result
     let value = parse_number(value, "a register value")?;
     if let Some((register, offset)) = device.register_at(Table::Holding, address) {
         let whole = offset == 0 && register.span(device.addressing) == 1;
-        confirm(device, register, whole.then_some(u32::from(value)), yes)?;
+        inputs::confirm(device, register, whole.then_some(u32::from(value)), yes)?;
     }
     let slave = global.writing_slave(device)?;
     global.note_if_simulated("raw write");

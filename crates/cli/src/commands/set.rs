@@ -1,7 +1,7 @@
 //! `optobus set`: one register written from engineering units or code names, and read back.
 
 use clap::Args;
-use optobus_device::{CommandInfo, DeviceInfo, Effect, RegisterInfo};
+use optobus_device::{DeviceInfo, Effect, RegisterInfo};
 use optobus_driver::{raw_bits, Encode};
 use optobus_inspect::{decode_value, parse_value};
 use serde_json::json;
@@ -30,7 +30,7 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
     let register = optobus_inspect::resolve_one(device, &args.name, args.write.channel)?;
     let words = parse_value(register, &args.value)?;
     let new_address = new_slave_address(device, register, &words);
-    confirm(
+    inputs::confirm(
         device,
         register,
         Some(raw_bits(register, &words)),
@@ -94,48 +94,6 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
         note!("{afterwards}");
     }
     Ok(())
-}
-
-/// A write of `raw` (unknown: part of a wider register) to a register that a drastic command
-/// writes (save, reboot, resets) needs `--yes`, as `do` of the command does.
-pub(crate) fn confirm(
-    device: &DeviceInfo,
-    register: &'static RegisterInfo,
-    raw: Option<u32>,
-    yes: bool,
-) -> Result<(), CliError> {
-    if yes {
-        return Ok(());
-    }
-    let drastic: Vec<&CommandInfo> = device
-        .commands
-        .iter()
-        .filter(|c| c.effect.is_drastic())
-        .filter(|c| c.register == register.name || register.member_name() == Some(c.register))
-        .collect();
-    match (
-        raw.and_then(|raw| drastic.iter().find(|c| c.value == raw)),
-        drastic.as_slice(),
-    ) {
-        (_, []) => Ok(()),
-        (Some(command), _) => Err(CliError::new(format!(
-            "writing {} to `{}` runs `{}`: it {}; add --yes to go ahead",
-            command.value,
-            register.name,
-            command.name,
-            inputs::effect_text(command)
-        ))
-        .hint(format!("or run it as `optobus do {} --yes`", command.name))),
-        (None, commands) => {
-            let names: Vec<String> = commands.iter().map(|c| format!("`{}`", c.name)).collect();
-            Err(CliError::new(format!(
-                "`{}` is the register of {}, which store, restart or reset the device; add --yes \
-                 to go ahead",
-                register.name,
-                names.join(" and ")
-            )))
-        }
-    }
 }
 
 /// For a write to the device's own slave-address register, the new address (the spec's range
