@@ -59,8 +59,19 @@ impl<T: Transport> Transport for Watched<T> {
 }
 
 /// A driver core on the simulated P series, through a watching transport.
-fn watched_core(sim: &Simulator) -> Core<Watched<RtuClient<tokio::io::DuplexStream>>> {
+fn watched_core(sim: &Simulator) -> WatchedCore {
     Core::with_default_slave(Watched::new(e2e::rtu(sim)), sim.device())
+}
+
+type WatchedCore = Core<Watched<RtuClient<tokio::io::DuplexStream>>>;
+
+/// A P-series simulator, and a watched driver that has started it buffering `count` values
+/// of `source`.
+async fn buffering(source: MeasurementSource, count: u32) -> (Simulator, WatchedCore) {
+    let sim = Simulator::new(&DEVICE);
+    let mut core = watched_core(&sim);
+    core.start_buffering(Some(&source), count).await.unwrap();
+    (sim, core)
 }
 
 fn buffer_locked(sim: &Simulator) -> Vec<u16> {
@@ -102,11 +113,7 @@ async fn a_count_above_most_or_an_undefined_source_is_refused_before_anything_is
 
 #[tokio::test(start_paused = true)]
 async fn starting_writes_source_and_count_then_unlocks() {
-    let sim = Simulator::new(&DEVICE);
-    let mut core = watched_core(&sim);
-    core.start_buffering(Some(&MeasurementSource::Thickness), 120)
-        .await
-        .unwrap();
+    let (sim, mut core) = buffering(MeasurementSource::Thickness, 120).await;
     let address = |name: &str| DEVICE.register(name).expect(name).address;
     let thickness = DEVICE.register("buffer_data_type").unwrap().codes;
     let thickness = thickness
@@ -164,11 +171,7 @@ async fn no_more_pages_than_the_count_needs_and_values_past_it_are_ignored() {
 
 #[tokio::test(start_paused = true)]
 async fn a_failed_page_read_still_unlocks_and_is_not_retried() {
-    let sim = Simulator::new(&DEVICE);
-    let mut core = watched_core(&sim);
-    core.start_buffering(Some(&MeasurementSource::Distance1), 300)
-        .await
-        .unwrap();
+    let (sim, mut core) = buffering(MeasurementSource::Distance1, 300).await;
     tokio::time::sleep(Duration::from_secs(2)).await;
     core.transport_mut().fail_page = Some(2);
     let error = core
