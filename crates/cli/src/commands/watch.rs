@@ -88,8 +88,8 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
         };
         let mut out = std::io::stdout().lock();
         if terminal {
-            let rows = terminal::size().map_or(u16::MAX, |(_, rows)| rows);
-            drawn_lines = redraw(&mut out, drawn_lines, &block, rows);
+            let size = terminal::size().unwrap_or((u16::MAX, u16::MAX));
+            drawn_lines = redraw(&mut out, drawn_lines, &block, size);
         } else {
             let _ = out.write_all(block.as_bytes());
         }
@@ -156,17 +156,23 @@ fn sparkline(readings: &VecDeque<Option<f64>>) -> String {
         .collect()
 }
 
-/// Replaces the last drawing (`drawn` lines) with `block`, cut to a terminal of `rows` rows
-/// so that the cursor can always climb back over it (a taller block would scroll and smear
-/// the scrollback); gives the lines drawn.
-fn redraw(out: &mut impl Write, drawn: u16, block: &str, rows: u16) -> u16 {
+/// Replaces the last drawing (`drawn` lines) with `block`, cut to a terminal of `(columns,
+/// rows)` so that the cursor can always climb back over it (a taller block, or a line that
+/// wraps, would scroll and smear the scrollback); gives the lines drawn. Each line is cleared as it is rewritten and only
+/// what is left below the block is cleared after it: a clear of the whole screen from its
+/// top corner is copied into the scrollback by some terminals (tmux's `scroll-on-clear`).
+fn redraw(out: &mut impl Write, drawn: u16, block: &str, (columns, rows): (u16, u16)) -> u16 {
     let lines: Vec<&str> = block.lines().take(usize::from(rows.max(2) - 1)).collect();
     if drawn > 0 {
         let _ = out.queue(cursor::MoveToPreviousLine(drawn));
-        let _ = out.queue(terminal::Clear(terminal::ClearType::FromCursorDown));
     }
     for line in &lines {
-        let _ = writeln!(out, "{line}");
+        let _ = out.queue(terminal::Clear(terminal::ClearType::CurrentLine));
+        let cut: String = line.chars().take(usize::from(columns.max(2) - 1)).collect();
+        let _ = writeln!(out, "{cut}");
+    }
+    if usize::from(drawn) > lines.len() {
+        let _ = out.queue(terminal::Clear(terminal::ClearType::FromCursorDown));
     }
     u16::try_from(lines.len()).unwrap_or(u16::MAX)
 }
@@ -188,12 +194,23 @@ mod tests {
     fn a_block_taller_than_the_terminal_is_cut_and_climbed_back_over() {
         let block: String = (1..=10).map(|i| format!("line {i}\n")).collect();
         let mut out = Vec::new();
-        let drawn = redraw(&mut out, 0, &block, 4);
+        let drawn = redraw(&mut out, 0, &block, (80, 4));
         assert_eq!(drawn, 3);
-        assert_eq!(String::from_utf8_lossy(&out), "line 1\nline 2\nline 3\n");
+        let clear = "\u{1b}[2K";
+        assert_eq!(
+            String::from_utf8_lossy(&out),
+            format!("{clear}line 1\n{clear}line 2\n{clear}line 3\n")
+        );
         let mut out = Vec::new();
-        assert_eq!(redraw(&mut out, drawn, "a\nb\n", 4), 2);
-        // Up three lines, clear below, then the new block.
-        assert_eq!(String::from_utf8_lossy(&out), "\u{1b}[3F\u{1b}[Ja\nb\n");
+        assert_eq!(redraw(&mut out, drawn, "a\nb\n", (80, 4)), 2);
+        // Up three lines, each new line cleared as it is written, then the leftover line.
+        assert_eq!(
+            String::from_utf8_lossy(&out),
+            format!("\u{1b}[3F{clear}a\n{clear}b\n\u{1b}[J")
+        );
+        // A line wider than the terminal is cut, never wrapped.
+        let mut out = Vec::new();
+        redraw(&mut out, 0, "abcdef\n", (4, 4));
+        assert_eq!(String::from_utf8_lossy(&out), format!("{clear}abc\n"));
     }
 }
