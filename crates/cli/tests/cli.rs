@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{fails, json, ok, refused, run, words, Served, REFUSED};
+use common::{fails, json, ok, outcome, refused, run, words, Served, REFUSED};
 
 /// Runs each command line, which must succeed and print the line given.
 fn prints(cases: &[(&[&str], &str)]) {
@@ -162,17 +162,21 @@ fn watch_refreshes_and_stops() {
         .collect();
     assert_eq!(refreshes.len(), 2);
     assert!(refreshes[1]["values"]["thickness"]["value"].is_string());
-    // A device that does not answer: each refresh marks the error and watch carries on.
+    // A device that does not answer: watch carries on; piped, the failure goes to stderr once
+    // while it stays the same, and stdout keeps only values.
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
-    let text = ok(&words(&served.serial(
-        "watch distance_1 --count 2 --interval 10ms --slave 9 --timeout 50ms",
-    )));
+    let (code, stdout, stderr) = outcome(&words(
+        &served.serial("watch distance_1 --count 3 --interval 10ms --slave 9 --timeout 50ms"),
+    ));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stdout.trim().is_empty(), "{stdout}");
     assert_eq!(
-        text.lines()
+        stderr
+            .lines()
             .filter(|l| l.contains("! no reply within 50 ms") && l.ends_with("retrying"))
             .count(),
-        2,
-        "{text}"
+        1,
+        "{stderr}"
     );
 }
 

@@ -11,8 +11,9 @@ use serde_json::json;
 
 use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
-use crate::inputs;
+use crate::log::note;
 use crate::render::{time_of_day, timestamp, values_json, values_text};
+use crate::{inputs, models};
 use optobus_device::RegisterInfo;
 use optobus_inspect::Value;
 
@@ -48,6 +49,8 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
     let mut last: Option<String> = None;
     let mut refresh = 0u64;
     let mut history = vec![VecDeque::new(); registers.len()];
+    // The failure last reported on stderr, while the device keeps failing so.
+    let mut failing: Option<String> = None;
     let ctrl_c = tokio::signal::ctrl_c();
     tokio::pin!(ctrl_c);
     loop {
@@ -62,6 +65,7 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
                 json!({"time": timestamp(), "values": values_json(values)}).to_string() + "\n"
             }
             Ok(values) => {
+                failing = None;
                 let text = if args.chart {
                     chart_text(values, &mut history)
                 } else {
@@ -71,13 +75,22 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
                 format!(
                     "{}  {} · slave {} · every {} ms\n{text}",
                     time_of_day(),
-                    device.family,
+                    models::name(device),
                     core.slave(),
                     args.interval.as_millis()
                 )
             }
             Err(error) if global.json => {
                 json!({"time": timestamp(), "error": error.to_string()}).to_string() + "\n"
+            }
+            // Piped: the failure on stderr, once until it changes; stdout keeps the values.
+            Err(error) if !terminal => {
+                let text = error.to_string();
+                if failing.as_deref() != Some(text.as_str()) {
+                    note!("{}  ! {text} — retrying", time_of_day());
+                    failing = Some(text);
+                }
+                String::new()
             }
             // Keep the last values on screen, marked, and try again.
             Err(error) => format!(
