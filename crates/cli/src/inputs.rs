@@ -170,7 +170,7 @@ pub(crate) fn check_baud(
     let names: Vec<String> = listed.iter().map(u32::to_string).collect();
     Err(CliError::new(format!(
         "{option} {baud}: {} does not list {baud} baud",
-        device.family
+        crate::models::name(device)
     ))
     .hint(if names.is_empty() {
         "its spec lists no serial line; --any-baud uses the rate anyway".to_owned()

@@ -147,9 +147,15 @@ pub(crate) async fn open(
     } else {
         slave
     };
+    let reached = if slave == 0 {
+        ", which a broadcast reaches"
+    } else {
+        ""
+    };
     crate::log::note!(
-        "optobus: no --serial or --tcp given: using the built-in {} simulator (slave {address})",
-        device.family
+        "optobus: no --serial or --tcp given: using the built-in {} simulator (slave \
+         {address}{reached})",
+        crate::models::name(device)
     );
     let (line, _server) = Simulator::new(device).slave(address).duplex();
     // The line is memory: no serial timing.

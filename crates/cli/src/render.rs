@@ -16,11 +16,11 @@ pub(crate) fn time_of_day() -> String {
         .to_string()
 }
 
-/// Now for scripts, RFC 3339 with the date and the local offset:
-/// `2026-11-23T14:23:54.822+01:00`.
+/// Now for scripts and recordings, RFC 3339 with the date, microseconds and the local
+/// offset: `2026-11-23T14:23:54.822153+01:00`.
 pub(crate) fn timestamp() -> String {
     jiff::ZonedDateTime::now()
-        .strftime("%Y-%m-%dT%H:%M:%S%.3f%:z")
+        .strftime("%Y-%m-%dT%H:%M:%S%.6f%:z")
         .to_string()
 }
 

@@ -143,7 +143,7 @@ fn raw_access_refuses_before_the_wire() {
     for (args, message) in [
         (
             "raw read holding 0 --count 0",
-            "--count 0: p_series reads 1 to 125 words",
+            "--count 0: p-series reads 1 to 125 words",
         ),
         ("raw read holding 0 --count 126", "--count 126"),
         (

@@ -312,7 +312,7 @@ fn baud_rates_come_from_the_manual_unless_any_baud() {
         ("set light_power 42 --baud 1", "--baud 1 is no baud rate"),
         ("buffer --count 10 --baud 1", "--baud 1 is no baud rate"),
         ("scan --bauds 9600,1", "--bauds 1 is no baud rate"),
-        ("scan --bauds 14400", "p_series does not list 14400 baud"),
+        ("scan --bauds 14400", "p-series does not list 14400 baud"),
         ("scan --baud 1", "--baud 1 is no baud rate"),
     ] {
         let args = words(line);

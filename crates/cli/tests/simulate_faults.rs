@@ -174,7 +174,7 @@ fn dropped_replies_never_come_over_tcp_and_are_summed_up_at_exit() {
         ),
     }
     let stderr = finish(child);
-    let banner = "optobus: simulating p_series (slave 1) on Modbus TCP at";
+    let banner = "optobus: simulating p-series (slave 1) on Modbus TCP at";
     assert!(stderr.starts_with(banner), "{stderr}");
     logged(
         &stderr,

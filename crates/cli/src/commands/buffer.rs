@@ -53,7 +53,7 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
             .collect();
         CliError::new(format!(
             "`buffer` downloads a model's data buffer; {} has no data buffer",
-            device.family
+            crate::models::name(device)
         ))
         .hint(format!("use --model {}", with.join(" or --model ")))
     })?;

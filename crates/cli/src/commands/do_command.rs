@@ -24,8 +24,11 @@ pub(crate) async fn run(global: &Global, args: &DoArgs) -> Result<(), CliError> 
     let command = &args.command;
     let info = device.command(command).ok_or_else(|| {
         let names: Vec<&str> = device.commands.iter().map(|c| c.name).collect();
-        CliError::new(format!("`{command}` is no command of {}", device.family))
-            .hint(format!("commands: {}", names.join(", ")))
+        CliError::new(format!(
+            "`{command}` is no command of {}",
+            crate::models::name(device)
+        ))
+        .hint(format!("commands: {}", names.join(", ")))
     })?;
     if info.effect.is_drastic() && !args.write.yes {
         return Err(CliError::new(format!(
@@ -41,8 +44,8 @@ pub(crate) async fn run(global: &Global, args: &DoArgs) -> Result<(), CliError> 
             info.busy_ms
         );
     }
-    global.note_if_simulated("do");
     let mut core = global.connect(device, slave).await?;
+    global.note_if_simulated("do");
     core.run(info, register)
         .await
         .map_err(|e| driver_error(e, Some(register.name)))?;

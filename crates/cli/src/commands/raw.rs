@@ -94,7 +94,7 @@ async fn read(
     if !(1..=most).contains(&count) {
         return Err(CliError::new(format!(
             "--count {count}: {} reads 1 to {most} words at a time",
-            device.family
+            crate::models::name(device)
         )));
     }
     let last = address.checked_add(count - 1).ok_or_else(|| {
@@ -155,8 +155,8 @@ async fn write(global: &Global, address: &str, value: &str, yes: bool) -> Result
         inputs::confirm(device, register, whole.then_some(u32::from(value)), yes)?;
     }
     let slave = global.writing_slave(device)?;
-    global.note_if_simulated("raw write");
     let mut core = global.connect(device, slave).await?;
+    global.note_if_simulated("raw write");
     let subject = format!("holding {}", hex_and_decimal(address));
     core.transport_mut()
         .write(slave, address, WriteValue::Word(value))

@@ -16,7 +16,7 @@ use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::inputs;
 use crate::log::note;
-use crate::render::progress_bar;
+use crate::render::{progress_bar, timestamp};
 
 #[derive(Debug, Args)]
 pub(crate) struct RecordArgs {
@@ -90,7 +90,7 @@ pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliErr
             outcome = read_values(&mut core, &registers) => outcome,
             _ = &mut ctrl_c => break,
         };
-        let time = jiff::Timestamp::now();
+        let time = timestamp();
         let elapsed = sample_started.duration_since(started).as_secs_f64();
         let cells: Vec<String> = match &outcome {
             Ok(values) => values.iter().map(|(_, value)| cell(value)).collect(),

@@ -2,7 +2,7 @@
 
 use clap::Args;
 use optobus_device::{DeviceInfo, RegisterInfo, ValueKind};
-use optobus_inspect::{code_list, range_text};
+use optobus_inspect::{code_list, hex_and_decimal, range_text};
 use serde_json::{json, Value as Json};
 
 use crate::connect::Options;
@@ -23,7 +23,12 @@ pub(crate) fn run(options: &Options, args: &RegistersArgs) -> Result<(), CliErro
 }
 
 fn text(device: &'static DeviceInfo, json: bool) -> String {
-    let rows: Vec<(String, Json)> = device.registers.iter().map(describe).collect();
+    let mut registers: Vec<&RegisterInfo> = device.registers.iter().collect();
+    // People read a map in address order per table; JSON keeps the description's order.
+    if !json {
+        registers.sort_by_key(|r| (r.table.as_str(), r.address));
+    }
+    let rows: Vec<(String, Json)> = registers.into_iter().map(describe).collect();
     if json {
         return pretty(&json!({
             "model": device.family,
@@ -33,8 +38,15 @@ fn text(device: &'static DeviceInfo, json: bool) -> String {
         }));
     }
     let mut out = format!(
-        "{} — {}\n{:<34} {:<7} {:>5} {:<2} {:<7} {:<4} range or codes\n",
-        device.family, device.title, "register", "table", "addr", "rw", "type", "unit"
+        "{} — {}\n{:<34} {:<7} {:<14} {:<2} {:<7} {:<4} range or codes\n",
+        crate::models::name(device),
+        device.title,
+        "register",
+        "table",
+        "addr",
+        "rw",
+        "type",
+        "unit"
     );
     for (text, _) in rows {
         out.push_str(text.trim_end());
@@ -65,10 +77,10 @@ fn describe(register: &RegisterInfo) -> (String, Json) {
         _ => range_text(register).unwrap_or_default(),
     };
     let text = format!(
-        "{:<34} {:<7} {:>5} {:<2} {:<7} {:<4} {}",
+        "{:<34} {:<7} {:<14} {:<2} {:<7} {:<4} {}",
         register.name,
         register.table.as_str(),
-        register.address,
+        hex_and_decimal(register.address),
         register.access.as_str(),
         kind,
         register.unit.unwrap_or(""),

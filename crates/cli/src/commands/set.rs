@@ -37,8 +37,8 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
         args.write.yes,
     )?;
     let slave = global.writing_slave(device)?;
-    global.note_if_simulated("set");
     let mut core = global.connect(device, slave).await?;
+    global.note_if_simulated("set");
     core.write(register, &Validated(words.clone()))
         .await
         .map_err(|e| driver_error(e, Some(register.name)))?;

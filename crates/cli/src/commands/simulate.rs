@@ -116,7 +116,7 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
         let (server, place) = serve(device, global, args.pty, line, &sim).await?;
         log.line(format!(
             "optobus: simulating {} (slave {slave}) on {place}{extras}",
-            device.family
+            crate::models::name(device)
         ));
         let _ = std::io::Write::flush(&mut std::io::stdout());
         match args.duration {
