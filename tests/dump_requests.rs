@@ -39,7 +39,7 @@ async fn dump(device: &'static DeviceInfo) -> Vec<Read> {
             seen.lock().unwrap().push((read, answered));
         });
     let mut core = Core::with_default_slave(e2e::rtu(&sim), device);
-    let registers: Vec<&'static RegisterInfo> = device.readable_registers().collect();
+    let registers: Vec<&'static RegisterInfo> = device.dump_registers().collect();
     let readings = core.read_group(&registers).await.expect("dump");
     for register in &registers {
         assert_eq!(
@@ -63,17 +63,25 @@ async fn dump(device: &'static DeviceInfo) -> Vec<Read> {
 #[tokio::test(start_paused = true)]
 async fn p_series_dump_takes_three_requests() {
     let reads = dump(&p_series::DEVICE).await;
-    // Holding 0-36 and the reserved 37-59 need not be read; input 0-154 in two reads of at
-    // most 125 words, over the reserved 138-139 and 141-149 (4.2.2 note 1).
-    // (Before readable reserved ranges: 5, input 140 and 150-154 read apart.)
+    // Holding 0-36 and the reserved 37-59 need not be read; input 0-17 (the buffer counts
+    // last), then 140-154 over the reserved 141-149 (4.2.2 note 1). The 60 buffered values at
+    // 18-137 are left out: reading them turns the buffer's page (appendix 3), which a dump
+    // must not do. (Before: input 0-154 in two reads, the page turned by every dump.)
     assert_eq!(
         reads,
         [
             (Table::Holding, 0, 37),
-            (Table::Input, 0, 124),
-            (Table::Input, 124, 31)
+            (Table::Input, 0, 18),
+            (Table::Input, 140, 15)
         ]
     );
+    let page = p_series::DEVICE
+        .register("buffer_sample_1_buffered_value")
+        .unwrap();
+    assert!(!page.read_is_repeatable());
+    assert!(!p_series::DEVICE
+        .dump_registers()
+        .any(|r| r.name == page.name));
 }
 
 #[tokio::test(start_paused = true)]

@@ -626,6 +626,12 @@ impl DeviceInfo {
         self.registers.iter().filter(|r| r.readable())
     }
 
+    /// The registers a dump of the device reads: every readable one whose read changes
+    /// nothing (a buffer page that a read turns is left to be read by name).
+    pub fn dump_registers(&self) -> impl Iterator<Item = &'static RegisterInfo> {
+        self.readable_registers().filter(|r| r.read_is_repeatable())
+    }
+
     /// Whether `address` of `table` lies in a reserved range the manual sanctions reading.
     pub fn reserved_readable(&self, table: Table, address: u16) -> bool {
         self.reserved

@@ -1,5 +1,5 @@
 //! `optobus read` (registers and groups by name) and `optobus dump` (every readable
-//! register, action registers left out), both in the fewest requests.
+//! register whose read changes nothing), both in the fewest requests.
 
 use clap::Args;
 use optobus_device::RegisterInfo;
@@ -33,7 +33,14 @@ pub(crate) async fn read(global: &Global, args: &ReadArgs) -> Result<(), CliErro
 pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
-    let registers: Vec<&'static RegisterInfo> = device.readable_registers().collect();
+    let registers: Vec<&'static RegisterInfo> = device.dump_registers().collect();
+    let skipped = device.readable_registers().count() - registers.len();
+    if skipped > 0 {
+        note!(
+            "optobus: {skipped} registers left out: reading them changes the device (see \
+             `optobus registers`); read them by name"
+        );
+    }
     let requests = plan_reads(device, &registers).len();
     let slave = global.answering_slave(device, "dump")?;
     let mut core = global.connect(device, slave).await?;
