@@ -34,6 +34,10 @@ struct Cli {
     command: Command,
 }
 
+/// Commands that take no model (`frame` names its model with each subcommand): their help does
+/// not show `--model`.
+const WITHOUT_MODEL: [&str; 3] = ["models", "plot", "frame"];
+
 /// Every argument that takes a model lists the models the tool has in its help, and
 /// `--model` defaults to the first of them.
 fn with_models(command: clap::Command) -> clap::Command {
@@ -52,7 +56,14 @@ fn with_models(command: clap::Command) -> clap::Command {
             arg if arg.is_required_set() => arg.help(format!("Sensor family: {list}")),
             arg => arg.help(format!("Sensor family: {list} (default: --model)")),
         })
-        .mut_subcommands(with_models)
+        .mut_subcommands(|sub| {
+            if !WITHOUT_MODEL.contains(&sub.get_name()) {
+                return with_models(sub);
+            }
+            // An argument of the same id keeps the global one from being propagated here.
+            let hidden = Arg::new("model").long("model").short('m').hide(true);
+            with_models(sub.arg(hidden))
+        })
 }
 
 fn main() -> ExitCode {

@@ -47,12 +47,26 @@ fn negative_values_need_no_double_dash() {
 
 #[test]
 fn device_options_show_only_on_commands_that_reach_a_device() {
-    for command in ["models", "registers", "frame encode", "frame decode"] {
+    for command in [
+        "models",
+        "registers",
+        "frame encode",
+        "frame decode",
+        "plot",
+    ] {
         let text = help(command);
         for option in DEVICE_OPTIONS {
             assert!(!text.contains(option), "`{command} --help` shows {option}");
         }
     }
+    // Nor `--model` where no model is taken, or where `frame` names it itself.
+    for command in ["models", "plot", "frame", "frame encode", "frame decode"] {
+        assert!(
+            !help(command).contains("--model"),
+            "`{command} --help` shows --model"
+        );
+    }
+    assert!(help("read").contains("--model"));
     for command in [
         "read",
         "watch",
