@@ -34,6 +34,10 @@ pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
     let registers: Vec<&'static RegisterInfo> = device.dump_registers().collect();
+    let requests = plan_reads(device, &registers).len();
+    let slave = global.answering_slave(device, "dump")?;
+    let mut core = global.connect(device, slave).await?;
+    let values = read_values(&mut core, &registers).await?;
     let skipped = device.readable_registers().count() - registers.len();
     if skipped > 0 {
         note!(
@@ -41,10 +45,6 @@ pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
              `optobus registers`); read them by name"
         );
     }
-    let requests = plan_reads(device, &registers).len();
-    let slave = global.answering_slave(device, "dump")?;
-    let mut core = global.connect(device, slave).await?;
-    let values = read_values(&mut core, &registers).await?;
     if global.json {
         print(&pretty(&json!({
             "model": device.family,
