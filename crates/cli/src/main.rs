@@ -16,7 +16,7 @@ mod render;
 
 use std::process::ExitCode;
 
-use clap::{Arg, CommandFactory, FromArgMatches, Parser};
+use clap::{Arg, Args, CommandFactory, FromArgMatches, Parser};
 
 use crate::commands::Command;
 use crate::connect::Options;
@@ -66,6 +66,44 @@ fn with_models(command: clap::Command) -> clap::Command {
         })
 }
 
+/// A device option given to a command that reaches no device: clap's tip (`-- --tcp`, as if
+/// it were a value) would mislead, so the error says what the option is for instead.
+fn explain_device_option(error: clap::Error) -> clap::Error {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    let Some(ContextValue::String(given)) = error.get(ContextKind::InvalidArg) else {
+        return error;
+    };
+    let option = given.split('=').next().unwrap_or(given);
+    let device_options = connect::DeviceArgs::augment_args(clap::Command::new("device"));
+    let is_device_option = device_options.get_arguments().any(|arg| {
+        arg.get_long()
+            .is_some_and(|long| option == format!("--{long}"))
+    });
+    if error.kind() != ErrorKind::UnknownArgument || !is_device_option {
+        return error;
+    }
+    clap::Error::raw(
+        ErrorKind::UnknownArgument,
+        format!(
+            "unexpected argument '{option}': it says how to reach a device, and this command \
+             reaches none (`frame` writes Modbus TCP frames with --mbap)"
+        ),
+    )
+}
+
+/// The names of the subcommands `args` runs, outermost first, for the usage line of an error.
+fn subcommand_path(command: &clap::Command, args: &[String]) -> Vec<String> {
+    let mut path = Vec::new();
+    let mut current = command;
+    for arg in args {
+        if let Some(sub) = current.find_subcommand(arg) {
+            path.push(sub.get_name().to_owned());
+            current = sub;
+        }
+    }
+    path
+}
+
 fn main() -> ExitCode {
     let mut command = with_models(Cli::command());
     let parsed = command
@@ -75,7 +113,16 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         // --help and --version come this way too, on stdout.
         Err(error) => {
-            let error = error.format(&mut command);
+            let args: Vec<String> = std::env::args().skip(1).collect();
+            let path = subcommand_path(&command, &args);
+            let error = explain_device_option(error);
+            let error = match path
+                .iter()
+                .try_fold(&mut command, |c, name| c.find_subcommand_mut(name))
+            {
+                Some(sub) => error.format(sub),
+                None => error.format(&mut command),
+            };
             let _ = error.print();
             return if error.use_stderr() {
                 Exit::Usage.code()

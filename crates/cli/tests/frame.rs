@@ -181,8 +181,11 @@ fn encode_modbus_tcp_frames() {
     refused(
         &words("frame encode p-series set position_1_slope 2 --tcp 192.0.2.1"),
         USAGE,
-        "unexpected argument '--tcp'",
+        "unexpected argument '--tcp': it says how to reach a device, and this command reaches \
+         none (`frame` writes Modbus TCP frames with --mbap)",
     );
+    let stderr = fails(&["frame", "encode", "p-series", "read", "laser", "--tcp=x"]);
+    assert!(!stderr.contains("tip:"), "{stderr}");
 }
 
 #[test]

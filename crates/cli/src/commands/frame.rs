@@ -22,7 +22,7 @@ pub(crate) enum FrameCommand {
     /// Print the exact request bytes of a read or a write, one frame per line, in the order
     /// they must be sent.
     Encode {
-        /// Sensor family (the list of models is added at startup); `--model` sets it too.
+        /// Sensor family (the list of models is added at startup).
         #[arg(id = "model", value_name = "MODEL")]
         family: String,
         /// What to encode.
@@ -35,7 +35,7 @@ pub(crate) enum FrameCommand {
     /// A request followed by its reply (as captured on the line) is decoded as a pair, so the
     /// reply's registers are named.
     Decode {
-        /// Sensor family (the list of models is added at startup); `--model` sets it too.
+        /// Sensor family (the list of models is added at startup).
         #[arg(id = "model", value_name = "MODEL")]
         family: String,
         /// The bytes in hex: one string or several, spaces optional, `0x` prefixes allowed.
