@@ -265,6 +265,11 @@ fn buffer_downloads_to_csv() {
         .expect("a number in mm");
     assert!((1.0..10.0).contains(&value), "{value}");
     let _ = std::fs::remove_dir_all(&dir);
+    // JSON: the unit once, each value as exact text, as the CSV has it.
+    let download = json(&["buffer", "--count", "3", "--wait", "100ms"]);
+    assert_eq!(download["unit"], "mm");
+    let first = download["values"][0].as_str().expect("exact text");
+    assert_eq!(first.split('.').nth(1).map(str::len), Some(6), "{first}");
     let error = fails(&["--model", "ccs", "buffer", "--count", "10"]);
     assert!(error.contains("no data buffer"), "{error}");
 }

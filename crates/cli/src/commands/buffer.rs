@@ -103,11 +103,8 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
         draw(path, "index", &[series])?;
     }
     if global.json && args.out.is_none() {
-        let list: Vec<serde_json::Value> = values
-            .iter()
-            .map(|v| serde_json::json!(v.as_ref().map(|v| v.to_f64())))
-            .collect();
-        print(&serde_json::json!({"unit": unit, "values": list}).to_string());
+        // Exact text, as every quantity in the tool's JSON; null where invalid.
+        print(&serde_json::json!({"unit": unit, "values": values}).to_string());
         return Ok(());
     }
     let mut csv = if unit.is_empty() {
