@@ -36,16 +36,15 @@ fn register<'m>(
     found
 }
 
-/// An enum register, else a diagnostic.
-fn enum_register<'m>(
-    model: &'m Model,
+/// Whether `register` (named by `reference`) is a writable enum register; a diagnostic if not.
+fn is_writable_enum(
+    register: &Register,
     reference: &NameRef,
     role: &str,
     out: &mut Vec<Diagnostic>,
-) -> Option<&'m Register> {
-    let register = register(model, reference, role, out)?;
+) -> bool {
     if matches!(register.kind, Kind::Enum(_)) && register.access.writable() {
-        return Some(register);
+        return true;
     }
     out.push(
         Diagnostic::at(
@@ -59,7 +58,7 @@ fn enum_register<'m>(
         .label(format!("a {} register", register.kind.name()))
         .also(&register.path.key("name"), "register defined here"),
     );
-    None
+    false
 }
 
 /// Checks the buffer section.
@@ -185,10 +184,13 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         }
     }
     if let Some(source) = &buffer.source {
-        enum_register(model, source, "source", out);
+        if let Some(found) = register(model, source, "source", out) {
+            is_writable_enum(found, source, "source", out);
+        }
     }
     if let Some(interval) = &buffer.interval {
-        let register = enum_register(model, interval, "interval", out);
+        let register = register(model, interval, "interval", out)
+            .filter(|found| is_writable_enum(found, interval, "interval", out));
         let def = register.and_then(|r| match &r.kind {
             Kind::Enum(reference) => model.enum_def(reference),
             _ => None,
