@@ -6,7 +6,7 @@
 //! [`rules`] is a list of small named checks), and **emit** ([`emit`]: Rust source, formatted
 //! with prettyplease under feature `pretty`; `json`, feature `json`: the checked model for
 //! other tools). Every problem is a [`Diagnostic`] that points at the spec's line and column
-//! and is rendered like rustc. [`describe`] turns a checked model into the runtime
+//! and is rendered like rustc. [`describe()`] turns a checked model into the runtime
 //! description the generated crates carry; [`scaffold`] writes a driver crate.
 //!
 //! Features: none for a driver's `build.rs` (the fewest dependencies); `cli` (default) builds

@@ -80,7 +80,7 @@ fn example(model: &Model) -> String {
     lines.iter().map(|line| format!("//! {line}\n")).collect()
 }
 
-/// Why [`write`] wrote nothing.
+/// Why [`write()`] wrote nothing.
 #[derive(Debug)]
 pub enum ScaffoldError {
     /// The crate's directory exists: a scaffold never overwrites.

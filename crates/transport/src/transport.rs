@@ -48,7 +48,8 @@ impl ReadRequest {
 /// Reads and writes registers of Modbus slaves.
 ///
 /// An implementor provides [`Transport::read_words`] and [`Transport::write`];
-/// [`Transport::read`] and [`Transport::read_once`] are shorthands for the two kinds of read.
+/// [`Transport::read`] is the shorthand for a repeatable read ([`ReadRequest::once`] marks a
+/// read that must not be repeated).
 pub trait Transport: Send {
     /// Carries out `read` at slave `slave`, retrying it (where the transport retries) only if
     /// it is repeatable.

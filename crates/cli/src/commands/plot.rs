@@ -11,7 +11,7 @@ use crate::log::note;
 
 #[derive(Debug, Args)]
 pub(crate) struct PlotArgs {
-    /// A CSV file of `optobus record` (time, elapsed [s], one column per register).
+    /// A CSV file of `optobus record` (time, `elapsed [s]`, one column per register).
     file: PathBuf,
     /// The chart to write: `.svg` or `.png`.
     #[arg(long)]
