@@ -8,6 +8,7 @@
 
 use std::collections::HashSet;
 
+use optobus_codec::value::{Fixed, Scale};
 use proc_macro2::{Ident, Literal, TokenStream};
 use quote::{format_ident, quote};
 
@@ -113,7 +114,12 @@ fn register_doc(model: &Model, register: &Register, copies: Option<&[&Register]>
     lines.push(format!("| access | {access} |"));
     lines.push(format!("| wire type | {} |", register.kind.name()));
     if let Some(scale) = &register.scale {
-        lines.push(format!("| step | {} |", scale.text));
+        // A decimal step as the number it is (`0.1`); a ratio as written (`1/1048576`).
+        let step = match scale.value {
+            Ok(decimal @ Scale::Decimal { .. }) => Fixed::new(1, decimal).to_string(),
+            _ => scale.text.clone(),
+        };
+        lines.push(format!("| step | {step} |"));
     }
     if let Some(unit) = &register.unit {
         lines.push(format!("| unit | {unit} |"));
