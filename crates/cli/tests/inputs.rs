@@ -412,7 +412,7 @@ fn scan_lists_are_strict() {
 
 #[test]
 fn buffer_counts_and_sources_are_checked_before_connecting() {
-    for count in ["0", "2501", "65535"] {
+    for count in ["0", "2501", "65535", "65536"] {
         refused(
             &["buffer", "--count", count],
             REFUSED,
@@ -425,8 +425,8 @@ fn buffer_counts_and_sources_are_checked_before_connecting() {
         "`buffer_data_type` does not take `nothing`",
     );
     refused(
-        &["buffer", "--count", "65536"],
+        &["buffer", "--count", "4294967296"],
         USAGE,
-        "invalid value '65536'",
+        "invalid value '4294967296'",
     );
 }

@@ -19,7 +19,7 @@ use crate::{inputs, link, models};
 pub(crate) struct BufferArgs {
     /// Values to buffer and download (at most what the model's buffer hands out).
     #[arg(long)]
-    count: u16,
+    count: u32,
     /// What to buffer: a code of the buffer's source register (default: its first code).
     #[arg(long)]
     source: Option<String>,
@@ -68,7 +68,7 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
     let link = link::open(device, slave, &global.target).await?;
     let mut core = Core::new(link, slave, device).map_err(|e| driver_error(e, None))?;
     let code = source.as_ref().map(|s| s.code);
-    core.start_buffering(code.as_ref().map(|c| c as &dyn Encode), u32::from(count))
+    core.start_buffering(code.as_ref().map(|c| c as &dyn Encode), count)
         .await
         .map_err(|e| driver_error(e, Some(buffer.count)))?;
     let what = source.as_ref().map_or("", |s| s.name.as_str());
@@ -146,10 +146,10 @@ fn short_title(device: &DeviceInfo) -> &'static str {
 fn input_count(
     device: &'static DeviceInfo,
     buffer: &BufferInfo,
-    count: u16,
+    count: u32,
 ) -> Result<&'static RegisterInfo, CliError> {
     let most = buffer.most;
-    if !(1..=most).contains(&u32::from(count)) {
+    if !(1..=most).contains(&count) {
         return Err(CliError::new(format!(
             "--count {count}: the {} buffers 1 to {most} values for reading out",
             short_title(device)
