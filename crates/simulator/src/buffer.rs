@@ -33,9 +33,9 @@ pub(crate) struct BufferLayout {
     /// The lock flag register.
     pub(crate) lock: usize,
     /// The count register.
-    pub(crate) report_count: usize,
+    pub(crate) count: usize,
     /// The source register, if any (else the first code's register is buffered).
-    pub(crate) data_type: Option<usize>,
+    pub(crate) source: Option<usize>,
     /// The sampling interval register, if any (else 1 ms).
     pub(crate) interval: Option<usize>,
     read_count: usize,
@@ -49,21 +49,14 @@ impl BufferLayout {
         let info: &BufferInfo = device.buffer?;
         let index = |name: &str| device.registers.iter().position(|r| r.name == name);
         let lock = index(device.command(info.lock)?.register)?;
-        let mut copies: Vec<(u8, usize)> = device
-            .registers
-            .iter()
-            .enumerate()
-            .filter_map(|(i, r)| {
-                let copy = r.copy?;
-                (copy.member == info.values).then_some((copy.number, i))
-            })
+        let values: Vec<usize> = device
+            .members(info.values)
+            .filter_map(|r| index(r.name))
             .collect();
-        copies.sort_unstable();
-        let values: Vec<usize> = copies.into_iter().map(|(_, i)| i).collect();
         Some(Self {
             lock,
-            report_count: index(info.count)?,
-            data_type: info.source.and_then(index),
+            count: index(info.count)?,
+            source: info.source.and_then(index),
             interval: info.interval.and_then(index),
             read_count: index(info.read_count)?,
             valid_count: index(info.valid_count)?,
@@ -87,7 +80,7 @@ impl BufferLayout {
 
     /// Whether a write to `index` resets the buffer (4.2.2 note 5).
     pub(crate) fn resets_on(&self, index: usize) -> bool {
-        index == self.report_count || Some(index) == self.data_type || Some(index) == self.interval
+        index == self.count || Some(index) == self.source || Some(index) == self.interval
     }
 
     fn page_size(&self) -> u32 {

@@ -178,14 +178,14 @@ impl Device {
             let raw = value(index)?;
             self.register(index)?.codes.iter().find(|c| c.code == raw)
         };
-        let capacity = value(layout.report_count).unwrap_or(0);
+        let capacity = value(layout.count).unwrap_or(0);
         let period = layout
             .interval
             .and_then(code)
             .and_then(|c| parse_duration(c.meaning))
             .unwrap_or(1e-3);
         let source = layout
-            .data_type
+            .source
             .and_then(|index| code(index).or_else(|| self.register(index)?.codes.first()))
             .and_then(|c| self.layout.find(c.name));
         if let Some(buffer) = &mut self.buffer {

@@ -122,16 +122,15 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
 const CHART_WIDTH: usize = 40;
 
 /// `name  value  ▃▄▅▆▇` lines: `values` added to `history`, each number's recent readings
-/// drawn between their lowest and highest.
+/// drawn between their lowest and highest beside the aligned lines of [`values_text`].
 fn chart_text(
     values: &[(&'static RegisterInfo, Value)],
     history: &mut [VecDeque<Option<f64>>],
 ) -> String {
-    let shown: Vec<String> = values.iter().map(|(_, v)| v.to_string()).collect();
-    let name_width = values.iter().map(|(r, _)| r.name.len()).max().unwrap_or(0);
-    let value_width = shown.iter().map(|v| v.chars().count()).max().unwrap_or(0);
-    let mut text = String::new();
-    for (((register, value), shown), past) in values.iter().zip(&shown).zip(history) {
+    let text = values_text(values);
+    let width = text.lines().map(|l| l.chars().count()).max().unwrap_or(0);
+    let mut chart = String::new();
+    for ((line, (_, value)), past) in text.lines().zip(values).zip(history) {
         let number = match value {
             Value::Quantity(number, _) => Some(number.to_f64()),
             Value::Integer(number) => Some(*number as f64),
@@ -141,15 +140,11 @@ fn chart_text(
             past.pop_front();
         }
         past.push_back(number);
-        let line = format!(
-            "{:<name_width$}  {shown:<value_width$}  {}",
-            register.name,
-            sparkline(past)
-        );
-        text.push_str(line.trim_end());
-        text.push('\n');
+        let line = format!("{line:<width$}  {}", sparkline(past));
+        chart.push_str(line.trim_end());
+        chart.push('\n');
     }
-    text
+    chart
 }
 
 /// One block per reading, from `▁` (the lowest shown) to `█` (the highest); a space where a
