@@ -7,6 +7,8 @@
 mod check;
 mod read;
 
+pub use read::resolve;
+
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 

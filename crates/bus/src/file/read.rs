@@ -738,7 +738,7 @@ impl<'a> Reader<'a> {
 }
 
 /// The registers a group or register name stands for, or why it cannot be polled.
-pub(crate) fn resolve(
+pub fn resolve(
     device: &'static DeviceInfo,
     name: &str,
 ) -> Result<Vec<&'static RegisterInfo>, String> {

@@ -1,0 +1,216 @@
+//! A saturated line: 8 devices of mixed families polled as fast as the line allows, on the
+//! byte-timed RS-485 emulator at 9600 and 115200 baud 8N1 (device turnaround 0).
+//!
+//! For the bus and, as the anchor, a bare loop of driver cores on one `RtuClient` reading the
+//! same groups in turn (trials interleaved), it prints each run's share of the line limit:
+//! the characters that crossed the line (counted on the client's stream) plus two t3.5 per
+//! transaction, over the time taken (target ≥ 0.97); the emulator's gap violations (t3.5 not
+//! kept, target 0); and each device's share of the polls against an equal share (target within
+//! ±10 %). Run with `cargo bench -p optobus-bus --bench line_share`.
+
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use optobus_bus::{Bus, BusFile, Catalogue, Event};
+use optobus_codec::LineFormat;
+use optobus_device::DeviceInfo;
+use optobus_driver::{rtu_config, Core};
+use optobus_simulator::{Line, Simulator};
+use optobus_transport::{Flow, RtuClient, RtuConfig, Shared, Tap};
+
+const TRIALS: usize = 3;
+
+fn models() -> [&'static DeviceInfo; 8] {
+    [
+        &optobus_p_series::DEVICE,
+        &optobus_ccs::DEVICE,
+        &optobus_ccf::DEVICE,
+        &optobus_lc_rs::DEVICE,
+        &optobus_rangefinder::DEVICE,
+        &optobus_p_series::DEVICE,
+        &optobus_ccs::DEVICE,
+        &optobus_ccf::DEVICE,
+    ]
+}
+
+/// The group each device polls.
+const GROUP: &str = "measurements";
+
+fn bus_file(format: LineFormat) -> BusFile {
+    let catalogue = Catalogue::new(models());
+    let mut text = format!(
+        "lines:\n  - {{ name: bench, serial: bench, baud: {}, any_format: true }}\ndevices:\n",
+        format.baud
+    );
+    for (index, model) in models().iter().enumerate() {
+        text += &format!(
+            "  - {{ name: d{}, model: {}, slave: {}, timeout: 500ms, poll: [{{ read: {GROUP} }}] }}\n",
+            index + 1,
+            model.family,
+            index + 1
+        );
+    }
+    BusFile::parse("bench.yaml", &text, Path::new("."), &catalogue)
+        .unwrap_or_else(|e| panic!("{}", e.render()))
+}
+
+/// An emulated line with the 8 simulators; the client's end counts the bytes on it.
+fn line(
+    format: LineFormat,
+) -> (
+    Tap<tokio::io::DuplexStream, impl FnMut(Flow, &[u8]) + Unpin + Send + 'static>,
+    Arc<AtomicU64>,
+    optobus_simulator::LineStats,
+) {
+    let simulators: Vec<Simulator> = models()
+        .iter()
+        .enumerate()
+        .map(|(i, model)| Simulator::new(model).slave(i as u8 + 1).sentinel_every(0))
+        .collect();
+    let line = Line::new(format);
+    let stats = line.stats();
+    let (stream, _server) = optobus_simulator::Bus::new(simulators).duplex_line(line);
+    let bytes = Arc::new(AtomicU64::new(0));
+    let counter = Arc::clone(&bytes);
+    let tap = Tap::new(stream, move |_: Flow, chunk: &[u8]| {
+        counter.fetch_add(chunk.len() as u64, Ordering::Relaxed);
+    });
+    (tap, bytes, stats)
+}
+
+struct Run {
+    ratio: f64,
+    /// Failed polls (bus: failed transactions).
+    errors: u64,
+    gap_violations: u64,
+    shares: Vec<f64>,
+}
+
+fn limit_ratio(format: LineFormat, bytes: u64, transactions: u64, elapsed: Duration) -> f64 {
+    let ideal = format.transmit_time(bytes as usize) + format.frame_gap() * 2 * transactions as u32;
+    ideal.as_secs_f64() / (elapsed + format.frame_gap()).as_secs_f64()
+}
+
+fn shares(polls: &[u64]) -> Vec<f64> {
+    let mean = polls.iter().sum::<u64>() as f64 / polls.len() as f64;
+    polls.iter().map(|&p| p as f64 / mean).collect()
+}
+
+async fn bus_run(format: LineFormat, duration: Duration) -> Run {
+    let (stream, bytes, stats) = line(format);
+    let bus = Bus::new(bus_file(format)).with_stream("bench", stream);
+    let mut events = bus.subscribe();
+    let first_register: Vec<&str> = models()
+        .iter()
+        .map(|m| optobus_bus::file::resolve(m, GROUP).unwrap()[0].name)
+        .collect();
+    let started = Instant::now();
+    let running = bus.start();
+    let mut polls = vec![0u64; 8];
+    let mut errors = 0;
+    while started.elapsed() < duration {
+        match tokio::time::timeout(Duration::from_millis(100), events.recv()).await {
+            Ok(Ok(Event::Sample(sample))) => {
+                let index: usize = sample.source.device[1..].parse::<usize>().unwrap() - 1;
+                if sample.register.name == first_register[index] {
+                    polls[index] += 1;
+                }
+            }
+            Ok(Ok(Event::Line(line))) => errors = line.errors.total(),
+            Ok(Err(e)) => panic!("{e}"),
+            _ => {}
+        }
+    }
+    let elapsed = started.elapsed();
+    let transactions = stats.frames();
+    let bytes = bytes.load(Ordering::Relaxed);
+    drop(running);
+    Run {
+        ratio: limit_ratio(format, bytes, transactions, elapsed),
+        errors,
+        gap_violations: stats.gap_violations(),
+        shares: shares(&polls),
+    }
+}
+
+async fn direct_run(format: LineFormat, duration: Duration) -> Run {
+    let (stream, bytes, stats) = line(format);
+    let client = Shared::new(RtuClient::with_config(
+        stream,
+        RtuConfig {
+            line: Some(format),
+            timeout: Duration::from_millis(500),
+            ..rtu_config(&optobus_p_series::DEVICE)
+        },
+    ));
+    let mut cores: Vec<(Core<_>, Vec<_>)> = models()
+        .iter()
+        .enumerate()
+        .map(|(i, model)| {
+            let registers = optobus_bus::file::resolve(model, GROUP).unwrap();
+            (Core::new(client.clone(), i as u8 + 1, model).unwrap(), registers)
+        })
+        .collect();
+    let mut polls = vec![0u64; 8];
+    let mut errors = 0;
+    let started = Instant::now();
+    'outer: loop {
+        for (index, (core, registers)) in cores.iter_mut().enumerate() {
+            if started.elapsed() >= duration {
+                break 'outer;
+            }
+            match core.read_group(registers).await {
+                Ok(_) => polls[index] += 1,
+                Err(_) => errors += 1,
+            }
+        }
+    }
+    let elapsed = started.elapsed();
+    Run {
+        ratio: limit_ratio(format, bytes.load(Ordering::Relaxed), stats.frames(), elapsed),
+        errors,
+        gap_violations: stats.gap_violations(),
+        shares: shares(&polls),
+    }
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
+fn main() {
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    for (baud, duration) in [(9600, Duration::from_secs(4)), (115_200, Duration::from_secs(2))] {
+        let format = LineFormat::new(baud);
+        let mut ours = Vec::new();
+        let mut anchor = Vec::new();
+        for _ in 0..TRIALS {
+            ours.push(runtime.block_on(bus_run(format, duration)));
+            anchor.push(runtime.block_on(direct_run(format, duration)));
+        }
+        let report = |name: &str, runs: &[Run]| {
+            let ratio = median(runs.iter().map(|r| r.ratio).collect());
+            let gaps: u64 = runs.iter().map(|r| r.gap_violations).sum();
+            let errors: u64 = runs.iter().map(|r| r.errors).sum();
+            let worst = runs
+                .iter()
+                .flat_map(|r| r.shares.iter())
+                .map(|s| (s - 1.0).abs())
+                .fold(0.0, f64::max);
+            println!(
+                "{baud:>6} baud  {name:<7} line limit ratio {ratio:.3}  gap violations {gaps}  errors {errors}  worst device share off equal by {:.1} %",
+                worst * 100.0
+            );
+            ratio
+        };
+        let bus = report("bus", &ours);
+        let direct = report("direct", &anchor);
+        println!("{baud:>6} baud  bus / direct {:.3}", bus / direct);
+    }
+}
