@@ -56,14 +56,15 @@ fn bus_file(format: LineFormat) -> BusFile {
         .unwrap_or_else(|e| panic!("{}", e.render()))
 }
 
+/// The client's end of an emulated line, counting the bytes that cross it.
+struct Counted<S> {
+    stream: S,
+    bytes: Arc<AtomicU64>,
+    stats: optobus_simulator::LineStats,
+}
+
 /// An emulated line with the 8 simulators; the client's end counts the bytes on it.
-fn line(
-    format: LineFormat,
-) -> (
-    Tap<tokio::io::DuplexStream, impl FnMut(Flow, &[u8]) + Unpin + Send + 'static>,
-    Arc<AtomicU64>,
-    optobus_simulator::LineStats,
-) {
+fn line(format: LineFormat) -> Counted<impl optobus_bus::Stream> {
     let simulators: Vec<Simulator> = models()
         .iter()
         .enumerate()
@@ -77,7 +78,11 @@ fn line(
     let tap = Tap::new(stream, move |_: Flow, chunk: &[u8]| {
         counter.fetch_add(chunk.len() as u64, Ordering::Relaxed);
     });
-    (tap, bytes, stats)
+    Counted {
+        stream: tap,
+        bytes,
+        stats,
+    }
 }
 
 struct Run {
@@ -99,7 +104,11 @@ fn shares(polls: &[u64]) -> Vec<f64> {
 }
 
 async fn bus_run(format: LineFormat, duration: Duration) -> Run {
-    let (stream, bytes, stats) = line(format);
+    let Counted {
+        stream,
+        bytes,
+        stats,
+    } = line(format);
     let bus = Bus::new(bus_file(format)).with_stream("bench", stream);
     let mut events = bus.subscribe();
     let first_register: Vec<&str> = models()
@@ -107,7 +116,7 @@ async fn bus_run(format: LineFormat, duration: Duration) -> Run {
         .map(|m| optobus_bus::file::resolve(m, GROUP).unwrap()[0].name)
         .collect();
     let started = Instant::now();
-    let running = bus.start();
+    let running = bus.start().expect("starts");
     let mut polls = vec![0u64; 8];
     let mut errors = 0;
     while started.elapsed() < duration {
@@ -136,7 +145,11 @@ async fn bus_run(format: LineFormat, duration: Duration) -> Run {
 }
 
 async fn direct_run(format: LineFormat, duration: Duration) -> Run {
-    let (stream, bytes, stats) = line(format);
+    let Counted {
+        stream,
+        bytes,
+        stats,
+    } = line(format);
     let client = Shared::new(RtuClient::with_config(
         stream,
         RtuConfig {
@@ -150,7 +163,10 @@ async fn direct_run(format: LineFormat, duration: Duration) -> Run {
         .enumerate()
         .map(|(i, model)| {
             let registers = optobus_bus::file::resolve(model, GROUP).unwrap();
-            (Core::new(client.clone(), i as u8 + 1, model).unwrap(), registers)
+            (
+                Core::new(client.clone(), i as u8 + 1, model).unwrap(),
+                registers,
+            )
         })
         .collect();
     let mut polls = vec![0u64; 8];
@@ -169,7 +185,12 @@ async fn direct_run(format: LineFormat, duration: Duration) -> Run {
     }
     let elapsed = started.elapsed();
     Run {
-        ratio: limit_ratio(format, bytes.load(Ordering::Relaxed), stats.frames(), elapsed),
+        ratio: limit_ratio(
+            format,
+            bytes.load(Ordering::Relaxed),
+            stats.frames(),
+            elapsed,
+        ),
         errors,
         gap_violations: stats.gap_violations(),
         shares: shares(&polls),
@@ -186,7 +207,10 @@ fn main() {
         .enable_all()
         .build()
         .unwrap();
-    for (baud, duration) in [(9600, Duration::from_secs(4)), (115_200, Duration::from_secs(2))] {
+    for (baud, duration) in [
+        (9600, Duration::from_secs(4)),
+        (115_200, Duration::from_secs(2)),
+    ] {
         let format = LineFormat::new(baud);
         let mut ours = Vec::new();
         let mut anchor = Vec::new();

@@ -16,7 +16,9 @@ const TRIALS: usize = 5;
 const RUN: Duration = Duration::from_millis(1500);
 
 fn simulator() -> Simulator {
-    Simulator::new(&optobus_p_series::DEVICE).slave(1).sentinel_every(0)
+    Simulator::new(&optobus_p_series::DEVICE)
+        .slave(1)
+        .sentinel_every(0)
 }
 
 /// Seconds per transaction of the bus.
@@ -36,7 +38,7 @@ devices: [{ name: head, model: p-series, slave: 1, poll: [{ read: measurements }
     file.lines[0].format = Some(optobus_codec::LineFormat::new(4_000_000));
     let bus = Bus::new(file).with_stream("memory", stream);
     let mut events = bus.subscribe();
-    let running = bus.start();
+    let running = bus.start().expect("starts");
     let started = Instant::now();
     let mut last = None;
     while started.elapsed() < RUN {

@@ -5,13 +5,17 @@ use std::sync::Arc;
 
 use optobus_driver::{rtu_config, Core};
 use optobus_simulator::Simulator;
-use tokio::sync::{broadcast, Mutex};
+use std::net::SocketAddr;
+
+use tokio::net::TcpListener;
+use tokio::sync::{broadcast, mpsc, Mutex};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
 use crate::event::{DeviceId, ErrorCounts, Event};
 use crate::file::{BusFile, Port};
-use crate::line::{DeviceRun, LineTask, Opener, PollRun};
+use crate::gateway::{self, GatewayCounters};
+use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun};
 use crate::link::{DeviceLink, DeviceSettings, LineState, Stream};
 use crate::schedule::Schedule;
 
@@ -38,6 +42,7 @@ impl std::fmt::Debug for Bus {
 #[derive(Debug)]
 pub struct Running {
     events: broadcast::Sender<Event>,
+    gateways: Vec<(String, SocketAddr)>,
     tasks: Vec<JoinHandle<()>>,
     simulators: Vec<(String, Simulator)>,
 }
@@ -69,11 +74,13 @@ impl Bus {
         self.events.subscribe()
     }
 
-    /// Starts a task per line (within a tokio runtime). Ports are opened by their line's
-    /// task, which retries with backoff: a missing port never stops the other lines.
-    pub fn start(mut self) -> Running {
+    /// Starts a task per line (within a tokio runtime), and each line's gateway. Ports are
+    /// opened by their line's task, which retries with backoff: a missing port never stops the
+    /// other lines. Fails only when a gateway cannot listen on its address.
+    pub fn start(mut self) -> Result<Running, StartError> {
         let mut tasks = Vec::new();
         let mut simulators = Vec::new();
+        let mut gateways = Vec::new();
         let start = Instant::now();
         for (index, line) in self.file.lines.iter().enumerate() {
             let name: Arc<str> = Arc::from(line.name.as_str());
@@ -87,15 +94,16 @@ impl Bus {
             let mut line_simulators = Vec::new();
             for (_, config) in self.file.devices_on(index) {
                 let errors = Arc::new(std::sync::Mutex::new(ErrorCounts::default()));
+                let settings = DeviceSettings {
+                    timeout: config.timeout,
+                    retries: config.retries,
+                    exception: rtu_config(config.device).exception,
+                    silence_before: config.silence_before,
+                    silence_after: config.silence_after,
+                };
                 let link = DeviceLink {
                     line: Arc::clone(&state),
-                    settings: DeviceSettings {
-                        timeout: config.timeout,
-                        retries: config.retries,
-                        exception: rtu_config(config.device).exception,
-                        silence_before: config.silence_before,
-                        silence_after: config.silence_after,
-                    },
+                    settings,
                     errors: Arc::clone(&errors),
                 };
                 let core = Core::new(link, config.slave, config.device)
@@ -108,6 +116,7 @@ impl Bus {
                     });
                 }
                 devices.push(DeviceRun {
+                    settings,
                     id: Arc::new(DeviceId {
                         device: Arc::from(config.name.as_str()),
                         model: Arc::from(config.device.family.replace('_', "-")),
@@ -127,7 +136,34 @@ impl Bus {
                 Some(stream) => Opener::Stream(Some(stream)),
                 None => port_opener(&line.port, line.format, line_simulators),
             };
+            let gateway = match &line.gateway {
+                Some(config) => {
+                    let listener = bind(config.listen).map_err(|source| StartError {
+                        line: line.name.clone(),
+                        address: config.listen,
+                        source,
+                    })?;
+                    if let Ok(address) = listener.local_addr() {
+                        gateways.push((line.name.clone(), address));
+                    }
+                    let (queue, requests) = mpsc::channel(config.clients);
+                    let counters = Arc::new(GatewayCounters::default());
+                    tasks.push(tokio::spawn(gateway::serve(
+                        listener,
+                        config.clone(),
+                        queue,
+                        counters,
+                    )));
+                    Some(GatewayQueue {
+                        requests,
+                        writes: config.writes,
+                    })
+                }
+                None => None,
+            };
             let task = LineTask {
+                gateway,
+                broadcast_turnaround: line.broadcast_turnaround,
                 name,
                 format: line.format,
                 opener,
@@ -139,12 +175,47 @@ impl Bus {
             };
             tasks.push(tokio::spawn(task.run()));
         }
-        Running {
+        Ok(Running {
             events: self.events,
+            gateways,
             tasks,
             simulators,
-        }
+        })
     }
+}
+
+/// A gateway that cannot listen.
+#[derive(Debug)]
+pub struct StartError {
+    /// The line it serves.
+    pub line: String,
+    /// Its address.
+    pub address: SocketAddr,
+    /// Why.
+    pub source: std::io::Error,
+}
+
+impl std::fmt::Display for StartError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the gateway of line `{}` cannot listen on {}: {}",
+            self.line, self.address, self.source
+        )
+    }
+}
+
+impl std::error::Error for StartError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        Some(&self.source)
+    }
+}
+
+/// A listening socket, made without waiting (`start` is not async).
+fn bind(address: SocketAddr) -> std::io::Result<TcpListener> {
+    let listener = std::net::TcpListener::bind(address)?;
+    listener.set_nonblocking(true)?;
+    TcpListener::from_std(listener)
 }
 
 fn port_opener(
@@ -180,6 +251,14 @@ impl Running {
             .iter()
             .find(|(device, _)| device == name)
             .map(|(_, simulator)| simulator)
+    }
+
+    /// Where the gateway of line `line` listens (its port, when the file asked for port 0).
+    pub fn gateway_address(&self, line: &str) -> Option<SocketAddr> {
+        self.gateways
+            .iter()
+            .find(|(name, _)| name == line)
+            .map(|(_, address)| *address)
     }
 
     /// Stops every line.

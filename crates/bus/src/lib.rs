@@ -31,7 +31,7 @@
 //! let file = BusFile::parse("demo.yaml", text, ".".as_ref(), &catalogue)?;
 //! let bus = Bus::new(file);
 //! let mut events = bus.subscribe();
-//! let running = bus.start();
+//! let running = bus.start()?;
 //! let mut seen = std::collections::BTreeSet::new();
 //! while seen.len() < 3 {
 //!     if let Event::Sample(sample) = events.recv().await? {
@@ -49,11 +49,12 @@ mod bus;
 mod catalogue;
 mod event;
 pub mod file;
+mod gateway;
 mod line;
 mod link;
 pub mod schedule;
 
-pub use bus::{Bus, Running, DEFAULT_EVENT_CAPACITY};
+pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
 pub use catalogue::Catalogue;
 pub use event::{rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
 pub use file::{BusFile, DeviceConfig, LineConfig, LoadError, PollConfig, Port, Rejected};

@@ -4,17 +4,28 @@
 use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
+use optobus_codec::passthrough::PassPdu;
+use optobus_codec::FrameShape;
 use optobus_codec::LineFormat;
 use optobus_device::RegisterInfo;
 use optobus_driver::{Core, Error as DriverError};
 use optobus_inspect::decode_value;
 use optobus_transport::{Error, RtuClient, RtuConfig};
-use tokio::sync::{broadcast, Mutex};
+use tokio::sync::{broadcast, mpsc, Mutex};
 use tokio::time::Instant;
 
 use crate::event::{DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
-use crate::link::{Client, DeviceLink, LineState, Stream};
+use crate::gateway::{self, GatewayRequest};
+use crate::link::{Client, DeviceLink, DeviceSettings, LineState, Stream};
 use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
+
+/// The gateway's exception for a request the line could not carry out.
+fn path_or_target(error: &Error) -> u8 {
+    match error {
+        Error::Timeout { .. } | Error::Frame(_) | Error::WordCount { .. } => gateway::TARGET_FAILED,
+        _ => gateway::PATH_UNAVAILABLE,
+    }
+}
 
 /// How often a line sends its statistics.
 const STATS_EVERY: Duration = Duration::from_secs(1);
@@ -91,6 +102,15 @@ pub(crate) struct DeviceRun {
     pub(crate) id: Arc<DeviceId>,
     pub(crate) core: Core<DeviceLink>,
     pub(crate) errors: Arc<std::sync::Mutex<ErrorCounts>>,
+    /// How its requests are made (the gateway's requests to it too).
+    pub(crate) settings: DeviceSettings,
+}
+
+/// The gateway's side of a line.
+pub(crate) struct GatewayQueue {
+    pub(crate) requests: mpsc::Receiver<GatewayRequest>,
+    /// Whether writes pass.
+    pub(crate) writes: bool,
 }
 
 /// The registers of one poll.
@@ -128,32 +148,133 @@ pub(crate) struct LineTask {
     pub(crate) polls: Vec<PollRun>,
     pub(crate) schedule: Schedule,
     pub(crate) events: broadcast::Sender<Event>,
+    pub(crate) gateway: Option<GatewayQueue>,
+    /// The silence owed after a broadcast.
+    pub(crate) broadcast_turnaround: Duration,
+}
+
+/// The next request of the gateway, or never when the line has none.
+async fn next_request(gateway: &mut Option<GatewayQueue>) -> Option<GatewayRequest> {
+    match gateway {
+        Some(gateway) => gateway.requests.recv().await,
+        None => std::future::pending().await,
+    }
 }
 
 impl LineTask {
     /// Runs the line until the task is aborted.
+    ///
+    /// The gateway's requests and the schedule's polls take turns when both wait, so a
+    /// request waits for at most one poll and the polls keep at least half the line.
     pub(crate) async fn run(mut self) {
         let clock = Clock::now();
         let mut next_stats = clock.instant + STATS_EVERY;
+        let mut reopen_at = clock.instant;
         let mut reopen_wait = FIRST_BACKOFF;
+        let mut gateway_turn = true;
         loop {
-            if !self.ensure_open().await {
-                self.send_stats(&clock).await;
-                tokio::time::sleep(reopen_wait).await;
-                reopen_wait = (reopen_wait * 2).min(MAX_BACKOFF);
-                continue;
-            }
-            reopen_wait = FIRST_BACKOFF;
             let now = Instant::now();
             if now >= next_stats {
                 self.send_stats(&clock).await;
                 next_stats = now + STATS_EVERY;
             }
-            match self.schedule.next(now) {
-                Next::Run(poll) => self.run_poll(poll, &clock).await,
-                Next::Wait(until) => tokio::time::sleep_until(until.min(next_stats)).await,
-                Next::Idle => tokio::time::sleep_until(next_stats).await,
+            let mut open = self.is_open().await;
+            if !open && now >= reopen_at {
+                open = self.ensure_open().await;
+                if open {
+                    reopen_wait = FIRST_BACKOFF;
+                } else {
+                    reopen_at = now + reopen_wait;
+                    reopen_wait = (reopen_wait * 2).min(MAX_BACKOFF);
+                }
             }
+            let next = if open {
+                self.schedule.next(now)
+            } else {
+                Next::Wait(reopen_at)
+            };
+            if gateway_turn || !matches!(next, Next::Run(_)) {
+                if let Some(request) = self
+                    .gateway
+                    .as_mut()
+                    .and_then(|g| g.requests.try_recv().ok())
+                {
+                    self.serve(request).await;
+                    gateway_turn = false;
+                    continue;
+                }
+            }
+            gateway_turn = true;
+            let until = match next {
+                Next::Run(poll) => {
+                    self.run_poll(poll, &clock).await;
+                    continue;
+                }
+                Next::Wait(until) => until.min(next_stats),
+                Next::Idle => next_stats,
+            };
+            tokio::select! {
+                () = tokio::time::sleep_until(until) => {}
+                Some(request) = next_request(&mut self.gateway) => {
+                    self.serve(request).await;
+                    gateway_turn = false;
+                }
+            }
+        }
+    }
+
+    async fn is_open(&mut self) -> bool {
+        let state = self.state.lock().await;
+        state.client.is_some() && !state.broken
+    }
+
+    /// Passes a gateway request to the line and sends its reply back.
+    async fn serve(&mut self, request: GatewayRequest) {
+        let reply = self.pass(request.unit, &request.pdu).await;
+        // The client may have gone meanwhile: nothing to do then.
+        let _ = request.reply.send(reply);
+    }
+
+    /// The reply PDU to a gateway request (an exception where it cannot be passed), or `None`
+    /// for a broadcast.
+    async fn pass(&mut self, unit: u8, pdu: &[u8]) -> Option<Vec<u8>> {
+        let function = pdu[0];
+        let refused = |code| Some(gateway::exception(function, code));
+        let writes = self.gateway.as_ref().is_some_and(|g| g.writes);
+        let (settings, shape, refusal) = {
+            let device = self.devices.iter().find(|d| d.id.slave == unit);
+            let refusal = match (gateway::is_write(function), device) {
+                (true, _) if !writes => Some(gateway::ILLEGAL_FUNCTION),
+                (true, Some(device)) => gateway::refuse_write(device.core.device(), pdu),
+                _ => None,
+            };
+            match device {
+                Some(device) => (device.settings, device.core.device().frame_shape, refusal),
+                None => (DeviceSettings::standard(), FrameShape::STANDARD, refusal),
+            }
+        };
+        if let Some(code) = refusal {
+            return refused(code);
+        }
+        let Ok(pass) = PassPdu::new(pdu) else {
+            return refused(gateway::ILLEGAL_FUNCTION);
+        };
+        let mut state = self.state.lock().await;
+        let started = Instant::now();
+        let result = match state.client_for(&settings) {
+            Ok(Client::Rtu(rtu)) => rtu.transact_pdu(unit, &pass, &shape).await,
+            #[cfg(feature = "tcp")]
+            Ok(Client::Tcp(_)) => Err(Error::Unsupported("a gateway serves RTU lines")),
+            Err(error) => return refused(path_or_target(&error)),
+        };
+        state.record(&settings, started, &result);
+        match result {
+            Ok(Some(reply)) => Some(reply),
+            Ok(None) => {
+                state.owed = state.owed.max(self.broadcast_turnaround);
+                None
+            }
+            Err(error) => refused(path_or_target(&error)),
         }
     }
 

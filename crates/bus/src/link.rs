@@ -7,7 +7,7 @@ use std::time::Duration;
 use optobus_codec::{ExceptionShape, WriteValue};
 use optobus_transport::{Error, ReadRequest, RtuClient, Transport};
 use tokio::io::{AsyncRead, AsyncWrite};
-use tokio::sync::{Mutex, MutexGuard};
+use tokio::sync::Mutex;
 use tokio::time::Instant;
 
 use crate::event::ErrorCounts;
@@ -43,6 +43,20 @@ pub(crate) struct DeviceSettings {
     pub(crate) exception: ExceptionShape,
     pub(crate) silence_before: Duration,
     pub(crate) silence_after: Duration,
+}
+
+impl DeviceSettings {
+    /// For a slave the bus file does not describe: the default timeout, no retries, standard
+    /// framing, no extra silence.
+    pub(crate) fn standard() -> Self {
+        Self {
+            timeout: optobus_transport::DEFAULT_TIMEOUT,
+            retries: 0,
+            exception: ExceptionShape::Standard,
+            silence_before: Duration::ZERO,
+            silence_after: Duration::ZERO,
+        }
+    }
 }
 
 /// A line's client and what it has done.
@@ -100,15 +114,13 @@ pub(crate) struct DeviceLink {
     pub(crate) errors: Arc<std::sync::Mutex<ErrorCounts>>,
 }
 
-impl DeviceLink {
-    /// Takes the line and sets its client up for this device's next request.
-    async fn begin(&self) -> Result<MutexGuard<'_, LineState>, Error> {
-        let mut line = self.line.lock().await;
-        let settings = self.settings;
-        let gap = line.owed.max(line.frame_gap + settings.silence_before);
-        match line.client.as_mut() {
-            None => return Err(Error::Closed),
-            Some(Client::Rtu(rtu)) => {
+impl LineState {
+    /// The client, set up for a request with `settings`; `Closed` while the port is.
+    pub(crate) fn client_for(&mut self, settings: &DeviceSettings) -> Result<&mut Client, Error> {
+        let gap = self.owed.max(self.frame_gap + settings.silence_before);
+        let client = self.client.as_mut().ok_or(Error::Closed)?;
+        match client {
+            Client::Rtu(rtu) => {
                 let config = rtu.config_mut();
                 config.timeout = settings.timeout;
                 config.read_retries = settings.retries;
@@ -116,58 +128,71 @@ impl DeviceLink {
                 config.frame_gap = Some(gap);
             }
             #[cfg(feature = "tcp")]
-            Some(Client::Tcp(tcp)) => {
+            Client::Tcp(tcp) => {
                 let config = tcp.config_mut();
                 config.timeout = settings.timeout;
                 config.read_retries = settings.retries;
                 config.exception = settings.exception;
             }
         }
-        Ok(line)
+        Ok(client)
     }
 
-    /// Counts a finished request.
-    fn finish<R>(&self, line: &mut LineState, started: Instant, result: &Result<R, Error>) {
-        line.busy += started.elapsed();
-        line.transactions += 1;
-        line.owed = self.settings.silence_after;
+    /// Counts a finished request made with `settings`: its time, its error, the silence it
+    /// leaves owed.
+    pub(crate) fn record<R>(
+        &mut self,
+        settings: &DeviceSettings,
+        started: Instant,
+        result: &Result<R, Error>,
+    ) {
+        self.busy += started.elapsed();
+        self.transactions += 1;
+        self.owed = settings.silence_after;
         if let Err(error) = result {
-            count(&mut line.errors, error);
+            count(&mut self.errors, error);
+            if breaks_the_port(error) {
+                self.broken = true;
+            }
+        }
+    }
+}
+
+impl DeviceLink {
+    fn count_error<R>(&self, result: &Result<R, Error>) {
+        if let Err(error) = result {
             count(
                 &mut self.errors.lock().unwrap_or_else(|e| e.into_inner()),
                 error,
             );
-            if breaks_the_port(error) {
-                line.broken = true;
-            }
         }
     }
 }
 
 impl Transport for DeviceLink {
     async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, Error> {
-        let mut line = self.begin().await?;
+        let mut line = self.line.lock().await;
         let started = Instant::now();
-        let result = match line.client.as_mut() {
-            Some(Client::Rtu(rtu)) => rtu.read_words(slave, read).await,
+        let result = match line.client_for(&self.settings)? {
+            Client::Rtu(rtu) => rtu.read_words(slave, read).await,
             #[cfg(feature = "tcp")]
-            Some(Client::Tcp(tcp)) => tcp.read_words(slave, read).await,
-            None => Err(Error::Closed),
+            Client::Tcp(tcp) => tcp.read_words(slave, read).await,
         };
-        self.finish(&mut line, started, &result);
+        line.record(&self.settings, started, &result);
+        self.count_error(&result);
         result
     }
 
     async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), Error> {
-        let mut line = self.begin().await?;
+        let mut line = self.line.lock().await;
         let started = Instant::now();
-        let result = match line.client.as_mut() {
-            Some(Client::Rtu(rtu)) => rtu.write(slave, address, value).await,
+        let result = match line.client_for(&self.settings)? {
+            Client::Rtu(rtu) => rtu.write(slave, address, value).await,
             #[cfg(feature = "tcp")]
-            Some(Client::Tcp(tcp)) => tcp.write(slave, address, value).await,
-            None => Err(Error::Closed),
+            Client::Tcp(tcp) => tcp.write(slave, address, value).await,
         };
-        self.finish(&mut line, started, &result);
+        line.record(&self.settings, started, &result);
+        self.count_error(&result);
         result
     }
 }

@@ -50,7 +50,7 @@ devices:
 async fn each_device_on_a_shared_line_gives_its_own_values() {
     let bus = Bus::new(file(THREE_ON_ONE_LINE));
     let mut events = bus.subscribe();
-    let running = bus.start();
+    let running = bus.start().expect("starts");
     // Two heads of one model, told apart only by their slave address: different powers.
     let power = |percent: u16| [percent * 10];
     let top = running.simulator("top").expect("simulated");
@@ -93,7 +93,7 @@ async fn each_device_on_a_shared_line_gives_its_own_values() {
 async fn a_dead_device_goes_offline_and_comes_back_while_the_others_go_on() {
     let bus = Bus::new(file(THREE_ON_ONE_LINE));
     let mut events = bus.subscribe();
-    let running = bus.start();
+    let running = bus.start().expect("starts");
     let bottom = running.simulator("bottom").unwrap().clone();
     bottom.set_silent(true);
     // Offline after three failed polls; meanwhile the others keep answering.
@@ -134,7 +134,7 @@ async fn a_dead_device_goes_offline_and_comes_back_while_the_others_go_on() {
 async fn line_statistics_count_transactions_and_busy_time() {
     let bus = Bus::new(file(THREE_ON_ONE_LINE));
     let mut events = bus.subscribe();
-    let _running = bus.start();
+    let _running = bus.start().expect("starts");
     loop {
         if let Event::Line(stats) = next(&mut events).await {
             if stats.transactions == 0 {

@@ -30,6 +30,7 @@ use crate::pdu::{
     WRITE_SINGLE,
 };
 use crate::rtu::{check_crc, OVERHEAD};
+use crate::tcp::{Header, HEADER_LEN};
 
 /// The longest PDU a frame carries (an RTU frame of 256 bytes less address and CRC).
 pub const MAX_PDU_LEN: usize = 253;
@@ -115,6 +116,26 @@ pub fn encode_rtu(out: &mut [u8], slave: u8, pdu: &PassPdu<'_>) -> Result<usize,
     out[1..=pdu.pdu.len()].copy_from_slice(pdu.pdu);
     let crc = crc16(&out[..len - 2]);
     out[len - 2..].copy_from_slice(&crc.to_le_bytes());
+    Ok(len)
+}
+
+/// Frames a reply PDU passed back unread (a gateway's answer to a Modbus TCP client) behind
+/// the MBAP header of the request it answers; gives the frame's length.
+pub fn encode_tcp_reply(out: &mut [u8], header: Header, pdu: &[u8]) -> Result<usize, EncodeError> {
+    if pdu.is_empty() || pdu.len() > MAX_PDU_LEN {
+        return Err(EncodeError::PduLength { len: pdu.len() });
+    }
+    let len = HEADER_LEN + pdu.len();
+    let Some(out) = out.get_mut(..len) else {
+        return Err(EncodeError::BufferTooSmall { needed: len });
+    };
+    // A PDU is at most 253 bytes, so the length field (unit id and PDU) fits.
+    let length = (pdu.len() + 1) as u16;
+    out[0..2].copy_from_slice(&header.transaction.to_be_bytes());
+    out[2..4].copy_from_slice(&[0, 0]);
+    out[4..6].copy_from_slice(&length.to_be_bytes());
+    out[6] = header.unit;
+    out[HEADER_LEN..].copy_from_slice(pdu);
     Ok(len)
 }
 
@@ -305,6 +326,21 @@ mod tests {
                 received: 4
             })
         ));
+    }
+
+    #[test]
+    fn a_reply_pdu_goes_back_behind_the_requests_mbap_header() {
+        let mut out = [0; 260];
+        let header = Header {
+            transaction: 0x1234,
+            unit: 7,
+        };
+        let len = encode_tcp_reply(&mut out, header, &[0x83, 0x0B]).unwrap();
+        assert_eq!(&out[..len], &[0x12, 0x34, 0, 0, 0, 3, 7, 0x83, 0x0B]);
+        assert_eq!(
+            encode_tcp_reply(&mut out, header, &[]),
+            Err(EncodeError::PduLength { len: 0 })
+        );
     }
 
     #[test]

@@ -39,6 +39,18 @@ pub(super) fn check(parsed: &mut Parsed) -> Vec<Diagnostic> {
         |port| format!("two lines use the port `{port}`"),
         &mut problems,
     );
+    let gateways: Vec<String> = file
+        .lines
+        .iter()
+        .filter_map(|l| l.gateway.as_ref().map(|g| g.listen.to_string()))
+        .collect();
+    unique(
+        gateways.iter().map(String::as_str),
+        places.lines.iter().filter_map(|p| p.gateway),
+        "duplicate-gateway",
+        |address| format!("two gateways listen on {address}"),
+        &mut problems,
+    );
     unique(
         file.devices.iter().map(|d| d.name.as_str()),
         places.devices.iter().map(|p| p.name),

@@ -9,6 +9,7 @@ mod read;
 
 pub use read::resolve;
 
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -42,7 +43,24 @@ pub struct LineConfig {
     /// The silence after a broadcast before the next request (the Modbus serial-line
     /// specification's turnaround delay).
     pub broadcast_turnaround: Duration,
+    /// A Modbus TCP gateway onto the line for other masters.
+    pub gateway: Option<GatewayConfig>,
 }
+
+/// A Modbus TCP server whose requests go onto an RTU line between the bus's own polls.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GatewayConfig {
+    /// Where it listens (127.0.0.1 unless the file names another address).
+    pub listen: SocketAddr,
+    /// Most clients connected at once; one more is closed at once.
+    pub clients: usize,
+    /// Whether writes pass (Modbus TCP carries no credentials, so they are off by default);
+    /// writes to the bus's devices are checked against their specs first.
+    pub writes: bool,
+}
+
+/// Clients a gateway serves at once unless the file says otherwise.
+pub const DEFAULT_GATEWAY_CLIENTS: usize = 8;
 
 /// Where a line is.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -10,7 +10,10 @@ use optobus_codegen::source::{Node, Span, SyntaxError, Value};
 use optobus_codegen::Diagnostic;
 use optobus_device::{DeviceInfo, RegisterInfo};
 
-use super::{BusFile, DeviceConfig, LineConfig, PollConfig, Port, MAX_DURATION};
+use super::{
+    BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, DEFAULT_GATEWAY_CLIENTS,
+    MAX_DURATION,
+};
 use crate::catalogue::Catalogue;
 
 /// Rule name of reading errors.
@@ -32,7 +35,9 @@ const LINE_KEYS: &[&str] = &[
     "stop_bits",
     "any_format",
     "broadcast_turnaround",
+    "gateway",
 ];
+const GATEWAY_KEYS: &[&str] = &["listen", "clients", "writes"];
 const PORT_KEYS: &[&str] = &["serial", "tcp", "rtu_over_tcp", "simulated"];
 const DEVICE_KEYS: &[&str] = &[
     "name",
@@ -72,6 +77,8 @@ pub(super) struct LinePlaces {
     pub(super) any_format: bool,
     /// The file gave a format (else the devices' factory format is taken).
     pub(super) format_given: bool,
+    /// Where the gateway's address is written.
+    pub(super) gateway: Option<Span>,
 }
 
 pub(super) struct DevicePlaces {
@@ -432,7 +439,19 @@ impl<'a> Reader<'a> {
             Some((_, v)) => self.duration(v, "`broadcast_turnaround`", Duration::ZERO)?,
             None => DEFAULT_BROADCAST_TURNAROUND,
         };
+        let gateway = match get("gateway") {
+            Some((_, v)) => Some(self.gateway(v)?),
+            None => None,
+        };
         let (name, (port, port_span)) = (name?, port?);
+        if let (Port::Tcp(_), Some((_, span))) = (&port, &gateway) {
+            self.error(
+                *span,
+                format!("line `{name}` is Modbus TCP already: a gateway serves RTU lines"),
+                "other masters can reach a Modbus TCP device directly",
+            );
+            return None;
+        }
         if !format_ok {
             return None;
         }
@@ -452,6 +471,7 @@ impl<'a> Reader<'a> {
                 format: port.is_rtu().then_some(format),
                 port,
                 broadcast_turnaround,
+                gateway: gateway.as_ref().map(|(g, _)| g.clone()),
             },
             LinePlaces {
                 name: name_span,
@@ -459,7 +479,62 @@ impl<'a> Reader<'a> {
                 format: format_span.unwrap_or(name_span),
                 any_format,
                 format_given,
+                gateway: gateway.map(|(_, span)| span),
             },
+        ))
+    }
+
+    /// `gateway: ADDRESS` or `gateway: { listen: ADDRESS, clients: N, writes: BOOL }`.
+    fn gateway(&mut self, node: &Node) -> Option<(GatewayConfig, Span)> {
+        let (listen_node, pairs) = match &node.value {
+            Value::Mapping(_) => {
+                let pairs = self.mapping(node, "`gateway`", GATEWAY_KEYS)?;
+                let listen = pairs
+                    .iter()
+                    .find(|(k, _)| scalar(k) == Some("listen"))
+                    .map(|(_, v)| v);
+                let Some(listen) = listen else {
+                    self.error(
+                        node.span,
+                        "`gateway` needs `listen`",
+                        "e.g. `listen: 127.0.0.1:5020`",
+                    );
+                    return None;
+                };
+                (listen, pairs)
+            }
+            _ => (node, &[][..]),
+        };
+        let text = self.text(listen_node, "`gateway`")?;
+        let Some(listen) = listen_address(text) else {
+            self.error(
+                listen_node.span,
+                format!("`{text}` is no address to listen on"),
+                "give a port (listens on 127.0.0.1) or IP:PORT, e.g. 127.0.0.1:5020",
+            );
+            return None;
+        };
+        let get = |key: &str| {
+            pairs
+                .iter()
+                .find(|(k, _)| scalar(k) == Some(key))
+                .map(|(_, v)| v)
+        };
+        let clients = match get("clients") {
+            Some(v) => self.number::<usize>(v, "`clients`", (1, 1024))?,
+            None => DEFAULT_GATEWAY_CLIENTS,
+        };
+        let writes = match get("writes") {
+            Some(v) => self.boolean(v, "`writes`")?,
+            None => false,
+        };
+        Some((
+            GatewayConfig {
+                listen,
+                clients,
+                writes,
+            },
+            listen_node.span,
         ))
     }
 
@@ -774,6 +849,21 @@ fn quoted(names: &[&str]) -> String {
         .map(|n| format!("`{n}`"))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// A port alone (on 127.0.0.1), `localhost:PORT`, or `IP:PORT`.
+fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
+    let text = text.trim();
+    if let Ok(port) = text.parse::<u16>() {
+        return Some(std::net::SocketAddr::from(([127, 0, 0, 1], port)));
+    }
+    if let Some(port) = text.strip_prefix("localhost:") {
+        return Some(std::net::SocketAddr::from((
+            [127, 0, 0, 1],
+            port.parse().ok()?,
+        )));
+    }
+    text.parse().ok()
 }
 
 fn has_port(address: &str) -> bool {
