@@ -15,6 +15,7 @@ use tokio::time::Instant;
 use crate::event::{DeviceId, ErrorCounts, Event};
 use crate::file::{BusFile, Port};
 use crate::gateway::{self, GatewayCounters};
+use crate::handle::{Entry, Handle, JOB_QUEUE};
 use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun};
 use crate::link::{DeviceLink, DeviceSettings, LineState, Stream};
 use crate::schedule::Schedule;
@@ -42,6 +43,7 @@ impl std::fmt::Debug for Bus {
 #[derive(Debug)]
 pub struct Running {
     events: broadcast::Sender<Event>,
+    handle: Handle,
     gateways: Vec<(String, SocketAddr)>,
     tasks: Vec<JoinHandle<()>>,
     simulators: Vec<(String, Simulator)>,
@@ -81,6 +83,8 @@ impl Bus {
         let mut tasks = Vec::new();
         let mut simulators = Vec::new();
         let mut gateways = Vec::new();
+        let mut job_queues = Vec::new();
+        let mut entries = Vec::new();
         let start = Instant::now();
         for (index, line) in self.file.lines.iter().enumerate() {
             let name: Arc<str> = Arc::from(line.name.as_str());
@@ -93,6 +97,12 @@ impl Bus {
             let mut polls = Vec::new();
             let mut line_simulators = Vec::new();
             for (_, config) in self.file.devices_on(index) {
+                entries.push(Entry {
+                    name: config.name.clone(),
+                    line: index,
+                    index: devices.len(),
+                    device: config.device,
+                });
                 let errors = Arc::new(std::sync::Mutex::new(ErrorCounts::default()));
                 let settings = DeviceSettings {
                     timeout: config.timeout,
@@ -161,7 +171,10 @@ impl Bus {
                 }
                 None => None,
             };
+            let (jobs_in, jobs) = mpsc::channel(JOB_QUEUE);
+            job_queues.push(jobs_in);
             let task = LineTask {
+                jobs,
                 gateway,
                 broadcast_turnaround: line.broadcast_turnaround,
                 name,
@@ -176,6 +189,10 @@ impl Bus {
             tasks.push(tokio::spawn(task.run()));
         }
         Ok(Running {
+            handle: Handle {
+                lines: job_queues.into(),
+                devices: entries.into(),
+            },
             events: self.events,
             gateways,
             tasks,
@@ -251,6 +268,11 @@ impl Running {
             .iter()
             .find(|(device, _)| device == name)
             .map(|(_, simulator)| simulator)
+    }
+
+    /// A handle to write, run commands and read through the bus's lines.
+    pub fn handle(&self) -> Handle {
+        self.handle.clone()
     }
 
     /// Where the gateway of line `line` listens (its port, when the file asked for port 0).

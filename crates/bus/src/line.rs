@@ -5,8 +5,8 @@ use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
 use optobus_codec::passthrough::PassPdu;
-use optobus_codec::FrameShape;
 use optobus_codec::LineFormat;
+use optobus_codec::{FrameShape, BROADCAST};
 use optobus_device::RegisterInfo;
 use optobus_driver::{Core, Error as DriverError};
 use optobus_inspect::decode_value;
@@ -16,6 +16,7 @@ use tokio::time::Instant;
 
 use crate::event::{DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
 use crate::gateway::{self, GatewayRequest};
+use crate::handle::{self, Checked, Job};
 use crate::link::{Client, DeviceLink, DeviceSettings, LineState, Stream};
 use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
 
@@ -149,6 +150,8 @@ pub(crate) struct LineTask {
     pub(crate) schedule: Schedule,
     pub(crate) events: broadcast::Sender<Event>,
     pub(crate) gateway: Option<GatewayQueue>,
+    /// Writes, commands and reads asked for through a [`crate::Handle`].
+    pub(crate) jobs: mpsc::Receiver<Job>,
     /// The silence owed after a broadcast.
     pub(crate) broadcast_turnaround: Duration,
 }
@@ -193,6 +196,11 @@ impl LineTask {
             } else {
                 Next::Wait(reopen_at)
             };
+            // API jobs go ahead of everything (the gateway's clients and the polls).
+            if let Ok(job) = self.jobs.try_recv() {
+                self.do_job(job).await;
+                continue;
+            }
             if gateway_turn || !matches!(next, Next::Run(_)) {
                 if let Some(request) = self
                     .gateway
@@ -215,10 +223,72 @@ impl LineTask {
             };
             tokio::select! {
                 () = tokio::time::sleep_until(until) => {}
+                Some(job) = self.jobs.recv() => self.do_job(job).await,
                 Some(request) = next_request(&mut self.gateway) => {
                     self.serve(request).await;
                     gateway_turn = false;
                 }
+            }
+        }
+    }
+
+    /// Carries out an API job; its caller gets the outcome (if it still waits).
+    async fn do_job(&mut self, job: Job) {
+        match job {
+            Job::Write {
+                device,
+                register,
+                words,
+                broadcast,
+                done,
+            } => {
+                let core = &mut self.devices[device].core;
+                let result = if broadcast {
+                    let slave = core.slave();
+                    // Slave 0 is always accepted; the device's own address was checked.
+                    let _ = core.set_slave(BROADCAST);
+                    let result = core.write(register, &Checked(words)).await;
+                    let _ = core.set_slave(slave);
+                    let mut state = self.state.lock().await;
+                    state.owed = state.owed.max(self.broadcast_turnaround);
+                    result
+                } else {
+                    core.write(register, &Checked(words)).await
+                };
+                let _ = done.send(result);
+            }
+            Job::Run {
+                device,
+                command,
+                register,
+                done,
+            } => {
+                let core = &mut self.devices[device].core;
+                let result =
+                    match optobus_driver::encode_integer(register, i64::from(command.value)) {
+                        Ok(words) => core.write(register, &Checked(words)).await,
+                        Err(error) => Err(error),
+                    };
+                if result.is_err() || command.busy_ms == 0 {
+                    let _ = done.send(result);
+                    return;
+                }
+                // The device is busy: the line serves the others meanwhile, and the caller
+                // hears back when the busy time is over.
+                let busy = Duration::from_millis(u64::from(command.busy_ms));
+                self.schedule.hold(device, Instant::now() + busy);
+                tokio::spawn(async move {
+                    tokio::time::sleep(busy).await;
+                    let _ = done.send(Ok(()));
+                });
+            }
+            Job::Read {
+                device,
+                registers,
+                done,
+            } => {
+                let result = self.devices[device].core.read_group(&registers).await;
+                let _ = done.send(result.map(|readings| handle::values(&registers, &readings)));
             }
         }
     }

@@ -111,6 +111,12 @@ impl Schedule {
         self.polls.len() - 1
     }
 
+    /// Asks nothing of `device` before `until` (it is busy after a command).
+    pub(crate) fn hold(&mut self, device: usize, until: Instant) {
+        let device = &mut self.devices[device];
+        device.not_before = device.not_before.max(until);
+    }
+
     /// The device a poll belongs to.
     pub(crate) fn device_of(&self, poll: usize) -> usize {
         self.polls[poll].device
