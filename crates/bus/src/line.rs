@@ -175,6 +175,7 @@ impl LineTask {
         let mut reopen_at = clock.instant;
         let mut reopen_wait = FIRST_BACKOFF;
         let mut gateway_turn = true;
+        let mut was_open = true;
         loop {
             let now = Instant::now();
             if now >= next_stats {
@@ -190,6 +191,11 @@ impl LineTask {
                     reopen_at = now + reopen_wait;
                     reopen_wait = (reopen_wait * 2).min(MAX_BACKOFF);
                 }
+            }
+            if open != was_open {
+                // Whoever watches the line hears at once that it closed or opened again.
+                self.send_stats(&clock).await;
+                was_open = open;
             }
             let next = if open {
                 self.schedule.next(now)
