@@ -137,7 +137,10 @@ impl Bus {
                     errors,
                 });
                 if line.port == Port::Simulated {
-                    let simulator = Simulator::new(config.device).slave(config.slave);
+                    let mut simulator = Simulator::new(config.device).slave(config.slave);
+                    if let Some(faults) = config.faults.clone() {
+                        simulator = simulator.faults(faults.client_timeout(config.timeout));
+                    }
                     line_simulators.push(simulator.clone());
                     simulators.push((config.name.clone(), simulator));
                 }

@@ -77,8 +77,16 @@ devices:
     until(&mut events, &mut counts, closed("usb")).await;
     counts.clear();
     // While it is gone the other line goes on, and nothing comes from the head.
-    until(&mut events, &mut counts, |event| matches!(event, Event::Line(stats) if &*stats.line == "usb")).await;
-    assert!(counts.get("confocal").copied().unwrap_or(0) > 0, "{counts:?}");
+    until(
+        &mut events,
+        &mut counts,
+        |event| matches!(event, Event::Line(stats) if &*stats.line == "usb"),
+    )
+    .await;
+    assert!(
+        counts.get("confocal").copied().unwrap_or(0) > 0,
+        "{counts:?}"
+    );
     assert_eq!(counts.get("head"), None, "{counts:?}");
 
     // Plugged in again (a new terminal behind the same name): the head is read again.

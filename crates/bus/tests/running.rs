@@ -32,17 +32,17 @@ devices:
   - name: top
     model: p-series
     slave: 1
-    timeout: 50ms
+    timeout: 200ms
     poll: [{ read: [light_power, measurements] }]
   - name: bottom
     model: p-series
     slave: 2
-    timeout: 50ms
+    timeout: 200ms
     poll: [{ read: [light_power, measurements] }]
   - name: confocal
     model: ccs
     slave: 3
-    timeout: 50ms
+    timeout: 200ms
     poll: [{ read: measurements, every: 20ms }]
 ";
 
@@ -147,5 +147,65 @@ async fn line_statistics_count_transactions_and_busy_time() {
             assert!(utilisation > 0.0 && utilisation <= 1.0, "{utilisation}");
             break;
         }
+    }
+}
+
+#[tokio::test]
+async fn a_garbling_a_slow_and_a_dead_device_never_yield_a_wrong_sample() {
+    let text = "
+lines:
+  - { name: rs485, simulated: true, baud: 115200, any_format: true }
+devices:
+  - { name: good, model: p-series, slave: 1, timeout: 100ms, poll: [{ read: light_power }] }
+  - { name: garbling, model: p-series, slave: 2, timeout: 100ms, faults: 'corrupt=0.1,truncate=0.05,wrong_slave=0.05,garbage=0.05,seed=3', poll: [{ read: light_power }] }
+  - { name: slow, model: p-series, slave: 3, timeout: 100ms, faults: 'delay=0.2,seed=5', poll: [{ read: light_power }] }
+  - { name: dead, model: p-series, slave: 4, timeout: 100ms, faults: 'drop=1', poll: [{ read: light_power }] }
+";
+    let bus = Bus::new(file(text));
+    let mut events = bus.subscribe();
+    let running = bus.start().expect("starts");
+    for (index, name) in ["good", "garbling", "slow", "dead"].iter().enumerate() {
+        let words = [100 + 10 * index as u16];
+        running
+            .simulator(name)
+            .unwrap()
+            .set("light_power", &words)
+            .unwrap();
+    }
+    let mut samples: HashMap<String, usize> = HashMap::new();
+    let mut dead_offline = false;
+    let enough = |samples: &HashMap<String, usize>| {
+        ["good", "garbling", "slow"]
+            .iter()
+            .all(|d| samples.get(*d).copied().unwrap_or(0) >= 20)
+    };
+    while !dead_offline || !enough(&samples) {
+        match next(&mut events).await {
+            Event::Sample(sample) => {
+                let device = sample.source.device.to_string();
+                let state = running
+                    .simulator(&device)
+                    .unwrap()
+                    .register("light_power")
+                    .unwrap();
+                assert_eq!(
+                    sample.value,
+                    decode_value(state.info, &state.words),
+                    "{device}: a sample that is not the device's value"
+                );
+                *samples.entry(device).or_default() += 1;
+            }
+            Event::Health(health) if &*health.source.device == "dead" => {
+                dead_offline = health.health == Health::Offline;
+            }
+            _ => {}
+        }
+    }
+    assert_eq!(samples.get("dead"), None);
+    for device in ["good", "garbling", "slow"] {
+        assert!(
+            samples.get(device).copied().unwrap_or(0) > 0,
+            "{device}: {samples:?}"
+        );
     }
 }

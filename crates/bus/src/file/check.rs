@@ -79,6 +79,20 @@ pub(super) fn check(parsed: &mut Parsed) -> Vec<Diagnostic> {
         &mut problems,
     );
     formats(file, places, &mut problems);
+    for (device, place) in file.devices.iter().zip(&places.devices) {
+        let line = &file.lines[device.line];
+        if let (Some(span), false) = (place.faults, line.port == Port::Simulated) {
+            problems.push(Diagnostic::at_span(
+                "faults-off-simulation",
+                span,
+                format!(
+                    "`faults` are injected by a simulator: line `{}` is real",
+                    line.name
+                ),
+                "give `faults` to devices on a `simulated: true` line",
+            ));
+        }
+    }
     problems
 }
 

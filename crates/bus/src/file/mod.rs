@@ -116,6 +116,8 @@ pub struct DeviceConfig {
     pub power_up: Duration,
     /// What to read, and how often.
     pub polls: Vec<PollConfig>,
+    /// On a simulated line: seeded faults in the simulated device's replies.
+    pub faults: Option<optobus_simulator::Faults>,
 }
 
 /// A set of registers read together, periodically or as fast as the line allows.

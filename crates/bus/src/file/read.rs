@@ -51,6 +51,7 @@ const DEVICE_KEYS: &[&str] = &[
     "silence_after",
     "power_up",
     "poll",
+    "faults",
 ];
 const POLL_KEYS: &[&str] = &["read", "every", "priority"];
 const TOP_KEYS: &[&str] = &["lines", "devices", "outputs"];
@@ -84,6 +85,7 @@ pub(super) struct LinePlaces {
 pub(super) struct DevicePlaces {
     pub(super) name: Span,
     pub(super) slave: Span,
+    pub(super) faults: Option<Span>,
 }
 
 /// Reads the bus file's tree, collecting every problem.
@@ -663,6 +665,24 @@ impl<'a> Reader<'a> {
             }
             (None, _) => Some(Vec::new()),
         };
+        let faults = match get("faults") {
+            Some(v) => {
+                let text = self.text(v, "`faults`")?;
+                match text.parse::<optobus_simulator::Faults>() {
+                    Ok(faults) => Some(faults),
+                    Err(why) => {
+                        self.error(
+                            v.span,
+                            format!("`faults` {why}"),
+                            "e.g. `drop=0.1,corrupt=0.05,seed=7`",
+                        );
+                        return None;
+                    }
+                }
+            }
+            None => None,
+        };
+        let faults_span = get("faults").map(|v| v.span);
         let (device, model) = model?;
         Some((
             DeviceConfig {
@@ -679,10 +699,12 @@ impl<'a> Reader<'a> {
                 silence_after: silence_after.unwrap_or_default(),
                 power_up: power_up.unwrap_or_default(),
                 polls: polls.unwrap_or_default(),
+                faults,
             },
             DevicePlaces {
                 name: span,
                 slave: slave_node.map_or(span, |n| n.span),
+                faults: faults_span,
             },
         ))
     }
