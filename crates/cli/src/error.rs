@@ -62,6 +62,12 @@ impl CliError {
         self
     }
 
+    /// The error with `prefix` before its message (where the input came from).
+    pub(crate) fn prefixed(mut self, prefix: &str) -> Self {
+        self.error.message.insert_str(0, prefix);
+        self
+    }
+
     pub(crate) fn exit(&self) -> Exit {
         self.exit
     }

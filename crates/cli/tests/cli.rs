@@ -288,8 +288,23 @@ fn simulate_over_tcp_serves_other_clients() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let address = served.at.clone();
     assert!(address.starts_with("127.0.0.1:"), "{address}");
-    ok(&["set", "light_power", "33.3", "--tcp", &address]);
-    let values = json(&["read", "light_power", "--tcp", &address]);
+    ok(&[
+        "--model",
+        "p-series",
+        "set",
+        "light_power",
+        "33.3",
+        "--tcp",
+        &address,
+    ]);
+    let values = json(&[
+        "--model",
+        "p-series",
+        "read",
+        "light_power",
+        "--tcp",
+        &address,
+    ]);
     assert_eq!(values["light_power"]["value"], "33.3");
 }
 
@@ -297,7 +312,8 @@ fn simulate_over_tcp_serves_other_clients() {
 fn scan_finds_the_device_on_a_pty() {
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
     let text = ok(&[
-        "scan", "--serial", &served.at, "--bauds", "115200", "--slaves", "1-4",
+        "--model", "p-series", "scan", "--serial", &served.at, "--bauds", "115200", "--slaves",
+        "1-4",
     ]);
     assert_eq!(text.trim(), "found: slave 3 at 115200 baud");
 }
@@ -305,13 +321,27 @@ fn scan_finds_the_device_on_a_pty() {
 #[test]
 fn connection_errors_are_one_clear_line() {
     // Nothing listens on port 1.
-    let error = fails(&["read", "distance_1", "--tcp", "127.0.0.1:1"]);
+    let error = fails(&[
+        "--model",
+        "p-series",
+        "read",
+        "distance_1",
+        "--tcp",
+        "127.0.0.1:1",
+    ]);
     assert!(
         error.starts_with("optobus: cannot connect to 127.0.0.1:1"),
         "{error}"
     );
     assert_eq!(error.lines().count(), 1, "{error}");
-    let error = fails(&["read", "distance_1", "--serial", "/dev/nonexistent-port"]);
+    let error = fails(&[
+        "--model",
+        "p-series",
+        "read",
+        "distance_1",
+        "--serial",
+        "/dev/nonexistent-port",
+    ]);
     assert!(
         error.contains("cannot open /dev/nonexistent-port"),
         "{error}"
@@ -345,7 +375,15 @@ fn watch_over_tcp_carries_on_after_the_server_restarts() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let address = served.at.clone();
     let watch = common::optobus()
-        .args(["watch", "laser", "--interval", "100ms", "--count", "40"])
+        .args([
+            "--model",
+            "p-series",
+            "watch",
+            "laser",
+            "--interval",
+            "100ms",
+        ])
+        .args(["--count", "40"])
         .args(["--tcp", &address, "--json", "--timeout", "200ms"])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::null())

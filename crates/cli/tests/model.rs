@@ -1,0 +1,71 @@
+//! A register map must fit the device: the model is required off the simulator, `identify`
+//! finds it from each spec's fingerprint, and a reply that does not fit hints at `--model`.
+
+mod common;
+
+use common::{ok, optobus, outcome, refused, words, Served, REFUSED};
+
+/// The built-in models as users type them, in the order the tool lists them.
+const MODELS: &str = "p-series, rangefinder, ccs, lc-rs, ccf";
+
+#[test]
+fn addressing_a_device_without_a_model_is_refused_with_the_list_of_models() {
+    let tcp = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
+    let pty = Served::start(&["p-series", "--pty"]);
+    for (option, at) in [("--tcp", &tcp.at), ("--serial", &pty.at)] {
+        for line in [
+            "read distance_1",
+            "dump",
+            "set light_power 42",
+            "raw read holding 0",
+        ] {
+            let mut args = words(line);
+            args.extend([option, at.as_str()]);
+            let stderr = refused(&args, REFUSED, &format!("which model is at {option} {at}?"));
+            assert!(stderr.contains(&format!("--model ({MODELS})")), "{stderr}");
+            assert!(stderr.contains("OPTOBUS_MODEL"), "{stderr}");
+            assert!(stderr.contains("optobus identify"), "{stderr}");
+        }
+        // --model, --spec or the user's default say which map to read with.
+        let values = common::json(&["--model", "p-series", "read", "laser_enabled", option, at]);
+        assert_eq!(values["laser_enabled"], false);
+        let output = optobus()
+            .env("OPTOBUS_MODEL", "p-series")
+            .args(["read", "laser_enabled", "--json", option, at])
+            .output()
+            .expect("run optobus");
+        assert!(output.status.success(), "{output:?}");
+        let values: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
+        assert_eq!(values["laser_enabled"], false);
+    }
+    // A default that names no model is refused as --model would be, saying where it came from.
+    let output = optobus()
+        .env("OPTOBUS_MODEL", "nosuch")
+        .args(["read", "laser", "--tcp", &tcp.at])
+        .output()
+        .expect("run optobus");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(REFUSED), "{stderr}");
+    assert!(
+        stderr.starts_with("optobus: OPTOBUS_MODEL: unknown model `nosuch`"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn the_built_in_simulator_keeps_its_p_series_default() {
+    let (code, stdout, stderr) = outcome(&["read", "laser_enabled"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(stdout.trim(), "laser_enabled  false");
+    assert!(
+        stderr.contains("using the built-in p-series simulator"),
+        "{stderr}"
+    );
+    // `simulate --tcp` serves rather than reaches a device: the default applies there too.
+    let served = Served::start(&["--tcp", "127.0.0.1:0"]);
+    let text = ok(&words(&format!(
+        "--model p-series read laser_enabled --tcp {}",
+        served.at
+    )));
+    assert_eq!(text.trim(), "laser_enabled  false");
+}
