@@ -122,12 +122,23 @@ pub(crate) fn driver_error(error: optobus_driver::Error, register: Option<&str>)
         error,
         optobus_driver::Error::Transport(WireError::Timeout { .. })
     );
+    // A reply of another shape than the model's (length, byte count, exception frame) is
+    // most often another model's reply.
+    let misfit = matches!(
+        error,
+        optobus_driver::Error::Transport(WireError::Frame(_) | WireError::WordCount { .. })
+    );
     let explained = CliError {
         error: optobus_inspect::Error::new(format!("{error}{subject}")),
         exit: exit_of(&error),
     };
     if timed_out {
         explained.hint("check wiring, --slave, --baud and --parity, or raise --timeout")
+    } else if misfit {
+        explained.hint(
+            "check --model: the reply does not fit this model's framing, `optobus identify` \
+             names the model that answers; then wiring, --baud and --parity",
+        )
     } else {
         explained
     }

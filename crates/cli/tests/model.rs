@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{ok, optobus, outcome, refused, words, Served, REFUSED};
+use common::{ok, optobus, outcome, refused, words, Served, FAILED, REFUSED};
 
 /// The built-in models as users type them, in the order the tool lists them.
 const MODELS: &str = "p-series, rangefinder, ccs, lc-rs, ccf";
@@ -68,4 +68,32 @@ fn the_built_in_simulator_keeps_its_p_series_default() {
         served.at
     )));
     assert_eq!(text.trim(), "laser_enabled  false");
+}
+
+#[test]
+fn a_reply_whose_framing_does_not_fit_the_model_hints_at_model() {
+    // LC-RS answers the P series' FC04 with its own 7-byte exception frame: over Modbus TCP an
+    // MBAP length of 5 where a standard exception has 3.
+    let served = Served::start(&["lc-rs", "--tcp", "127.0.0.1:0"]);
+    let (code, stdout, stderr) = outcome(&words(&format!(
+        "--model p-series read measurements --tcp {}",
+        served.at
+    )));
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    assert!(stdout.is_empty(), "no value: {stdout}");
+    assert!(
+        stderr.starts_with("optobus: malformed reply: MBAP length 5, expected 3"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("(check --model:"), "{stderr}");
+    assert!(stderr.contains("`optobus identify`"), "{stderr}");
+    // The same over RTU: the 7-byte exception does not decode as a standard one.
+    let served = Served::start(&["lc-rs", "--pty"]);
+    let (code, _, stderr) = outcome(&words(&format!(
+        "--model p-series read measurements --timeout 200ms --serial {}",
+        served.at
+    )));
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    assert!(stderr.contains("malformed reply"), "{stderr}");
+    assert!(stderr.contains("(check --model:"), "{stderr}");
 }
