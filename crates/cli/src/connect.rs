@@ -3,6 +3,7 @@
 
 use clap::Args;
 use optobus_device::{DeviceInfo, RegisterInfo};
+use optobus_driver::identify::{identify, ConnectAs, Identification};
 use optobus_driver::Core;
 use optobus_inspect::{decode_value, Value};
 
@@ -240,6 +241,45 @@ impl Global {
     ) -> Result<Core<Link>, CliError> {
         let link = link::open(device, slave, &self.target).await?;
         Core::new(link, slave, device).map_err(CliError::from)
+    }
+}
+
+/// Links to the device a [`Target`] addresses, framed for each candidate model.
+struct LinksAs<'a>(&'a Target);
+
+impl ConnectAs for LinksAs<'_> {
+    type Link = Link;
+    type Error = CliError;
+
+    async fn connect_as(&mut self, model: &'static DeviceInfo) -> Result<Link, CliError> {
+        link::open(model, model.default_slave, self.0).await
+    }
+}
+
+impl Global {
+    /// The models `identify` and `scan` try: the one `--model` names, or every built-in one;
+    /// and the `--spec` model, first.
+    pub(crate) fn candidates(&self) -> Result<Vec<&'static DeviceInfo>, CliError> {
+        let mut candidates = Vec::new();
+        if let Some(spec) = &self.spec {
+            candidates.push(models::load(spec)?);
+        }
+        match &self.model {
+            Some(name) => candidates.push(models::find(name)?),
+            None => candidates.extend(models::all()),
+        }
+        Ok(candidates)
+    }
+
+    /// Which of the candidates the device `target` addresses is, asked at `slave` or each
+    /// candidate's factory slave.
+    pub(crate) async fn identify(
+        &self,
+        target: &Target,
+        slave: Option<u8>,
+    ) -> Result<Identification, CliError> {
+        let candidates = self.candidates()?;
+        identify(&mut LinksAs(target), &candidates, slave).await
     }
 }
 

@@ -11,6 +11,8 @@
 //! - [`Decode`] and [`Encode`] turn words into typed values and back; every write is
 //!   validated (range, defined codes, fits its bits, exactly representable) before a byte is
 //!   sent.
+//! - [`identify`] finds which model a device is, from each candidate spec's fingerprint
+//!   (its registers, its table bounds, its stored settings), with read-only requests.
 //! - [`units`] holds the exact fixed-point quantities readings come in (`Millimetres`, …).
 //!
 //! Register reads and writes are `tracing` events at DEBUG, target `optobus_driver` (register
@@ -29,6 +31,7 @@ mod connect;
 mod convert;
 mod core;
 mod error;
+pub mod identify;
 mod plan;
 #[cfg(feature = "serde")]
 pub mod shapes;
