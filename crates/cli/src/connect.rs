@@ -257,17 +257,14 @@ impl ConnectAs for LinksAs<'_> {
 }
 
 impl Global {
-    /// The models `identify` and `scan` try: the one `--model` names, or every built-in one;
-    /// and the `--spec` model, first.
+    /// The models `identify` and `scan` try: the `--spec` model, then every built-in one (all
+    /// of them, so that no request reads where one of them changes the device by a read).
     pub(crate) fn candidates(&self) -> Result<Vec<&'static DeviceInfo>, CliError> {
         let mut candidates = Vec::new();
         if let Some(spec) = &self.spec {
             candidates.push(models::load(spec)?);
         }
-        match &self.model {
-            Some(name) => candidates.push(models::find(name)?),
-            None => candidates.extend(models::all()),
-        }
+        candidates.extend(models::all());
         Ok(candidates)
     }
 

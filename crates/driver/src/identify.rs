@@ -17,6 +17,11 @@
 //!   must be one the device accepts (the one value check, [`RegisterInfo::check`]): the
 //!   manuals' devices refuse an invalid write and keep the old value, so they never hold one.
 //!
+//! No request touches an address where any candidate has a register whose read changes the
+//! device (`read_side_effect`: the P series' buffer page): reading as one model must not turn
+//! another model's buffer. Such registers are left out, a request that would bridge them is
+//! split, and a past-the-table probe moves on to the next address clear of them.
+//!
 //! A candidate fits when something it defines answered and nothing ruled it out. A device of
 //! a model that is not among the candidates must fit none of them: [`Verdict::None`], never a
 //! wrong model.
@@ -128,6 +133,13 @@ impl fmt::Display for Exception {
 }
 
 impl Finding {
+    /// Whether the finding shows beyond doubt that the device is not the candidate: an
+    /// exception to a register it defines, or an answer past its table. (A missing or
+    /// misfit reply may be noise; a setting out of range may be a manual's error.)
+    pub fn excludes(&self) -> bool {
+        matches!(self, Self::Refused { .. } | Self::AnsweredPastTable { .. })
+    }
+
     /// Whether the finding rules the candidate out.
     pub fn rules_out(&self) -> bool {
         matches!(
@@ -174,7 +186,10 @@ impl fmt::Display for Finding {
                 write!(f, "{settings} settings hold values the model accepts")
             }
             Self::Implausible { register, raw, why } => {
-                write!(f, "`{register}` holds {raw}, which the model refuses: {why}")
+                write!(
+                    f,
+                    "`{register}` holds {raw}, which the model refuses: {why}"
+                )
             }
             Self::RefusedPastTable { span, code } if span.address == 0 => write!(
                 f,
@@ -207,8 +222,8 @@ pub struct Evidence {
     pub model: &'static DeviceInfo,
     /// The slave address it was asked at.
     pub slave: u8,
-    /// What was learnt, in the order it was asked; probing stops at the first finding that
-    /// rules the candidate out.
+    /// What was learnt, in the order it was asked; probing stops at an exception, a reply
+    /// that does not fit or an answer past the table.
     pub findings: Vec<Finding>,
 }
 
@@ -261,25 +276,77 @@ impl Identification {
 }
 
 /// Asks the device, as each of `candidates` would be asked, at `slave` or each candidate's
-/// factory slave, and gives the evidence. Only read-only requests are sent (FC03, FC04), never
-/// a read whose read changes the device.
+/// factory slave, and gives the evidence, in the order of `candidates`. Only read-only
+/// requests are sent (FC03, FC04), and none to an address where a candidate has a register
+/// whose read changes the device, until the device is shown not to be that candidate: give
+/// every model you know as a candidate.
 pub async fn identify<C: ConnectAs>(
     connect: &mut C,
     candidates: &[&'static DeviceInfo],
     slave: Option<u8>,
 ) -> Result<Identification, C::Error> {
-    let mut found = Vec::with_capacity(candidates.len());
-    for &model in candidates {
+    // Candidates with such registers first, so that their addresses are freed as soon as the
+    // device has shown it is none of them.
+    let mut order: Vec<usize> = (0..candidates.len()).collect();
+    order.sort_by_key(|&i| Avoid::of(candidates[i]).0.is_empty());
+    let mut excluded: Vec<&'static str> = Vec::new();
+    let mut found: Vec<Option<Evidence>> = vec![None; candidates.len()];
+    for i in order {
+        let model = candidates[i];
+        let avoid = Avoid(
+            candidates
+                .iter()
+                .filter(|m| !excluded.contains(&m.family))
+                .flat_map(|m| Avoid::of(m).0)
+                .collect(),
+        );
         let slave = slave.unwrap_or(model.default_slave);
         let mut link = connect.connect_as(model).await?;
-        let findings = probe(&mut link, model, slave).await;
-        found.push(Evidence {
+        let findings = probe(&mut link, model, slave, &avoid).await;
+        if findings.iter().any(Finding::excludes) {
+            excluded.push(model.family);
+        }
+        found[i] = Some(Evidence {
             model,
             slave,
             findings,
         });
     }
-    Ok(Identification { candidates: found })
+    Ok(Identification {
+        candidates: found.into_iter().flatten().collect(),
+    })
+}
+
+/// The addresses no request may touch: where a candidate has a register whose read changes
+/// the device (table, first address, end).
+struct Avoid(Vec<(Table, u32, u32)>);
+
+impl Avoid {
+    /// The registers of `model` whose read changes the device.
+    fn of(model: &DeviceInfo) -> Self {
+        let registers = model.registers.iter().filter(|r| !r.read_is_repeatable());
+        Self(
+            registers
+                .map(|r| {
+                    let start = u32::from(r.address);
+                    (r.table, start, start + u32::from(r.words))
+                })
+                .collect(),
+        )
+    }
+
+    /// Whether `count` words from `address` of `table` touch such an address.
+    fn touches(&self, table: Table, address: u16, count: u16) -> bool {
+        let (start, end) = (u32::from(address), u32::from(address) + u32::from(count));
+        self.0
+            .iter()
+            .any(|&(t, from, to)| t == table && from < end && start < to)
+    }
+
+    /// The first address at or after `address` of `table` that touches none.
+    fn clear_from(&self, table: Table, address: u16) -> Option<u16> {
+        (address..=u16::MAX).find(|&a| !self.touches(table, a, 1))
+    }
 }
 
 /// What `read` answers, as a finding: `answered` for words, `refused` for an exception.
@@ -300,15 +367,37 @@ async fn ask<T: Transport>(
 }
 
 /// The findings about `model`, up to the first that rules it out.
-async fn probe<T: Transport>(link: &mut T, model: &'static DeviceInfo, slave: u8) -> Vec<Finding> {
+async fn probe<T: Transport>(
+    link: &mut T,
+    model: &'static DeviceInfo,
+    slave: u8,
+    avoid: &Avoid,
+) -> Vec<Finding> {
     let mut findings = Vec::new();
-    let registers: Vec<&RegisterInfo> = model.dump_registers().collect();
-    let mut settings = 0;
+    let registers: Vec<&RegisterInfo> = model
+        .dump_registers()
+        .filter(|r| !avoid.touches(r.table, r.address, r.words))
+        .collect();
+    let mut spans = Vec::new();
     for span in plan_reads(model, &registers) {
-        // A dump plan never covers such a register; checked again, as nothing may change.
-        if !span.is_repeatable(model) {
+        if !avoid.touches(span.table, span.address, span.count) {
+            spans.push(span);
             continue;
         }
+        // The span bridges an address to avoid: its registers one by one.
+        spans.extend(
+            registers
+                .iter()
+                .filter(|r| span.offset_of(r, model.addressing).is_some())
+                .map(|r| ReadSpan {
+                    table: r.table,
+                    address: r.address,
+                    count: r.words,
+                }),
+        );
+    }
+    let mut settings = 0;
+    for span in spans {
         let words = match ask(link, slave, span).await {
             Ok(words) => words,
             Err(Ok(code)) => {
@@ -327,24 +416,34 @@ async fn probe<T: Transport>(link: &mut T, model: &'static DeviceInfo, slave: u8
                 continue;
             };
             let raw = register.raw(words.get(offset..).unwrap_or_default());
-            if let Err(why) = register.check(raw) {
-                findings.push(Finding::Implausible {
-                    register: register.name,
-                    raw,
-                    why,
-                });
-                return findings;
+            match register.check(raw) {
+                Ok(()) => settings += 1,
+                // The first is evidence enough; the probe goes on for a finding that excludes.
+                Err(why)
+                    if !findings
+                        .iter()
+                        .any(|f| matches!(f, Finding::Implausible { .. })) =>
+                {
+                    findings.push(Finding::Implausible {
+                        register: register.name,
+                        raw,
+                        why,
+                    });
+                }
+                Err(_) => {}
             }
-            settings += 1;
         }
     }
     if settings > 0 {
         findings.push(Finding::Plausible { settings });
     }
     for table in [Table::Holding, Table::Input] {
+        let Some(address) = avoid.clear_from(table, model.table_size(table)) else {
+            continue;
+        };
         let span = ReadSpan {
             table,
-            address: model.table_size(table),
+            address,
             count: 1,
         };
         match ask(link, slave, span).await {
@@ -377,5 +476,9 @@ fn is_setting(model: &DeviceInfo, register: &RegisterInfo) -> bool {
         .commands
         .iter()
         .any(|c| c.register == register.name || register.member_name() == Some(c.register));
-    register.access.writable() && register.readable() && register.words <= 2 && checkable && !commanded
+    register.access.writable()
+        && register.readable()
+        && register.words <= 2
+        && checkable
+        && !commanded
 }

@@ -11,9 +11,17 @@ use crate::render::{pretty, print};
 
 pub(crate) async fn run(global: &Global) -> Result<(), CliError> {
     let Some(addressed) = global.target.addressed() else {
-        return Err(CliError::new("identify asks a real device: give --tcp or --serial")
-            .hint("the built-in simulator is the model you name"));
+        return Err(
+            CliError::new("identify asks a real device: give --tcp or --serial")
+                .hint("the built-in simulator is the model you name"),
+        );
     };
+    if let Some(model) = &global.model {
+        return Err(CliError::new(format!(
+            "identify tries every model; --model {model} would only be believed"
+        ))
+        .hint("leave out --model; --spec FILE adds a model of your own"));
+    }
     if global.slave == Some(0) {
         return Err(CliError::new(
             "`identify` needs replies, and no device answers slave 0, the broadcast address",
