@@ -97,3 +97,95 @@ fn a_reply_whose_framing_does_not_fit_the_model_hints_at_model() {
     assert!(stderr.contains("malformed reply"), "{stderr}");
     assert!(stderr.contains("(check --model:"), "{stderr}");
 }
+
+/// `optobus identify` with `args` against `served`: exit code, stdout, stderr.
+fn identify(args: &str) -> (Option<i32>, String, String) {
+    outcome(&words(&format!("identify --timeout 200ms {args}")))
+}
+
+#[test]
+fn identify_names_the_model_over_tcp_and_rtu_with_the_evidence() {
+    // Over Modbus TCP: every model is asked; only the CCF fits.
+    let served = Served::start(&["ccf", "--tcp", "127.0.0.1:0"]);
+    let (code, stdout, stderr) = identify(&format!("--tcp {}", served.at));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stdout.starts_with("model: ccf\n"), "{stdout}");
+    assert!(stdout.contains("\nccf (slave 1): fits\n"), "{stdout}");
+    for other in ["p-series", "rangefinder", "ccs", "lc-rs"] {
+        assert!(stdout.contains(&format!("\n{other} (slave ")), "{stdout}");
+    }
+    assert_eq!(stdout.matches("): ruled out\n").count(), 4, "{stdout}");
+    // The CCS reads past its 40 input registers, where a CCF answers.
+    assert!(
+        stdout.contains("- input 0x0028 (40) lies past the table, yet answered"),
+        "{stdout}"
+    );
+    // JSON: the model, and the evidence per candidate.
+    let (code, stdout, _) = identify(&format!("--tcp {} --json", served.at));
+    assert_eq!(code, Some(0));
+    let found: serde_json::Value = serde_json::from_str(&stdout).expect("JSON");
+    assert_eq!(found["model"], "ccf");
+    assert_eq!(found["fitting"], serde_json::json!(["ccf"]));
+    let candidates = found["candidates"].as_array().expect("candidates");
+    assert_eq!(candidates.len(), 5);
+    let ccs = &candidates[2];
+    assert_eq!(ccs["model"], "ccs");
+    assert_eq!(ccs["fits"], false);
+    assert!(ccs["evidence"]
+        .as_array()
+        .expect("evidence")
+        .iter()
+        .any(|f| f["rules_out"] == true));
+
+    // Over RTU on a pty: the rangefinder at its own factory slave, 25; LC-RS with its
+    // counted-word exception frames.
+    for (model, slave) in [("rangefinder", 25), ("lc-rs", 1)] {
+        let served = Served::start(&[model, "--pty"]);
+        let (code, stdout, stderr) = identify(&format!("--serial {}", served.at));
+        assert_eq!(code, Some(0), "{stderr}");
+        assert!(stdout.starts_with(&format!("model: {model}\n")), "{stdout}");
+        assert!(
+            stdout.contains(&format!("\n{model} (slave {slave}): fits\n")),
+            "{stdout}"
+        );
+    }
+    let served = Served::start(&["lc-rs", "--pty"]);
+    let (_, stdout, _) = identify(&format!("--serial {}", served.at));
+    assert!(
+        stdout.contains("past the table and was refused (0x0001 (register_address_error))"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn identify_names_a_spec_model_and_never_a_wrong_one() {
+    let spec = concat!(env!("CARGO_MANIFEST_DIR"), "/../../specs/trials/sgf.yaml");
+    let served = Served::start(&["--spec", spec, "--tcp", "127.0.0.1:0"]);
+    // With its spec among the candidates: that model.
+    let (code, stdout, stderr) = identify(&format!("--spec {spec} --tcp {}", served.at));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stdout.starts_with("model: sgf\n"), "{stdout}");
+    // Without it: none of the built-in models, each ruled out by evidence of its own.
+    let (code, stdout, stderr) = identify(&format!("--tcp {}", served.at));
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    assert!(stdout.starts_with("model: no model fits\n"), "{stdout}");
+    assert_eq!(stdout.matches("): ruled out\n").count(), 5, "{stdout}");
+    assert!(
+        stderr.starts_with(&format!(
+            "optobus: no model fits the device at --tcp {}",
+            served.at
+        )),
+        "{stderr}"
+    );
+    // identify asks a device and believes no model given to it.
+    refused(
+        &words("identify"),
+        REFUSED,
+        "identify asks a real device: give --tcp or --serial",
+    );
+    refused(
+        &words(&format!("--model ccf identify --tcp {}", served.at)),
+        REFUSED,
+        "identify tries every model",
+    );
+}

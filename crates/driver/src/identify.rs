@@ -29,7 +29,7 @@
 use std::fmt;
 use std::future::Future;
 
-use optobus_device::{DeviceInfo, Invalid, RegisterInfo, Table, ValueKind};
+use optobus_device::{DeviceInfo, ExceptionShape, Invalid, RegisterInfo, Table, ValueKind};
 use optobus_transport::{Error as WireError, ExceptionCode, ReadRequest, Transport};
 
 use crate::plan::{plan_reads, ReadSpan};
@@ -110,6 +110,8 @@ pub struct Exception {
     pub code: ExceptionCode,
     /// Its name in the candidate's spec.
     pub name: Option<&'static str>,
+    /// The candidate sends 16-bit codes (LC-RS), shown as `0x0001`, not `01`.
+    pub wide: bool,
 }
 
 impl Exception {
@@ -119,14 +121,16 @@ impl Exception {
             .iter()
             .find(|c| c.code == u32::from(code.0))
             .map(|c| c.name);
-        Self { code, name }
+        let wide = model.frame_shape.exception == ExceptionShape::CountedWord;
+        Self { code, name, wide }
     }
 }
 
 impl fmt::Display for Exception {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.name {
-            Some(name) => write!(f, "{:#06X} ({name})", self.code.0),
+            Some(name) if self.wide => write!(f, "{:#06X} ({name})", self.code.0),
+            Some(name) => write!(f, "{:02X} ({name})", self.code.0),
             None => self.code.fmt(f),
         }
     }

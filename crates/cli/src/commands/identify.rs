@@ -13,7 +13,7 @@ pub(crate) async fn run(global: &Global) -> Result<(), CliError> {
     let Some(addressed) = global.target.addressed() else {
         return Err(
             CliError::new("identify asks a real device: give --tcp or --serial")
-                .hint("the built-in simulator is the model you name"),
+                .hint("`optobus simulate MODEL` serves a simulator to try it on"),
         );
     };
     if let Some(model) = &global.model {
