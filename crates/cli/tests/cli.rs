@@ -315,7 +315,7 @@ fn scan_finds_the_device_on_a_pty() {
         "--model", "p-series", "scan", "--serial", &served.at, "--bauds", "115200", "--slaves",
         "1-4",
     ]);
-    assert_eq!(text.trim(), "found: slave 3 at 115200 baud");
+    assert_eq!(text.trim(), "found: slave 3 at 115200 baud: p-series");
 }
 
 #[test]

@@ -245,7 +245,10 @@ fn scan_json_is_json_only_and_stops_at_the_first_device() {
     let (code, stdout, stderr) = scan(&[]);
     assert_eq!(code, Some(0), "{stderr}");
     let found: serde_json::Value = serde_json::from_str(&stdout).expect("stdout is JSON only");
-    assert_eq!(found, serde_json::json!([{"baud": 115200, "slave": 3}]));
+    assert_eq!(
+        found,
+        serde_json::json!([{"baud": 115200, "slave": 3, "model": "p-series"}])
+    );
     assert!(stderr.contains("found: slave 3 at 115200 baud"), "{stderr}");
     // Slave 2 and 3 were asked, 4 and 5 not.
     assert!(stderr.contains(" -> 02 03"), "{stderr}");
@@ -255,7 +258,10 @@ fn scan_json_is_json_only_and_stops_at_the_first_device() {
     let (code, stdout, stderr) = scan(&["--all"]);
     assert_eq!(code, Some(0), "{stderr}");
     let found: serde_json::Value = serde_json::from_str(&stdout).expect("stdout is JSON only");
-    assert_eq!(found, serde_json::json!([{"baud": 115200, "slave": 3}]));
+    assert_eq!(
+        found,
+        serde_json::json!([{"baud": 115200, "slave": 3, "model": "p-series"}])
+    );
     assert!(stderr.contains(" -> 05 03"), "{stderr}");
 }
 

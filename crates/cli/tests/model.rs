@@ -189,3 +189,23 @@ fn identify_names_a_spec_model_and_never_a_wrong_one() {
         "identify tries every model",
     );
 }
+
+#[test]
+fn scan_reports_the_model_it_found() {
+    // The scan's own --model gives the lists to try; what answers is identified on its own.
+    let served = Served::start(&["ccf", "--pty", "--slave", "2"]);
+    let line = format!(
+        "--model p-series scan --serial {} --bauds 115200 --slaves 1-3 --timeout 200ms",
+        served.at
+    );
+    let (code, stdout, stderr) = outcome(&words(&line));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(stdout.trim(), "found: slave 2 at 115200 baud: ccf");
+    let (code, stdout, stderr) = outcome(&words(&format!("{line} --json")));
+    assert_eq!(code, Some(0), "{stderr}");
+    let found: serde_json::Value = serde_json::from_str(&stdout).expect("JSON only");
+    assert_eq!(
+        found,
+        serde_json::json!([{"baud": 115200, "slave": 2, "model": "ccf"}])
+    );
+}
