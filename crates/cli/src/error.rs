@@ -15,7 +15,7 @@ pub(crate) enum Exit {
     /// The command line is malformed (clap's own code for usage errors).
     Usage = 2,
     /// Refused before anything was sent: an unknown name, a value out of range, a missing
-    /// `--yes`.
+    /// `--yes`, no model named for a real device.
     Refused = 3,
 }
 
@@ -29,7 +29,7 @@ impl Exit {
 pub(crate) const EXIT_CODES: &str =
     "Exit codes: 0 done; 1 the device, the line or the system failed \
 (timeout, exception, bad reply, port or address unreachable); 2 usage error; 3 refused before \
-anything was sent (unknown name, value out of range, missing --yes).";
+anything was sent (unknown name, value out of range, missing --yes, no model for a device).";
 
 /// A failure the user sees as one line on stderr (with a hint in parentheses where one helps)
 /// and the exit code of its kind.
