@@ -1,7 +1,7 @@
 //! `optobus identify`: which model the device at --tcp or --serial is, from each spec's
 //! fingerprint (`optobus_driver::identify`), with the evidence per model.
 
-use optobus_driver::identify::{Identification, Verdict};
+use optobus_driver::identify::{Finding, Identification, Verdict};
 use serde_json::{json, Value as Json};
 
 use crate::connect::Global;
@@ -54,12 +54,29 @@ fn text(found: &Identification, verdict: &Verdict) -> String {
             models::name(evidence.model),
             evidence.slave
         ));
-        for finding in &evidence.findings {
+        let mut findings = evidence.findings.iter().peekable();
+        while let Some(finding) = findings.next() {
             let sign = if finding.rules_out() { '-' } else { '+' };
-            out.push_str(&format!("  {sign} {finding}\n"));
+            // Requests that answered one after another, on one line.
+            let mut answered = 1;
+            while is_answer(finding) && findings.next_if(|f| is_answer(f)).is_some() {
+                answered += 1;
+            }
+            if answered > 1 {
+                out.push_str(&format!(
+                    "  + {finding}, and {} requests after it\n",
+                    answered - 1
+                ));
+            } else {
+                out.push_str(&format!("  {sign} {finding}\n"));
+            }
         }
     }
     out
+}
+
+fn is_answer(finding: &Finding) -> bool {
+    matches!(finding, Finding::Answered { .. })
 }
 
 fn as_json(found: &Identification, verdict: &Verdict) -> Json {
