@@ -9,7 +9,7 @@ use optobus_driver::transport::{
 };
 use optobus_driver::{Core, DownloadProgress, Error, Fixed};
 use optobus_p_series::{MeasurementSource, DEVICE};
-use optobus_simulator::Simulator;
+use optobus_simulator::{BufferReadCount, Quirks, Simulator};
 use optobus_tests::{e2e, specs};
 
 /// Passes requests on and keeps what went by: the writes (address, value) and the reads that
@@ -232,4 +232,74 @@ async fn a_device_without_a_buffer_is_refused_without_a_request() {
         .unwrap_err();
     assert!(error.to_string().contains("no such buffer"), "{error}");
     assert_eq!(core.transport_mut().requests(), 0);
+}
+
+/// A P-series simulator that reads the manual's buffer read count (appendix 3 (3)) the
+/// other way: the values handed out before this page.
+fn counting_before_the_page(sim: &Simulator) -> Quirks {
+    Quirks {
+        buffer_read_count: BufferReadCount::BeforePage,
+        ..sim.current_quirks()
+    }
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_device_counting_before_the_page_downloads_in_full() {
+    let sim = Simulator::new(&DEVICE).sentinel_every(0);
+    sim.set_quirks(counting_before_the_page(&sim));
+    let mut core = watched_core(&sim);
+    core.start_buffering(Some(&MeasurementSource::Distance1), 130)
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    // Page 2 as this device shows it: 60 handed out before it, 60 valid.
+    let read_count = DEVICE.register("buffer_read_count").unwrap();
+    let mut counts = Vec::new();
+    let values: Vec<Option<Fixed>> = core
+        .download_buffer(|_| counts.push(sim.peek(read_count.table, read_count.address)))
+        .await
+        .unwrap();
+    assert_eq!(
+        counts,
+        [Some(vec![0]), Some(vec![60]), Some(vec![120])],
+        "the device reports the count before each page"
+    );
+    assert_eq!(values.len(), 130);
+    assert_eq!(core.transport_mut().page_reads, 3);
+    // The same values as a device counting the page in: the buffered distance 1 of the
+    // first 130 sampling intervals, which the simulator computes alike for both readings.
+    let reference = Simulator::new(&DEVICE).sentinel_every(0);
+    let mut plain = watched_core(&reference);
+    plain
+        .start_buffering(Some(&MeasurementSource::Distance1), 130)
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let expected: Vec<Option<Fixed>> = plain.download_buffer(|_| {}).await.unwrap();
+    assert!(values.iter().all(|v| v.is_some()));
+    assert_eq!(values, expected);
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_device_switching_its_count_reading_mid_download_is_out_of_step() {
+    let sim = Simulator::new(&DEVICE).sentinel_every(0);
+    let mut core = watched_core(&sim);
+    core.start_buffering(Some(&MeasurementSource::Distance1), 300)
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    // Page 1 counts itself in (60), page 2 does not (60 again, where 120 was due).
+    let switched = counting_before_the_page(&sim);
+    let error = core
+        .download_buffer::<Option<Fixed>>(|_| sim.set_quirks(switched))
+        .await
+        .unwrap_err();
+    match error {
+        Error::OutOfStep {
+            received, reported, ..
+        } => assert_eq!((received, reported), (120, 60)),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(core.transport_mut().page_reads, 2, "stopped at page 2");
+    assert_eq!(buffer_locked(&sim), [0], "unlocked after the failure");
 }

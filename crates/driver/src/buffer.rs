@@ -35,6 +35,54 @@ struct Parts {
     values: Vec<&'static RegisterInfo>,
 }
 
+/// What a page's read count counts. The manual (P series appendix 3 (3)) says the count of
+/// values read since the lock reaches the total once all are read, but not whether a reply's
+/// count already includes that reply's own page: a download decides from the first page with
+/// values and holds the device to that reading for the rest.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ReadCount {
+    /// The values handed out so far, this page included.
+    IncludingPage,
+    /// The values handed out before this page.
+    BeforePage,
+}
+
+impl ReadCount {
+    /// The reading a page's `reported` count agrees with, given the values handed out
+    /// `before` the page and `after` it; `reading` is what earlier pages decided (`None`
+    /// while no page told the two apart). A count that fits neither, or contradicts the
+    /// reading decided before, is [`Error::OutOfStep`]: a page was lost, or the device is
+    /// not counting as it did.
+    fn check(
+        reading: Option<Self>,
+        before: u64,
+        after: u64,
+        reported: u64,
+    ) -> Result<Option<Self>, Error> {
+        let fits = |reading: Self| match reading {
+            Self::IncludingPage => reported == after,
+            Self::BeforePage => reported == before,
+        };
+        let decided = match reading {
+            Some(reading) => fits(reading).then_some(Some(reading)),
+            // A page without values fits both readings and decides nothing.
+            None if before == after => fits(Self::IncludingPage).then_some(None),
+            None => [Self::IncludingPage, Self::BeforePage]
+                .into_iter()
+                .find(|&r| fits(r))
+                .map(Some),
+        };
+        decided.ok_or(Error::OutOfStep {
+            what: "the buffer download",
+            received: match reading {
+                Some(Self::BeforePage) => before,
+                _ => after,
+            },
+            reported,
+        })
+    }
+}
+
 /// Refused: `device` describes no buffer, or one naming items it lacks.
 fn no_buffer(name: &'static str) -> Error {
     Error::NotAllowed {
@@ -128,7 +176,9 @@ impl<T: Transport> Core<T> {
     /// Reading a page turns it, so a page read is never retried, and at most the pages the
     /// count needs are read. Every page's read count (the device's count of values handed
     /// out since the lock) is checked against the values received: a page lost on the way
-    /// fails the download with [`Error::OutOfStep`] instead of returning fewer values.
+    /// fails the download with [`Error::OutOfStep`] instead of returning fewer values. The
+    /// manual leaves open whether that count includes the page it comes with; the first page
+    /// with values decides, and a later page counting the other way is [`Error::OutOfStep`].
     pub async fn download_buffer<V: Decode + fmt::Debug>(
         &mut self,
         mut progress: impl FnMut(DownloadProgress),
@@ -156,6 +206,7 @@ impl<T: Transport> Core<T> {
         let mut values = Vec::with_capacity(expected);
         // Values the device handed out in the pages we received.
         let mut handed_out = 0u64;
+        let mut reading = None;
         // Each page must be read whole, or values are lost; a device that keeps reporting
         // values is stopped after the pages `expected` needs.
         let max_pages = expected.div_ceil(page_values);
@@ -166,14 +217,9 @@ impl<T: Transport> Core<T> {
             let valid_in_page = usize::try_from(valid_count)
                 .unwrap_or(usize::MAX)
                 .min(page_values);
+            let before = handed_out;
             handed_out += valid_in_page as u64;
-            if u64::from(read_count) != handed_out {
-                return Err(Error::OutOfStep {
-                    what: "the buffer download",
-                    received: handed_out,
-                    reported: u64::from(read_count),
-                });
-            }
+            reading = ReadCount::check(reading, before, handed_out, u64::from(read_count))?;
             let valid = valid_in_page.min(expected - values.len());
             values.extend(parts.values[..valid].iter().map(|r| page.get::<V>(r)));
             progress(DownloadProgress {

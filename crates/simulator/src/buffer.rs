@@ -8,7 +8,8 @@
 //! what is buffered (appendix 3 (2)) and restarts the read-out. Every read that covers a
 //! buffered-value register returns the next page: up to a page of values, the valid count of
 //! this page and the total read so far, including this page (appendix 3 (3)-(4), 5.4 (5): 1000
-//! values take 17 reads, the 17th with 40 valid); values past the valid count read as the
+//! values take 17 reads, the 17th with 40 valid; the manual leaves open whether the total
+//! includes this page, [`crate::Quirks::buffer_read_count`] gives it before); values past the valid count read as the
 //! value register's sentinel. A read of the two counts alone does not turn the page. Unlocking
 //! clears the buffer and starts buffering anew; changing the count, the source or the
 //! sampling interval resets the buffer and the lock flag (4.2.2 note 5). Unlocked, the

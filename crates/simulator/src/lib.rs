@@ -132,7 +132,7 @@ pub use line::{Line, LineStats};
 pub use model::Reply;
 #[cfg(unix)]
 pub use pty::Pty;
-pub use quirks::{Quirks, UnreadableReads};
+pub use quirks::{BufferReadCount, Quirks, UnreadableReads};
 pub use rtu::Bus;
 pub use sim::{Exchange, PokeError, RegisterState, Simulator};
 pub use tcp::TcpServer;
