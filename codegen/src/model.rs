@@ -245,7 +245,7 @@ pub struct Reserved {
     pub from: u32,
     /// Last address (inclusive).
     pub to: u32,
-    /// The manual sanctions reading it.
+    /// Reads may cover it (inferred from the manual's table sizes, see `specs/README.md`).
     pub readable: bool,
     /// Where it is declared.
     pub path: Path,

@@ -306,7 +306,7 @@ record! {
         table: Table,
         from: u32,
         to: u32,
-        /// The manual sanctions reading the range.
+        /// Reads may cover the range (an inference the spec cites in `section`).
         readable: bool = default,
         section: Option<String>,
         note: Option<String>,

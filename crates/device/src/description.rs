@@ -375,8 +375,9 @@ pub struct ReservedInfo {
     pub from: u16,
     /// Last address, inclusive.
     pub to: u16,
-    /// The manual sanctions reading it (it lies inside the table the manual says may be
-    /// read): reads answer zeros, and a read plan may ask for it to join two reads in one.
+    /// Reading it is expected to work (inferred: it lies inside the table the manual says may
+    /// be read, and the manual says nothing against it): reads answer zeros, and a read plan
+    /// may ask for it to join two reads in one.
     pub readable: bool,
 }
 
@@ -632,7 +633,7 @@ impl DeviceInfo {
         self.readable_registers().filter(|r| r.read_is_repeatable())
     }
 
-    /// Whether `address` of `table` lies in a reserved range the manual sanctions reading.
+    /// Whether `address` of `table` lies in a reserved range the spec marks readable.
     pub fn reserved_readable(&self, table: Table, address: u16) -> bool {
         self.reserved
             .iter()

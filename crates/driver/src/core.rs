@@ -10,7 +10,8 @@ use optobus_transport::{ReadRequest, Transport};
 
 use crate::convert::{Decode, Encode};
 use crate::error::Error;
-use crate::plan::{plan_reads, plan_write, ReadSpan};
+use crate::memory::DeviceMemory;
+use crate::plan::{plan_write, ReadSpan};
 
 /// The target of the driver's events: register names, words and decoded values at DEBUG.
 pub const TRACE_TARGET: &str = "optobus_driver";
@@ -34,6 +35,8 @@ pub struct Core<T> {
     device: &'static DeviceInfo,
     /// The requests of each declared group read so far (group name, copy), planned once.
     plans: Vec<GroupPlan>,
+    /// What the device has shown about itself (reads it refused).
+    memory: DeviceMemory,
 }
 
 /// The requests that read one of the device's declared groups (or one copy of it).
@@ -41,6 +44,7 @@ pub struct Core<T> {
 struct GroupPlan {
     group: &'static str,
     copy: Option<u8>,
+    registers: Arc<[&'static RegisterInfo]>,
     spans: Arc<[PlannedRead]>,
 }
 
@@ -113,6 +117,7 @@ impl<T: Transport> Core<T> {
             slave: check_slave(slave)?,
             device,
             plans: Vec::new(),
+            memory: DeviceMemory::default(),
         })
     }
 
@@ -123,6 +128,7 @@ impl<T: Transport> Core<T> {
             slave: device.default_slave,
             device,
             plans: Vec::new(),
+            memory: DeviceMemory::default(),
         }
     }
 
@@ -131,10 +137,27 @@ impl<T: Transport> Core<T> {
         self.slave
     }
 
-    /// Sends later requests to another slave address (refused like in [`Core::new`]).
+    /// Sends later requests to another slave address (refused like in [`Core::new`]). What
+    /// was learned about the device at the old address ([`Core::memory`]) is forgotten.
     pub fn set_slave(&mut self, slave: u8) -> Result<(), Error> {
-        self.slave = check_slave(slave)?;
+        let slave = check_slave(slave)?;
+        if slave != self.slave {
+            self.forget(DeviceMemory::default());
+        }
+        self.slave = slave;
         Ok(())
+    }
+
+    /// What the driver has learned about its device from the device's answers (for example
+    /// that it refuses reads crossing reserved ranges), used by every read plan.
+    pub fn memory(&self) -> &DeviceMemory {
+        &self.memory
+    }
+
+    /// Takes `memory` as what is known about the device, and plans groups anew with it.
+    fn forget(&mut self, memory: DeviceMemory) {
+        self.memory = memory;
+        self.plans.clear();
     }
 
     /// The slave address for a request that expects a reply.
@@ -207,7 +230,9 @@ impl<T: Transport> Core<T> {
         Ok(value)
     }
 
-    /// Reads several registers in the fewest requests (see [`plan_reads`]).
+    /// Reads several registers in the fewest requests (see [`crate::plan_reads`]). A device
+    /// that refuses a read crossing a reserved range (exception 02) is read without crossing
+    /// one, at once and from then on ([`DeviceMemory`]).
     pub async fn read_group(
         &mut self,
         registers: &[&'static RegisterInfo],
@@ -215,8 +240,8 @@ impl<T: Transport> Core<T> {
         if let Some(unreadable) = registers.iter().find(|r| !r.readable()) {
             return Err(Error::unreadable(unreadable));
         }
-        let plan = planned(self.device, plan_reads(self.device, registers));
-        self.read_plan(&plan).await
+        let plan = planned(self.device, self.memory.plan_reads(self.device, registers));
+        self.read_plan(registers, &plan).await
     }
 
     /// Reads a group the device declares (every copy of a repeat member it names), in the
@@ -263,29 +288,65 @@ impl<T: Transport> Core<T> {
                 self.plans.push(GroupPlan {
                     group: group.name,
                     copy,
-                    spans: planned(device, plan_reads(device, &registers)),
+                    spans: planned(device, self.memory.plan_reads(device, &registers)),
+                    registers: registers.into(),
                 });
                 self.plans.len() - 1
             }
         };
-        let spans = Arc::clone(&self.plans[index].spans);
-        self.read_plan(&spans).await
+        let plan = &self.plans[index];
+        let (registers, spans) = (Arc::clone(&plan.registers), Arc::clone(&plan.spans));
+        self.read_plan(&registers, &spans).await
     }
 
-    async fn read_plan(&mut self, plan: &[PlannedRead]) -> Result<Readings, Error> {
+    /// Makes the requests of `plan` (planned for `registers`). A request the device refuses
+    /// for crossing a reserved range is replaced by requests that do not, and the group plans
+    /// are made anew for the next reads.
+    async fn read_plan(
+        &mut self,
+        registers: &[&'static RegisterInfo],
+        plan: &[PlannedRead],
+    ) -> Result<Readings, Error> {
         let mut readings = Readings {
             first: None,
             rest: Vec::new(),
             addressing: self.device.addressing,
         };
         for &(span, repeatable) in plan {
-            let words = self
+            let read = self
                 .read_span(span.table, span.address, span.count, repeatable)
-                .await?;
-            if readings.first.is_none() {
-                readings.first = Some((span, words));
-            } else {
-                readings.rest.push((span, words));
+                .await;
+            let mut memory = self.memory;
+            let spans = match read {
+                Ok(words) => vec![(span, words)],
+                Err(error) => match memory.fallback(self.device, registers, &span, &error) {
+                    Some(instead) => {
+                        tracing::debug!(
+                            target: TRACE_TARGET,
+                            table = span.table.as_str(),
+                            address = span.address,
+                            count = span.count,
+                            "the device refused a read crossing a reserved range; reading around it"
+                        );
+                        self.forget(memory);
+                        let mut spans = Vec::with_capacity(instead.len());
+                        for (span, repeatable) in planned(self.device, instead).iter() {
+                            let words = self
+                                .read_span(span.table, span.address, span.count, *repeatable)
+                                .await?;
+                            spans.push((*span, words));
+                        }
+                        spans
+                    }
+                    None => return Err(error),
+                },
+            };
+            for (span, words) in spans {
+                if readings.first.is_none() {
+                    readings.first = Some((span, words));
+                } else {
+                    readings.rest.push((span, words));
+                }
             }
         }
         Ok(readings)

@@ -75,8 +75,10 @@
 //!   values outside a register's `allowed_values`, undefined enum codes and packed fields with
 //!   undefined codes or stray bits, and the register keeps its value (P series/CCS/CCF 4.1.1
 //!   note 2).
-//! - **Reserved ranges marked `readable`** (the manual counts them in the table it allows
-//!   reading: P series, CCS, CCF 4.1.1 note 1 and 4.2.2 note) read as zeros on every device.
+//! - **Reserved ranges marked `readable`** (inferred: the manual counts them in the table it
+//!   allows reading, P series, CCS, CCF 4.1.1 note 1 and 4.2.2 note, and is silent on reading
+//!   them) read as zeros on every device, unless [`Quirks::readable_reserved`] refuses them
+//!   with the illegal-address exception.
 //! - **Other reserved addresses, write-only and action registers** read as zeros, except on
 //!   LC-RS, whose table 2 code 0x0001 "register address error" refuses them (the golden frame
 //!   lc-2.1.3).

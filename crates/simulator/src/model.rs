@@ -345,7 +345,7 @@ impl Device {
                     let cell = self.layout.cell(table, at).ok_or(Fault::Address)?;
                     match cell {
                         Cell::Undefined => return Err(Fault::Address),
-                        // Reading a range the manual sanctions answers zeros on every device.
+                        // A range the spec marks readable answers zeros, unless told to refuse.
                         Cell::Reserved { readable: false } if refuse_unreadable => {
                             return Err(Fault::Address)
                         }

@@ -5,7 +5,7 @@ use optobus_codec::{ExceptionCode, ExceptionShape};
 use optobus_device::DeviceInfo;
 
 /// What a read of an address without a readable register (a reserved range the manual does
-/// not sanction reading, a write-only or action register) answers.
+/// not mark readable, a write-only or action register) answers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum UnreadableReads {
     /// Zeros, as the spec schema says for reserved ranges (P series, CCS, CCF, rangefinder).
