@@ -323,6 +323,8 @@ pub struct Buffer {
     pub values: NameRef,
     /// Enum register whose code meanings are durations.
     pub interval: Option<NameRef>,
+    /// Unsigned integer register: measurements per buffered value (the interval's multiple).
+    pub ratio: Option<NameRef>,
     /// Where it is declared.
     pub path: Path,
 }

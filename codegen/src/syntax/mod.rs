@@ -125,6 +125,7 @@ record! {
         valid_count: String,
         values: String,
         interval: Option<String>,
+        ratio: Option<String>,
         note: Option<String>,
     }
 }

@@ -484,14 +484,18 @@ pub struct BufferInfo {
     pub unlock: &'static str,
     /// Group read once per page; reading it turns the page.
     pub page: &'static str,
-    /// Page member: values handed out since the lock, this page included.
+    /// Page member: values handed out since the lock (this page included, or before it: the
+    /// P series manual leaves it open, appendix 3 (3)).
     pub read_count: &'static str,
     /// Page member: valid values in this page.
     pub valid_count: &'static str,
     /// Repeat member of the page: the page's values, oldest first.
     pub values: &'static str,
-    /// Enum register whose code meanings are the intervals between buffered values.
+    /// Enum register whose code meanings are the sampling intervals.
     pub interval: Option<&'static str>,
+    /// Unsigned integer register: one value in this many is buffered, so values lie
+    /// `interval × ratio` apart (P series appendix 3 (5)); without it, every value.
+    pub ratio: Option<&'static str>,
 }
 
 /// Serial line settings.

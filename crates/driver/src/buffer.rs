@@ -3,8 +3,11 @@
 //! locked, read out a page at a time, and unlocked.
 
 use std::fmt;
+use std::time::Duration;
 
-use optobus_device::{BufferInfo, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo};
+use optobus_device::{
+    parse_duration, BufferInfo, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo,
+};
 use optobus_transport::Transport;
 
 use crate::convert::{Decode, Encode};
@@ -20,6 +23,29 @@ pub struct DownloadProgress {
     pub expected: usize,
     /// Pages read so far.
     pub pages: usize,
+}
+
+/// When a buffer's values were taken: one every sampling interval × sampling ratio (P series
+/// appendix 3 (5): at ratio 10 every 10th measurement is buffered).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BufferTiming {
+    /// The sampling interval: the time between two measurements.
+    pub interval: Duration,
+    /// Measurements per buffered value (1 for a buffer without a ratio register).
+    pub ratio: u32,
+}
+
+impl BufferTiming {
+    /// The time between two buffered values, `interval × ratio`.
+    pub fn period(&self) -> Duration {
+        self.interval.saturating_mul(self.ratio)
+    }
+
+    /// The time of value `index` (0 the oldest) after the oldest.
+    pub fn time_of(&self, index: usize) -> Duration {
+        let index = u32::try_from(index).unwrap_or(u32::MAX);
+        self.period().saturating_mul(index)
+    }
 }
 
 /// A buffer's items, looked up in the device description.
@@ -136,6 +162,52 @@ impl<T: Transport> Core<T> {
     /// The device's data buffer, if its spec describes one.
     pub fn buffer(&self) -> Option<&'static BufferInfo> {
         self.device().buffer
+    }
+
+    /// Reads when the buffer takes its values: the sampling interval register's code (its
+    /// meaning is the duration) and the ratio register, where the buffer names them (`None`
+    /// for a buffer that names no interval). An interval code the spec does not define, or a
+    /// ratio of 0, is [`Error::UndefinedCode`] / [`Error::OutOfRange`]: no time axis is
+    /// better than a wrong one.
+    pub async fn read_buffer_timing(&mut self) -> Result<Option<BufferTiming>, Error> {
+        let device = self.device();
+        let info = device.buffer.ok_or_else(|| no_buffer(""))?;
+        let Some(name) = info.interval else {
+            return Ok(None);
+        };
+        let register = device.register(name).ok_or_else(|| no_buffer(name))?;
+        let code = register.raw(&self.read_words(register).await?);
+        let seconds = register
+            .codes
+            .iter()
+            .find(|c| c.code == code)
+            .and_then(|c| parse_duration(c.meaning))
+            .ok_or(Error::UndefinedCode {
+                register: register.name,
+                field: None,
+                code,
+            })?;
+        // Code meanings are written to the nanosecond at most (`6.25us`).
+        let interval = Duration::from_nanos((seconds * 1e9).round() as u64);
+        let ratio = match info.ratio {
+            None => 1,
+            Some(name) => {
+                let register = device.register(name).ok_or_else(|| no_buffer(name))?;
+                match register.raw(&self.read_words(register).await?) {
+                    0 => {
+                        return Err(Error::OutOfRange {
+                            register: register.name,
+                            raw: 0,
+                            min: 1,
+                            max: i64::from(u32::MAX),
+                            scale: None,
+                        })
+                    }
+                    ratio => ratio,
+                }
+            }
+        };
+        Ok(Some(BufferTiming { interval, ratio }))
     }
 
     /// Starts buffering `count` values of `source` (writes the source register, if the

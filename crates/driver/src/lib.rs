@@ -36,7 +36,7 @@ mod plan;
 pub mod shapes;
 pub mod units;
 
-pub use crate::buffer::DownloadProgress;
+pub use crate::buffer::{BufferTiming, DownloadProgress};
 #[cfg(feature = "tcp")]
 pub use crate::connect::tcp_config;
 pub use crate::connect::{line_format, rtu_config, serial_settings};

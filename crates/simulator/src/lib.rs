@@ -107,8 +107,9 @@
 //! Not modelled: LC-RS continuous-send mode (its stream format is not described), baud rate
 //! and parity changes (a stream has no line speed; a [`Line`] has one fixed format), enable flags of statistics and encoder
 //! counters (they always run), the time code and sample number the P series attaches to its
-//! measurements (no register shows them), the P series' down-sampling (mode and ratio do not
-//! change the sampled readings or the buffering rate, 4.1.2 note 1, appendix 3 (5)), and
+//! measurements (no register shows them), the P series' down-sampling of its sampled readings
+//! (mode and ratio do not change them, 4.1.2 note 1; the ratio does set the buffering rate,
+//! see [`buffer`]), and
 //! power-up silence at creation (only after [`Simulator::power_cycle`]).
 #![forbid(unsafe_code)]
 
