@@ -211,7 +211,7 @@ pub struct Register {
     /// What reading the register changes in the device (a read that turns a buffer page):
     /// such a read is never retried.
     pub read_side_effect: Option<String>,
-    /// Writing it acts and the manual defines no read: it is never read.
+    /// Writing it acts and the manual does not say what a read returns: it is never read.
     pub action: bool,
     /// Set for repeat copies.
     pub repeat: Option<RepeatCopy>,

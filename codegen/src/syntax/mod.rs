@@ -274,7 +274,7 @@ record! {
         write_order: Option<OrderName>,
         alias_of: Option<String>,
         read_side_effect: Option<String>,
-        /// Writing acts and the manual defines no read.
+        /// Writing acts and the manual does not say what a read returns.
         action: bool = default,
         note: Option<String>,
         fields: Option<Vec<FieldDecl>>,

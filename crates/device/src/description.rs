@@ -308,8 +308,8 @@ pub struct RegisterInfo {
     /// What reading the register changes in the device (it turns a buffer page), if
     /// anything: such a read is made once, never retried.
     pub read_side_effect: Option<&'static str>,
-    /// Writing it acts and the manual defines no read (LC-RS factory reset): it is written,
-    /// never read.
+    /// Writing it acts and the manual does not say what a read returns (LC-RS factory reset):
+    /// it is written, never read.
     pub action: bool,
 }
 
