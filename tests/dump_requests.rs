@@ -19,9 +19,8 @@ type Read = (Table, u16, u16);
 /// was answered with words.
 type Seen = Arc<Mutex<Vec<(Option<Read>, bool)>>>;
 
-/// Dumps `device` from a simulator and gives the reads it answered, in order; every one
-/// answered with words (no exception).
-async fn dump(device: &'static DeviceInfo) -> Vec<Read> {
+/// A simulator of `device` with valid readings, and the exchanges it sees.
+fn observed(device: &'static DeviceInfo) -> (Simulator, Seen) {
     let exchanges: Seen = Arc::default();
     let seen = Arc::clone(&exchanges);
     let sim = Simulator::new(device)
@@ -38,6 +37,13 @@ async fn dump(device: &'static DeviceInfo) -> Vec<Read> {
             let answered = matches!(exchange.reply, Reply::Read { .. });
             seen.lock().unwrap().push((read, answered));
         });
+    (sim, exchanges)
+}
+
+/// Dumps `device` from a simulator and gives the reads it answered, in order; every one
+/// answered with words (no exception).
+async fn dump(device: &'static DeviceInfo) -> Vec<Read> {
+    let (sim, exchanges) = observed(device);
     let mut core = Core::with_default_slave(e2e::rtu(&sim), device);
     let registers: Vec<&'static RegisterInfo> = device.dump_registers().collect();
     let readings = core.read_group(&registers).await.expect("dump");
@@ -134,23 +140,7 @@ async fn rangefinder_dump_takes_one_request_per_field() {
 /// (the specs infer such reads are allowed; a device or gateway may refuse them), and the
 /// reads it saw, each with whether it was answered with words.
 fn refusing_reserved(device: &'static DeviceInfo) -> (Simulator, Seen) {
-    let exchanges: Seen = Arc::default();
-    let seen = Arc::clone(&exchanges);
-    let sim = Simulator::new(device)
-        .sentinel_every(0)
-        .observe(move |exchange| {
-            let read = match exchange.request {
-                Some(Request::Read {
-                    function,
-                    address,
-                    count,
-                }) => Some((Table::read_by(*function), *address, *count)),
-                _ => None,
-            };
-            seen.lock()
-                .unwrap()
-                .push((read, matches!(exchange.reply, Reply::Read { .. })));
-        });
+    let (sim, exchanges) = observed(device);
     let quirks = Quirks {
         readable_reserved: UnreadableReads::Refused,
         ..sim.current_quirks()
