@@ -91,6 +91,14 @@ impl Readings {
         value
     }
 
+    fn push(&mut self, span: ReadSpan, words: Vec<u16>) {
+        if self.first.is_none() {
+            self.first = Some((span, words));
+        } else {
+            self.rest.push((span, words));
+        }
+    }
+
     /// The requests that were made.
     pub fn requests(&self) -> impl Iterator<Item = &ReadSpan> {
         self.first.iter().chain(&self.rest).map(|(span, _)| span)
@@ -313,39 +321,31 @@ impl<T: Transport> Core<T> {
             addressing: self.device.addressing,
         };
         for &(span, repeatable) in plan {
-            let read = self
+            match self
                 .read_span(span.table, span.address, span.count, repeatable)
-                .await;
-            let mut memory = self.memory;
-            let spans = match read {
-                Ok(words) => vec![(span, words)],
-                Err(error) => match memory.fallback(self.device, registers, &span, &error) {
-                    Some(instead) => {
-                        tracing::debug!(
-                            target: TRACE_TARGET,
-                            table = span.table.as_str(),
-                            address = span.address,
-                            count = span.count,
-                            "the device refused a read crossing a reserved range; reading around it"
-                        );
-                        self.forget(memory);
-                        let mut spans = Vec::with_capacity(instead.len());
-                        for (span, repeatable) in planned(self.device, instead).iter() {
-                            let words = self
-                                .read_span(span.table, span.address, span.count, *repeatable)
-                                .await?;
-                            spans.push((*span, words));
-                        }
-                        spans
+                .await
+            {
+                Ok(words) => readings.push(span, words),
+                Err(error) => {
+                    let mut memory = self.memory;
+                    let Some(instead) = memory.fallback(self.device, registers, &span, &error)
+                    else {
+                        return Err(error);
+                    };
+                    tracing::debug!(
+                        target: TRACE_TARGET,
+                        table = span.table.as_str(),
+                        address = span.address,
+                        count = span.count,
+                        "the device refused a read crossing a reserved range; reading around it"
+                    );
+                    self.forget(memory);
+                    for &(span, repeatable) in planned(self.device, instead).iter() {
+                        let words = self
+                            .read_span(span.table, span.address, span.count, repeatable)
+                            .await?;
+                        readings.push(span, words);
                     }
-                    None => return Err(error),
-                },
-            };
-            for (span, words) in spans {
-                if readings.first.is_none() {
-                    readings.first = Some((span, words));
-                } else {
-                    readings.rest.push((span, words));
                 }
             }
         }
