@@ -44,7 +44,14 @@ pub struct Core<T> {
 struct GroupPlan {
     group: &'static str,
     copy: Option<u8>,
-    registers: Arc<[&'static RegisterInfo]>,
+    /// Shared with the reads in progress.
+    plan: Arc<Plan>,
+}
+
+/// Registers and the requests that read them.
+#[derive(Debug)]
+struct Plan {
+    registers: Box<[&'static RegisterInfo]>,
     spans: Arc<[PlannedRead]>,
 }
 
@@ -293,18 +300,20 @@ impl<T: Transport> Core<T> {
                 if let Some(unreadable) = registers.iter().find(|r| !r.readable()) {
                     return Err(Error::unreadable(unreadable));
                 }
+                let spans = planned(device, self.memory.plan_reads(device, &registers));
                 self.plans.push(GroupPlan {
                     group: group.name,
                     copy,
-                    spans: planned(device, self.memory.plan_reads(device, &registers)),
-                    registers: registers.into(),
+                    plan: Arc::new(Plan {
+                        registers: registers.into(),
+                        spans,
+                    }),
                 });
                 self.plans.len() - 1
             }
         };
-        let plan = &self.plans[index];
-        let (registers, spans) = (Arc::clone(&plan.registers), Arc::clone(&plan.spans));
-        self.read_plan(&registers, &spans).await
+        let plan = Arc::clone(&self.plans[index].plan);
+        self.read_plan(&plan.registers, &plan.spans).await
     }
 
     /// Makes the requests of `plan` (planned for `registers`). A request the device refuses
