@@ -4,7 +4,7 @@
 use clap::Args;
 use optobus_device::{DeviceInfo, RegisterInfo};
 use optobus_driver::identify::{identify, ConnectAs, Identification};
-use optobus_driver::Core;
+use optobus_driver::{Core, Readings};
 use optobus_inspect::{decode_value, Value};
 
 use crate::error::{driver_error, CliError};
@@ -285,12 +285,28 @@ pub(crate) async fn read_values(
     core: &mut Core<Link>,
     registers: &[&'static RegisterInfo],
 ) -> Result<Vec<(&'static RegisterInfo, Value)>, CliError> {
-    let readings = core.read_group(registers).await.map_err(|e| {
+    let readings = read_readings(core, registers).await?;
+    Ok(decode_values(registers, &readings))
+}
+
+/// Reads `registers` in the fewest requests.
+pub(crate) async fn read_readings(
+    core: &mut Core<Link>,
+    registers: &[&'static RegisterInfo],
+) -> Result<Readings, CliError> {
+    core.read_group(registers).await.map_err(|e| {
         let names: Vec<&str> = registers.iter().map(|r| r.name).collect();
         driver_error(e, Some(&names.join(", ")))
-    })?;
-    Ok(registers
+    })
+}
+
+/// The values of `registers` in `readings`.
+pub(crate) fn decode_values(
+    registers: &[&'static RegisterInfo],
+    readings: &Readings,
+) -> Vec<(&'static RegisterInfo, Value)> {
+    registers
         .iter()
         .map(|r| (*r, decode_value(r, readings.words(r))))
-        .collect())
+        .collect()
 }
