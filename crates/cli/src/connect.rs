@@ -3,7 +3,8 @@
 
 use clap::Args;
 use optobus_device::{DeviceInfo, RegisterInfo};
-use optobus_driver::Core;
+use optobus_driver::identify::{identify, ConnectAs, Identification};
+use optobus_driver::{Core, Readings};
 use optobus_inspect::{decode_value, Value};
 
 use crate::error::{driver_error, CliError};
@@ -13,9 +14,10 @@ use crate::{inputs, models};
 /// Options every command takes: which model, and how to print.
 #[derive(Debug, Args)]
 pub(crate) struct Options {
-    /// Sensor family (help and default from the models, at startup).
+    /// Sensor family (help from the models, at startup; see [`MODEL_VARIABLE`] for the
+    /// default).
     #[arg(long, short, global = true)]
-    pub(crate) model: String,
+    pub(crate) model: Option<String>,
     /// A spec file to use as the model instead of a built-in one (checked like
     /// `optobus-codegen check`).
     #[arg(long, global = true, value_name = "SPEC.yaml")]
@@ -46,7 +48,7 @@ pub(crate) struct DeviceArgs {
 /// device options.
 #[derive(Debug)]
 pub(crate) struct Global {
-    pub(crate) model: String,
+    pub(crate) model: Option<String>,
     pub(crate) spec: Option<std::path::PathBuf>,
     pub(crate) json: bool,
     pub(crate) target: Target,
@@ -59,7 +61,7 @@ impl Options {
     /// or else the one `--model` names. (A command's own model argument shares `--model`'s
     /// id, so it also carries `--model`'s value.)
     pub(crate) fn device_or(&self, named: Option<&str>) -> Result<&'static DeviceInfo, CliError> {
-        model(self.spec.as_deref(), &self.model, named)
+        model(self.spec.as_deref(), self.model.as_deref(), named, None)
     }
 
     /// These options with a device command's `device` options.
@@ -80,15 +82,43 @@ impl Options {
     }
 }
 
-/// The model `spec` describes, or else the one `named`, or else `model`.
+/// The environment variable holding the user's default model.
+pub(crate) const MODEL_VARIABLE: &str = "OPTOBUS_MODEL";
+
+/// The model `spec` describes, or else the one `named`, or else `model`, or else the one
+/// [`MODEL_VARIABLE`] names, or else the first built-in one, unless `addressed` names a real
+/// device (`--tcp …`, `--serial …`): a register map guessed for a real device reads wrong
+/// values, so there the model must be given.
 fn model(
     spec: Option<&std::path::Path>,
-    model: &str,
+    model: Option<&str>,
     named: Option<&str>,
+    addressed: Option<&str>,
 ) -> Result<&'static DeviceInfo, CliError> {
-    match spec {
-        Some(spec) => models::load(spec),
-        None => models::find(named.unwrap_or(model)),
+    if let Some(spec) = spec {
+        return models::load(spec);
+    }
+    if let Some(name) = named.or(model) {
+        return models::find(name);
+    }
+    if let Some(name) = std::env::var(MODEL_VARIABLE)
+        .ok()
+        .filter(|n| !n.trim().is_empty())
+    {
+        return models::find(&name).map_err(|e| e.prefixed(&format!("{MODEL_VARIABLE}: ")));
+    }
+    match addressed {
+        None => models::all()
+            .first()
+            .copied()
+            .ok_or_else(|| CliError::new("the tool has no built-in model")),
+        Some(device) => Err(CliError::new(format!(
+            "which model is at {device}? give --model ({}) or --spec FILE",
+            models::names().join(", ")
+        ))
+        .hint(format!(
+            "or set {MODEL_VARIABLE}; `optobus identify {device}` finds the model that answers"
+        ))),
     }
 }
 
@@ -119,21 +149,28 @@ pub(crate) struct Names {
 }
 
 impl Global {
-    /// The model `--spec` describes, or else the one `--model` names.
+    /// The model `--spec` describes, or else the one `--model` names, or else the user's
+    /// default; the built-in simulator's default only when no real device is addressed.
     pub(crate) fn device(&self) -> Result<&'static DeviceInfo, CliError> {
-        self.device_or(None)
+        model(
+            self.spec.as_deref(),
+            self.model.as_deref(),
+            None,
+            self.target.addressed().as_deref(),
+        )
     }
 
     /// The model `--spec` describes, or else the one a command names itself, or else the one
-    /// `--model` names.
+    /// `--model` names, or else a default (for `simulate`, which serves rather than reaches a
+    /// device).
     pub(crate) fn device_or(&self, named: Option<&str>) -> Result<&'static DeviceInfo, CliError> {
-        model(self.spec.as_deref(), &self.model, named)
+        model(self.spec.as_deref(), self.model.as_deref(), named, None)
     }
 
     /// Before a write to the built-in simulator (neither --serial nor --tcp given), says on
     /// stderr that its state lasts for this command only.
     pub(crate) fn note_if_simulated(&self, command: &str) {
-        if self.target.serial.is_none() && self.target.tcp.is_none() {
+        if self.target.addressed().is_none() {
             crate::log::note!(
                 "optobus: the built-in simulator's state lasts for this `{command}` only; serve \
                  a lasting one with `optobus simulate` and point --tcp or --serial at it"
@@ -207,17 +244,69 @@ impl Global {
     }
 }
 
+/// Links to the device a [`Target`] addresses, framed for each candidate model.
+struct LinksAs<'a>(&'a Target);
+
+impl ConnectAs for LinksAs<'_> {
+    type Link = Link;
+    type Error = CliError;
+
+    async fn connect_as(&mut self, model: &'static DeviceInfo) -> Result<Link, CliError> {
+        link::open(model, model.default_slave, self.0).await
+    }
+}
+
+impl Global {
+    /// The models `identify` and `scan` try: the `--spec` model, then every built-in one (all
+    /// of them, so that no request reads where one of them changes the device by a read).
+    pub(crate) fn candidates(&self) -> Result<Vec<&'static DeviceInfo>, CliError> {
+        let mut candidates = Vec::new();
+        if let Some(spec) = &self.spec {
+            candidates.push(models::load(spec)?);
+        }
+        candidates.extend(models::all());
+        Ok(candidates)
+    }
+
+    /// Which of the candidates the device `target` addresses is, asked at `slave` or each
+    /// candidate's factory slave.
+    pub(crate) async fn identify(
+        &self,
+        target: &Target,
+        slave: Option<u8>,
+    ) -> Result<Identification, CliError> {
+        let candidates = self.candidates()?;
+        identify(&mut LinksAs(target), &candidates, slave).await
+    }
+}
+
 /// Reads `registers` in the fewest requests and decodes them.
 pub(crate) async fn read_values(
     core: &mut Core<Link>,
     registers: &[&'static RegisterInfo],
 ) -> Result<Vec<(&'static RegisterInfo, Value)>, CliError> {
-    let readings = core.read_group(registers).await.map_err(|e| {
+    let readings = read_readings(core, registers).await?;
+    Ok(decode_values(registers, &readings))
+}
+
+/// Reads `registers` in the fewest requests.
+pub(crate) async fn read_readings(
+    core: &mut Core<Link>,
+    registers: &[&'static RegisterInfo],
+) -> Result<Readings, CliError> {
+    core.read_group(registers).await.map_err(|e| {
         let names: Vec<&str> = registers.iter().map(|r| r.name).collect();
         driver_error(e, Some(&names.join(", ")))
-    })?;
-    Ok(registers
+    })
+}
+
+/// The values of `registers` in `readings`.
+pub(crate) fn decode_values(
+    registers: &[&'static RegisterInfo],
+    readings: &Readings,
+) -> Vec<(&'static RegisterInfo, Value)> {
+    registers
         .iter()
         .map(|r| (*r, decode_value(r, readings.words(r))))
-        .collect())
+        .collect()
 }

@@ -3,10 +3,9 @@
 
 use clap::Args;
 use optobus_device::RegisterInfo;
-use optobus_driver::plan_reads;
 use serde_json::json;
 
-use crate::connect::{read_values, DeviceArgs, Global, Names};
+use crate::connect::{decode_values, read_readings, read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{pretty, print, values_json, values_text};
@@ -34,10 +33,12 @@ pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
     let registers: Vec<&'static RegisterInfo> = device.dump_registers().collect();
-    let requests = plan_reads(device, &registers).len();
     let slave = global.answering_slave(device, "dump")?;
     let mut core = global.connect(device, slave).await?;
-    let values = read_values(&mut core, &registers).await?;
+    let readings = read_readings(&mut core, &registers).await?;
+    // The requests answered: a device refusing a read over reserved rows is read around them.
+    let requests = readings.requests().count();
+    let values = decode_values(&registers, &readings);
     let skipped = device.readable_registers().count() - registers.len();
     if skipped > 0 {
         note!(
