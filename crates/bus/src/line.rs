@@ -375,35 +375,42 @@ impl LineTask {
         }
     }
 
+    /// Runs one poll: a sample for every register read (those of the requests answered
+    /// before a failed one too), and the device's health from how it went.
     async fn run_poll(&mut self, poll: usize, clock: &Clock) {
         let device_index = self.schedule.device_of(poll);
         let registers = &self.polls[poll].registers;
         let device = &mut self.devices[device_index];
         let requested = Instant::now();
-        let result = device.core.read_group(registers).await;
+        let result = device.core.read_group_partly(registers).await;
         let replied = Instant::now();
-        let outcome = match &result {
-            Ok(readings) => {
-                for &register in registers {
-                    let sample = Sample {
-                        source: Arc::clone(&device.id),
-                        register,
-                        value: decode_value(register, readings.words(register)),
-                        requested: clock.system(requested),
-                        replied: clock.system(replied),
-                    };
-                    // No receiver is no error: the bus runs whether anyone listens or not.
-                    let _ = self.events.send(Event::Sample(Arc::new(sample)));
-                }
-                Outcome::Answered
-            }
-            Err(DriverError::Transport(Error::Exception { .. })) => Outcome::Answered,
-            Err(_) => Outcome::Failed,
+        let (readings, error) = match &result {
+            Ok(readings) => (readings, None),
+            Err(partial) => (&partial.readings, Some(&partial.error)),
+        };
+        let read = |register: &RegisterInfo| match &result {
+            Ok(_) => true,
+            Err(partial) => partial.has(register),
+        };
+        for &register in registers.iter().filter(|r| read(r)) {
+            let sample = Sample {
+                source: Arc::clone(&device.id),
+                register,
+                value: decode_value(register, readings.words(register)),
+                requested: clock.system(requested),
+                replied: clock.system(replied),
+            };
+            // No receiver is no error: the bus runs whether anyone listens or not.
+            let _ = self.events.send(Event::Sample(Arc::new(sample)));
+        }
+        let outcome = match error {
+            None | Some(DriverError::Transport(Error::Exception { .. })) => Outcome::Answered,
+            Some(_) => Outcome::Failed,
         };
         if let Some(health) = self.schedule.done(poll, replied, outcome) {
             let errors = *device.errors.lock().unwrap_or_else(|e| e.into_inner());
-            let reason = match (&result, health) {
-                (Err(error), Health::Offline) => Some(error.to_string()),
+            let reason = match (error, health) {
+                (Some(error), Health::Offline) => Some(error.to_string()),
                 _ => None,
             };
             let event = HealthEvent {

@@ -60,9 +60,16 @@ devices:
     while samples < 40 {
         if let Event::Sample(sample) = events.recv().await.unwrap() {
             let state = simulator.register(sample.register.name).unwrap();
-            assert_eq!(sample.value, optobus_inspect::decode_value(state.info, &state.words));
+            assert_eq!(
+                sample.value,
+                optobus_inspect::decode_value(state.info, &state.words)
+            );
             samples += 1;
         }
     }
-    assert_eq!(*refused.lock().unwrap(), 1, "the bridged read was refused once, then avoided");
+    assert_eq!(
+        *refused.lock().unwrap(),
+        1,
+        "the bridged read was refused once, then avoided"
+    );
 }
