@@ -20,8 +20,7 @@ async fn a_device_refusing_bridged_reads_is_polled_around_the_reserved_range() {
     let before = device
         .registers
         .iter()
-        .filter(|r| r.table == Table::Holding && r.address < reserved.from && r.readable())
-        .last()
+        .rfind(|r| r.table == Table::Holding && r.address < reserved.from && r.readable())
         .expect("a register before it");
     let after = device
         .registers
