@@ -87,12 +87,15 @@ fn tick_labels(chart: &str) -> Vec<String> {
 fn a_buffer_at_ratio_10_is_drawn_at_ten_times_the_sampling_interval() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let at = served.at.clone();
-    ok(&["set", "sampling_interval", "100us", "--tcp", &at]);
-    ok(&["set", "sampled_data_ratio", "10", "--tcp", &at]);
+    let model = ["--model", "p-series", "--tcp", &at];
+    ok(&[&["set", "sampling_interval", "100us"][..], &model].concat());
+    ok(&[&["set", "sampled_data_ratio", "10"][..], &model].concat());
     let out = scratch("ratio.svg");
     let output = run(&[
-        "buffer", "--count", "20", "--wait", "100ms", "--plot", &out, "--tcp", &at,
-    ]);
+        &["buffer", "--count", "20", "--wait", "100ms", "--plot", &out][..],
+        &model,
+    ]
+    .concat());
     assert!(output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
