@@ -11,6 +11,7 @@
 use std::collections::HashMap;
 use std::fmt;
 use std::io::{self, Read};
+use std::sync::OnceLock;
 
 use yaml_rust2::parser::{Event, MarkedEventReceiver, Parser};
 use yaml_rust2::scanner::{Marker, Scanner, TScalarStyle, Token, TokenType};
@@ -183,7 +184,11 @@ pub struct SourceFile {
     pub root: Option<Node>,
     /// Why the text is not YAML.
     pub syntax_error: Option<SyntaxError>,
-    nodes: HashMap<Path, Entry>,
+    /// The positions by path, built at the first lookup: only diagnostics look places up, so
+    /// a spec that passes never pays for the index.
+    nodes: OnceLock<HashMap<Path, Entry>>,
+    /// Where each line of `text` starts.
+    line_starts: Vec<usize>,
 }
 
 impl SourceFile {
@@ -213,7 +218,6 @@ impl SourceFile {
                 break first_anchor(&text).or(Some(refused));
             }
         };
-        let mut nodes = HashMap::new();
         let syntax_error = syntax_error.or_else(|| {
             let second = builder.documents.get(1)?;
             Some(SyntaxError {
@@ -225,23 +229,35 @@ impl SourceFile {
             })
         });
         let root = builder.documents.into_iter().next();
-        if let Some(root) = &root {
-            index(root, Path::root(), None, &mut nodes);
-        }
+        let line_starts = std::iter::once(0)
+            .chain(text.match_indices('\n').map(|(at, _)| at + 1))
+            .collect();
         Self {
             name: name.into(),
             text,
             root,
             syntax_error,
-            nodes,
+            nodes: OnceLock::new(),
+            line_starts,
         }
+    }
+
+    /// Every node's place by path (built once, at the first lookup).
+    fn nodes(&self) -> &HashMap<Path, Entry> {
+        self.nodes.get_or_init(|| {
+            let mut nodes = HashMap::new();
+            if let Some(root) = &self.root {
+                index(root, Path::root(), None, &mut nodes);
+            }
+            nodes
+        })
     }
 
     /// The span of the value at `path`, or of the nearest ancestor that has one.
     pub fn span(&self, path: &Path) -> Option<Span> {
         let mut path = path.clone();
         loop {
-            if let Some(node) = self.nodes.get(&path) {
+            if let Some(node) = self.nodes().get(&path) {
                 return Some(node.value);
             }
             path.0.pop()?;
@@ -250,18 +266,25 @@ impl SourceFile {
 
     /// The span of the key naming the value at `path`.
     pub fn key_span(&self, path: &Path) -> Option<Span> {
-        self.nodes.get(path).and_then(|node| node.key)
+        self.nodes().get(path).and_then(|node| node.key)
     }
 
     /// The scalar's text exactly as written (for values YAML would otherwise reinterpret,
     /// such as `1e-6`).
     pub fn scalar(&self, path: &Path) -> Option<&str> {
-        self.nodes.get(path).and_then(|node| node.text.as_deref())
+        self.nodes().get(path).and_then(|node| node.text.as_deref())
     }
 
-    /// Line `line` (1-based) without its newline.
+    /// Line `line` (1-based) without its newline (as [`str::lines`] gives it); a lookup in
+    /// an index of line starts, so that rendering many diagnostics stays linear.
     pub fn line(&self, line: usize) -> Option<&str> {
-        self.text.lines().nth(line.checked_sub(1)?)
+        let start = *self.line_starts.get(line.checked_sub(1)?)?;
+        let rest = &self.text[start..];
+        let text = rest.split_once('\n').map_or(rest, |(text, _)| text);
+        if start == self.text.len() {
+            return None;
+        }
+        Some(text.strip_suffix('\r').unwrap_or(text))
     }
 }
 
@@ -552,6 +575,13 @@ mod tests {
             Some((5, 24))
         );
         assert_eq!(source.key_span(&second).map(|s| s.column), Some(15));
+        assert_eq!(source.line(2), Some("registers:"));
+        assert_eq!(source.line(6), None);
+        let crlf = SourceFile::new("t.yaml", "a: 1\r\nb: 2\r\n");
+        assert_eq!(
+            (crlf.line(1), crlf.line(2), crlf.line(3)),
+            (Some("a: 1"), Some("b: 2"), None)
+        );
         // Unknown paths fall back to the nearest ancestor.
         assert_eq!(source.span(&first.key("doc")).map(|s| s.line), Some(3));
     }
