@@ -128,3 +128,22 @@ fn what_cannot_be_drawn_is_refused() {
         "{stderr}"
     );
 }
+
+#[test]
+fn a_device_or_an_oversized_recording_is_refused_with_the_limit() {
+    let stderr = fails(&["plot", "/dev/zero", "--out", &scratch("z.svg")]);
+    assert!(
+        stderr.contains("cannot read /dev/zero: not a regular file"),
+        "{stderr}"
+    );
+    // Sparse: one byte over the 256 MiB limit costs no disk.
+    let csv = scratch("huge.csv");
+    let file = std::fs::File::create(&csv).expect("create");
+    file.set_len(256 * 1024 * 1024 + 1).expect("grow");
+    let stderr = fails(&["plot", &csv, "--out", &scratch("huge.svg")]);
+    let _ = std::fs::remove_file(&csv);
+    assert!(
+        stderr.contains("larger than the limit of 256 MiB"),
+        "{stderr}"
+    );
+}
