@@ -57,7 +57,7 @@ pub fn check_source(name: &str, text: &str) -> Result<Model, Box<Rejected>> {
     };
     if let Some(error) = &source.syntax_error {
         let diagnostic = Diagnostic {
-            rule: syntax::RULE,
+            rule: error.rule,
             message: error.message.clone(),
             primary: diagnostic::Label {
                 location: diagnostic::Location::Position {
@@ -67,7 +67,7 @@ pub fn check_source(name: &str, text: &str) -> Result<Model, Box<Rejected>> {
                 text: String::new(),
             },
             secondary: Vec::new(),
-            help: Some("the spec is not valid YAML".into()),
+            help: Some(error.help.into()),
         };
         return reject(source, vec![diagnostic]);
     }
@@ -98,10 +98,11 @@ pub fn check_source(name: &str, text: &str) -> Result<Model, Box<Rejected>> {
     }
 }
 
-/// Reads and checks a spec file.
+/// Reads and checks a spec file (at most [`source::YAML_LIMIT`] bytes, see
+/// [`source::read_yaml`]).
 pub fn check_file(path: &std::path::Path) -> Result<Model, Box<Rejected>> {
     let name = path.display().to_string();
-    match std::fs::read_to_string(path) {
+    match source::read_yaml(path) {
         Ok(text) => check_source(&name, &text),
         Err(error) => Err(Box::new(Rejected {
             source: SourceFile::new(name.clone(), ""),

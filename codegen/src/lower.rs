@@ -11,7 +11,7 @@ use crate::model::{
 };
 use crate::rules::scale::parse_scale;
 use crate::source::Path;
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, HashMap};
 
 use crate::syntax::{CodeDecl, FieldDecl, OrderName, RegisterDecl, SpecFile, TypeName};
 
@@ -19,6 +19,7 @@ use crate::syntax::{CodeDecl, FieldDecl, OrderName, RegisterDecl, SpecFile, Type
 pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
     let mut lowering = Lowering {
         enums: Vec::new(),
+        enum_index: HashMap::new(),
         diagnostics: Vec::new(),
     };
     let root = Path::root();
@@ -26,7 +27,7 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
     for (name, decl) in spec.enums.entries() {
         let path = root.key("enums").key(name);
         let codes = lowering.codes(&decl.codes, &path.key("codes"));
-        lowering.enums.push(EnumDef {
+        lowering.add_enum(EnumDef {
             name: name.clone(),
             doc: decl.doc.clone(),
             codes,
@@ -216,10 +217,7 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
         apply: spec.protocol.apply,
         exception_codes: spec.protocol.exception_codes.as_ref().map(|name| EnumRef {
             name: name.clone(),
-            index: lowering
-                .enums
-                .iter()
-                .position(|e| e.shared && &e.name == name),
+            index: lowering.find_enum(true, name),
             path: root.key("protocol").key("exception_codes"),
         }),
         continuous_send: spec.protocol.continuous_send.as_ref().map(|c| {
@@ -256,6 +254,8 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
 
 struct Lowering {
     enums: Vec<EnumDef>,
+    /// Where each enum of `enums` is, by (shared, name): the first of a name.
+    enum_index: HashMap<(bool, String), usize>,
     diagnostics: Vec<Diagnostic>,
 }
 
@@ -270,6 +270,21 @@ fn scalar_of(kind: TypeName) -> Option<Scalar> {
 }
 
 impl Lowering {
+    /// Appends `def` and returns its index.
+    fn add_enum(&mut self, def: EnumDef) -> usize {
+        let index = self.enums.len();
+        self.enum_index
+            .entry((def.shared, def.name.clone()))
+            .or_insert(index);
+        self.enums.push(def);
+        index
+    }
+
+    /// The index of the first shared (or inline) enum called `name`.
+    fn find_enum(&self, shared: bool, name: &str) -> Option<usize> {
+        self.enum_index.get(&(shared, name.to_owned())).copied()
+    }
+
     fn codes(&self, decls: &[CodeDecl], path: &Path) -> Vec<Code> {
         decls
             .iter()
@@ -295,23 +310,16 @@ impl Lowering {
     ) -> Option<EnumRef> {
         if let Some(codes) = codes {
             let codes = self.codes(codes, &path.key("codes"));
-            let index = match self
-                .enums
-                .iter()
-                .position(|e| !e.shared && e.name == inline_name)
-            {
+            let index = match self.find_enum(false, inline_name) {
                 Some(existing) => existing,
-                None => {
-                    self.enums.push(EnumDef {
-                        name: inline_name.to_owned(),
-                        doc: doc.cloned(),
-                        codes,
-                        shared: false,
-                        section: None,
-                        path: path.key("codes"),
-                    });
-                    self.enums.len() - 1
-                }
+                None => self.add_enum(EnumDef {
+                    name: inline_name.to_owned(),
+                    doc: doc.cloned(),
+                    codes,
+                    shared: false,
+                    section: None,
+                    path: path.key("codes"),
+                }),
             };
             return Some(EnumRef {
                 name: inline_name.to_owned(),
@@ -321,7 +329,7 @@ impl Lowering {
         }
         enum_name.map(|name| EnumRef {
             name: name.clone(),
-            index: self.enums.iter().position(|e| e.shared && &e.name == name),
+            index: self.find_enum(true, name),
             path: path.key("enum"),
         })
     }

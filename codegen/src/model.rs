@@ -3,7 +3,7 @@
 //! Lowering is lenient (it keeps what was declared so that rules can judge it); a model that
 //! passed every rule is what the emitters and `dump --json` see.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, HashMap};
 use std::net::Ipv4Addr;
 
 use optobus_codec::value::{Scale, WordOrder, WriteOrder};
@@ -493,17 +493,52 @@ impl Model {
         }
     }
 
-    /// True when `name` may be an item a reading error left out.
+    /// True when `name` may be an item a reading error left out: an unread name, or one it
+    /// starts followed by `_` (a block's copies). One set lookup per `_` in `name`.
     pub fn is_unread(&self, name: &str) -> bool {
         self.unread.contains(name)
-            || self
-                .unread
-                .iter()
-                .any(|unread| name.starts_with(&format!("{unread}_")))
+            || name
+                .match_indices('_')
+                .any(|(at, _)| self.unread.contains(&name[..at]))
+    }
+
+    /// The registers by name, for a pass that looks up many ([`Model::register`] walks the
+    /// list): built once in linear time, each lookup a hash.
+    pub fn register_names(&self) -> RegisterNames<'_> {
+        let mut names = RegisterNames::default();
+        for register in &self.registers {
+            names.by_name.entry(&register.name).or_insert(register);
+            if let Some(copy) = &register.repeat {
+                names.by_member.entry(&copy.base).or_insert(register);
+            }
+        }
+        names
     }
 
     /// The enum a reference resolves to.
     pub fn enum_def(&self, reference: &EnumRef) -> Option<&EnumDef> {
         reference.index.and_then(|i| self.enums.get(i))
+    }
+}
+
+/// The registers of a model by name ([`Model::register_names`]); the first of a name wins, as
+/// in [`Model::register`].
+#[derive(Debug, Default)]
+pub struct RegisterNames<'m> {
+    by_name: HashMap<&'m str, &'m Register>,
+    /// A repeat block's member name to its first copy.
+    by_member: HashMap<&'m str, &'m Register>,
+}
+
+impl<'m> RegisterNames<'m> {
+    /// The register called `name` ([`Model::register`]).
+    pub fn register(&self, name: &str) -> Option<&'m Register> {
+        self.by_name.get(name).copied()
+    }
+
+    /// The register called `name`, or a repeat member's first copy ([`Model::resolve`]).
+    pub fn resolve(&self, name: &str) -> Option<&'m Register> {
+        self.register(name)
+            .or_else(|| self.by_member.get(name).copied())
     }
 }

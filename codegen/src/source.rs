@@ -3,12 +3,18 @@
 //!
 //! The reader (`syntax`) takes its values from the tree and the diagnostics take their
 //! places from the index, so both come from the same parse.
+//!
+//! Spec files are input like any other: [`read_yaml`] reads at most [`YAML_LIMIT`] bytes, and
+//! the parse refuses anchors and aliases as they stream by ([`ALIAS_RULE`]), so a small file
+//! can never expand into a large tree.
 
 use std::collections::HashMap;
 use std::fmt;
+use std::io::{self, Read};
+use std::sync::OnceLock;
 
 use yaml_rust2::parser::{Event, MarkedEventReceiver, Parser};
-use yaml_rust2::scanner::{Marker, TScalarStyle};
+use yaml_rust2::scanner::{Marker, Scanner, TScalarStyle, Token, TokenType};
 
 /// One step of a path into the YAML tree.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -149,13 +155,23 @@ impl Node {
 /// A YAML syntax error: the parser's message and where it stopped.
 #[derive(Clone, Debug)]
 pub struct SyntaxError {
+    /// The rule it breaks: `yaml`, or [`ALIAS_RULE`].
+    pub rule: &'static str,
     /// The parser's words.
     pub message: String,
+    /// How to mend it.
+    pub help: &'static str,
     /// Line, from 1.
     pub line: usize,
     /// Column, from 1.
     pub column: usize,
 }
+
+/// Rule name of the refusal of YAML anchors and aliases.
+pub const ALIAS_RULE: &str = "yaml-alias";
+
+/// Help for a text that is not YAML.
+const NOT_YAML: &str = "the spec is not valid YAML";
 
 /// A spec file's text, its parsed tree, and the positions of its nodes by path.
 #[derive(Debug)]
@@ -168,50 +184,80 @@ pub struct SourceFile {
     pub root: Option<Node>,
     /// Why the text is not YAML.
     pub syntax_error: Option<SyntaxError>,
-    nodes: HashMap<Path, Entry>,
+    /// The positions by path, built at the first lookup: only diagnostics look places up, so
+    /// a spec that passes never pays for the index.
+    nodes: OnceLock<HashMap<Path, Entry>>,
+    /// Where each line of `text` starts.
+    line_starts: Vec<usize>,
 }
 
 impl SourceFile {
-    /// Parses `text` once, into a tree and an index of positions by path.
+    /// Parses `text` once, into a tree and an index of positions by path. The parse stops at
+    /// the first syntax error, anchor or alias.
     pub fn new(name: impl Into<String>, text: impl Into<String>) -> Self {
         let text = text.into();
         let mut builder = Builder::default();
         let mut parser = Parser::new_from_str(&text);
-        let syntax_error = match parser.load(&mut builder, true) {
-            Ok(()) => builder.problem.take(),
-            Err(error) => Some(SyntaxError {
-                message: error.info().to_owned(),
-                line: error.marker().line(),
-                column: error.marker().col() + 1,
-            }),
+        // Event by event rather than `Parser::load`, so that the first anchor or alias stops
+        // the parse before anything is copied.
+        let syntax_error = loop {
+            match parser.next_token() {
+                Ok((Event::StreamEnd, _)) => break None,
+                Ok((event, mark)) => builder.on_event(event, mark),
+                Err(error) => {
+                    break Some(SyntaxError {
+                        rule: crate::syntax::RULE,
+                        message: error.info().to_owned(),
+                        help: NOT_YAML,
+                        line: error.marker().line(),
+                        column: error.marker().col() + 1,
+                    })
+                }
+            }
+            if let Some(refused) = builder.problem.take() {
+                break first_anchor(&text).or(Some(refused));
+            }
         };
-        let mut nodes = HashMap::new();
         let syntax_error = syntax_error.or_else(|| {
             let second = builder.documents.get(1)?;
             Some(SyntaxError {
+                rule: crate::syntax::RULE,
                 message: "a spec is one YAML document; this starts another".into(),
+                help: NOT_YAML,
                 line: second.span.line,
                 column: second.span.column,
             })
         });
         let root = builder.documents.into_iter().next();
-        if let Some(root) = &root {
-            index(root, Path::root(), None, &mut nodes);
-        }
+        let line_starts = std::iter::once(0)
+            .chain(text.match_indices('\n').map(|(at, _)| at + 1))
+            .collect();
         Self {
             name: name.into(),
             text,
             root,
             syntax_error,
-            nodes,
+            nodes: OnceLock::new(),
+            line_starts,
         }
+    }
+
+    /// Every node's place by path (built once, at the first lookup).
+    fn nodes(&self) -> &HashMap<Path, Entry> {
+        self.nodes.get_or_init(|| {
+            let mut nodes = HashMap::new();
+            if let Some(root) = &self.root {
+                index(root, Path::root(), None, &mut nodes);
+            }
+            nodes
+        })
     }
 
     /// The span of the value at `path`, or of the nearest ancestor that has one.
     pub fn span(&self, path: &Path) -> Option<Span> {
         let mut path = path.clone();
         loop {
-            if let Some(node) = self.nodes.get(&path) {
+            if let Some(node) = self.nodes().get(&path) {
                 return Some(node.value);
             }
             path.0.pop()?;
@@ -220,19 +266,144 @@ impl SourceFile {
 
     /// The span of the key naming the value at `path`.
     pub fn key_span(&self, path: &Path) -> Option<Span> {
-        self.nodes.get(path).and_then(|node| node.key)
+        self.nodes().get(path).and_then(|node| node.key)
     }
 
     /// The scalar's text exactly as written (for values YAML would otherwise reinterpret,
     /// such as `1e-6`).
     pub fn scalar(&self, path: &Path) -> Option<&str> {
-        self.nodes.get(path).and_then(|node| node.text.as_deref())
+        self.nodes().get(path).and_then(|node| node.text.as_deref())
     }
 
-    /// Line `line` (1-based) without its newline.
+    /// Line `line` (1-based) without its newline (as [`str::lines`] gives it); a lookup in
+    /// an index of line starts, so that rendering many diagnostics stays linear.
     pub fn line(&self, line: usize) -> Option<&str> {
-        self.text.lines().nth(line.checked_sub(1)?)
+        let start = *self.line_starts.get(line.checked_sub(1)?)?;
+        let rest = &self.text[start..];
+        let text = rest.split_once('\n').map_or(rest, |(text, _)| text);
+        if start == self.text.len() {
+            return None;
+        }
+        Some(text.strip_suffix('\r').unwrap_or(text))
     }
+}
+
+/// The most bytes a YAML file read by this crate (a spec, and the bus files to come) may
+/// hold: 16 MiB. The largest spec in `specs/` has 42 kB; a generated spec of 100,000
+/// registers has 15 MB. A file's tree takes some fifty times its size in memory, so the limit
+/// keeps a hostile file under a gigabyte.
+pub const YAML_LIMIT: u64 = 16 * 1024 * 1024;
+
+/// Why a file could not be read within its limit.
+#[derive(Debug)]
+pub enum ReadError {
+    /// The system refused (no such file, no permission, …).
+    Io(io::Error),
+    /// A device, directory or socket: only regular files (and pipes, on Unix) are read.
+    NotAFile,
+    /// More bytes than the limit.
+    TooLarge {
+        /// The limit, in bytes.
+        limit: u64,
+    },
+    /// Bytes that are not UTF-8 text.
+    NotText {
+        /// Where the first bad byte is.
+        offset: usize,
+    },
+}
+
+impl fmt::Display for ReadError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Io(error) => write!(f, "{error}"),
+            Self::NotAFile => f.write_str("not a regular file (a device, directory or socket)"),
+            Self::TooLarge { limit } => {
+                write!(f, "larger than the limit of {}", size_text(*limit))
+            }
+            Self::NotText { offset } => write!(f, "not UTF-8 text (byte {offset})"),
+        }
+    }
+}
+
+impl std::error::Error for ReadError {}
+
+/// A byte count as people read it: `16 MiB`, `512 KiB`, `100 bytes`.
+pub fn size_text(bytes: u64) -> String {
+    const UNITS: [(u64, &str); 3] = [(1 << 30, "GiB"), (1 << 20, "MiB"), (1 << 10, "KiB")];
+    UNITS
+        .iter()
+        .find(|(unit, _)| bytes >= *unit && bytes.is_multiple_of(*unit))
+        .map_or_else(
+            || format!("{bytes} bytes"),
+            |(unit, name)| format!("{} {name}", bytes / unit),
+        )
+}
+
+/// A file opened by [`open_limited`]: reading past its limit fails with
+/// [`io::ErrorKind::FileTooLarge`].
+#[derive(Debug)]
+pub struct Limited {
+    file: io::Take<std::fs::File>,
+    limit: u64,
+    read: u64,
+}
+
+impl Read for Limited {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let count = self.file.read(buf)?;
+        self.read += count as u64;
+        if self.read > self.limit {
+            return Err(io::Error::new(
+                io::ErrorKind::FileTooLarge,
+                ReadError::TooLarge { limit: self.limit },
+            ));
+        }
+        Ok(count)
+    }
+}
+
+/// Opens `path` to read at most `limit` bytes. A regular file larger than that is refused at
+/// once; a pipe is read up to one byte past the limit; devices (`/dev/zero`), directories and
+/// sockets are refused.
+pub fn open_limited(path: &std::path::Path, limit: u64) -> Result<Limited, ReadError> {
+    let file = std::fs::File::open(path).map_err(ReadError::Io)?;
+    let kind = file.metadata().map_err(ReadError::Io)?;
+    #[cfg(unix)]
+    let pipe = std::os::unix::fs::FileTypeExt::is_fifo(&kind.file_type());
+    #[cfg(not(unix))]
+    let pipe = false;
+    if !kind.is_file() && !pipe {
+        return Err(ReadError::NotAFile);
+    }
+    if kind.len() > limit {
+        return Err(ReadError::TooLarge { limit });
+    }
+    Ok(Limited {
+        file: file.take(limit.saturating_add(1)),
+        limit,
+        read: 0,
+    })
+}
+
+/// The bytes of `path`, at most `limit` of them (see [`open_limited`]).
+pub fn read_limited(path: &std::path::Path, limit: u64) -> Result<Vec<u8>, ReadError> {
+    let mut file = open_limited(path, limit)?;
+    let mut bytes = Vec::new();
+    match file.read_to_end(&mut bytes) {
+        Ok(_) => Ok(bytes),
+        Err(error) if error.kind() == io::ErrorKind::FileTooLarge => {
+            Err(ReadError::TooLarge { limit })
+        }
+        Err(error) => Err(ReadError::Io(error)),
+    }
+}
+
+/// The text of a YAML file: at most [`YAML_LIMIT`] bytes of UTF-8.
+pub fn read_yaml(path: &std::path::Path) -> Result<String, ReadError> {
+    String::from_utf8(read_limited(path, YAML_LIMIT)?).map_err(|error| ReadError::NotText {
+        offset: error.utf8_error().valid_up_to(),
+    })
 }
 
 /// Records every node's position under its path; a repeated key keeps its first place.
@@ -265,20 +436,17 @@ fn index(node: &Node, path: Path, key: Option<Span>, out: &mut HashMap<Path, Ent
     }
 }
 
-/// A container being filled: its node, its anchor, and (for a mapping) a key waiting for its
-/// value.
+/// A container being filled: its node and, for a mapping, a key waiting for its value.
 struct Open {
     node: Node,
-    anchor: usize,
     key: Option<Node>,
 }
 
 #[derive(Default)]
 struct Builder {
     stack: Vec<Open>,
-    anchors: HashMap<usize, Node>,
     documents: Vec<Node>,
-    /// A problem the parser does not see (an alias to an unknown anchor).
+    /// The first anchor or alias, which ends the parse.
     problem: Option<SyntaxError>,
 }
 
@@ -292,10 +460,7 @@ fn span_at(mark: Marker, width: usize) -> Span {
 
 impl Builder {
     /// Adds a finished node to its parent (or ends the document).
-    fn push(&mut self, node: Node, anchor: usize) {
-        if anchor != 0 {
-            self.anchors.insert(anchor, node.clone());
-        }
+    fn push(&mut self, node: Node) {
         let Some(open) = self.stack.last_mut() else {
             self.documents.push(node);
             return;
@@ -307,12 +472,45 @@ impl Builder {
             (Value::Scalar { .. }, _) => {}
         }
     }
+
+    /// Notes the first anchor (`anchor` is not 0) or alias: the spec language has neither,
+    /// and expanding aliases lets a few hundred bytes make a tree of gigabytes.
+    fn refuse(&mut self, mark: Marker, anchor: usize, alias: bool) {
+        if (anchor != 0 || alias) && self.problem.is_none() {
+            self.problem = Some(refusal(mark, if alias { "*" } else { "&" }, ""));
+        }
+    }
+}
+
+/// The refusal of an anchor (`sigil` `&`) or alias (`*`) at `mark`.
+fn refusal(mark: Marker, sigil: &str, name: &str) -> SyntaxError {
+    let what = if sigil == "*" { "alias" } else { "anchor" };
+    let shown = if name.is_empty() { "name" } else { name };
+    SyntaxError {
+        rule: ALIAS_RULE,
+        message: format!("YAML {what} `{sigil}{shown}`: specs use no anchors or aliases"),
+        help: "write the value out where it is needed: aliases are refused so that a small file \
+               cannot expand into a huge tree",
+        line: mark.line(),
+        column: mark.col() + 1,
+    }
+}
+
+/// The first anchor or alias of `text`, named and placed where it is written (the parser's
+/// events place a node, not its anchor). Scans only as far as that token.
+fn first_anchor(text: &str) -> Option<SyntaxError> {
+    Scanner::new(text.chars()).find_map(|Token(mark, token)| match token {
+        TokenType::Anchor(name) => Some(refusal(mark, "&", &name)),
+        TokenType::Alias(name) => Some(refusal(mark, "*", &name)),
+        _ => None,
+    })
 }
 
 impl MarkedEventReceiver for Builder {
     fn on_event(&mut self, event: Event, mark: Marker) {
         match event {
             Event::Scalar(text, style, anchor, _) => {
+                self.refuse(mark, anchor, false);
                 let plain = matches!(style, TScalarStyle::Plain);
                 let quoted = matches!(
                     style,
@@ -323,9 +521,10 @@ impl MarkedEventReceiver for Builder {
                     span: span_at(mark, width),
                     value: Value::Scalar { text, plain },
                 };
-                self.push(node, anchor);
+                self.push(node);
             }
             Event::MappingStart(anchor, _) | Event::SequenceStart(anchor, _) => {
+                self.refuse(mark, anchor, false);
                 let value = if matches!(event, Event::MappingStart(..)) {
                     Value::Mapping(Vec::new())
                 } else {
@@ -336,28 +535,15 @@ impl MarkedEventReceiver for Builder {
                         span: span_at(mark, 1),
                         value,
                     },
-                    anchor,
                     key: None,
                 });
             }
             Event::MappingEnd | Event::SequenceEnd => {
                 if let Some(open) = self.stack.pop() {
-                    self.push(open.node, open.anchor);
+                    self.push(open.node);
                 }
             }
-            Event::Alias(anchor) => match self.anchors.get(&anchor).cloned() {
-                Some(mut node) => {
-                    node.span = span_at(mark, 1);
-                    self.push(node, 0);
-                }
-                None => {
-                    self.problem.get_or_insert(SyntaxError {
-                        message: "alias to an unknown anchor".into(),
-                        line: mark.line(),
-                        column: mark.col() + 1,
-                    });
-                }
-            },
+            Event::Alias(_) => self.refuse(mark, 0, true),
             _ => {}
         }
     }
@@ -389,6 +575,13 @@ mod tests {
             Some((5, 24))
         );
         assert_eq!(source.key_span(&second).map(|s| s.column), Some(15));
+        assert_eq!(source.line(2), Some("registers:"));
+        assert_eq!(source.line(6), None);
+        let crlf = SourceFile::new("t.yaml", "a: 1\r\nb: 2\r\n");
+        assert_eq!(
+            (crlf.line(1), crlf.line(2), crlf.line(3)),
+            (Some("a: 1"), Some("b: 2"), None)
+        );
         // Unknown paths fall back to the nearest ancestor.
         assert_eq!(source.span(&first.key("doc")).map(|s| s.line), Some(3));
     }

@@ -76,7 +76,11 @@ fn every_rule_has_a_failing_fixture() {
         missing.is_empty(),
         "rules without a failing fixture: {missing:?}"
     );
-    for rule in ["yaml", optobus_codegen::rules::text::RULE] {
+    for rule in [
+        "yaml",
+        optobus_codegen::source::ALIAS_RULE,
+        optobus_codegen::rules::text::RULE,
+    ] {
         assert!(fired.contains(rule), "no fixture exercises `{rule}`");
     }
 }

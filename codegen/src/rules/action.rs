@@ -23,9 +23,10 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             );
         }
     }
+    let names = model.register_names();
     for group in &model.groups {
         for (name, path) in &group.registers {
-            let Some(register) = model.resolve(name) else {
+            let Some(register) = names.resolve(name) else {
                 continue;
             };
             if register.action {

@@ -1,6 +1,8 @@
 //! `allowed-values`: a list of allowed values belongs to an integer register, is not empty,
 //! and holds distinct values that the register's type and range can hold.
 
+use std::collections::HashMap;
+
 use crate::diagnostic::Diagnostic;
 use crate::model::{Kind, Model};
 
@@ -47,6 +49,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         } else {
             "type"
         };
+        let mut first_of = HashMap::new();
         for (i, &value) in values.iter().enumerate() {
             let at = path.index(i);
             if !scalar.holds(value) || value < min || value > max {
@@ -63,7 +66,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                     .help("allowed values are raw register values, like `range`"),
                 );
             }
-            if let Some(first) = values[..i].iter().position(|&v| v == value) {
+            if let Some(&first) = first_of.get(&value) {
                 out.push(
                     Diagnostic::at(
                         RULE,
@@ -73,6 +76,8 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                     .label("repeated")
                     .also(&path.index(first), "first listed here"),
                 );
+            } else {
+                first_of.insert(value, i);
             }
         }
     }

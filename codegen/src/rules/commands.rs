@@ -1,23 +1,36 @@
 //! `command`: a command writes an existing, writable register with a value it accepts, and its
 //! targets exist; the continuous-send code is a value its register accepts.
 
+use std::collections::HashSet;
+
 use crate::diagnostic::Diagnostic;
 use crate::model::{Kind, Model, Register};
 
 /// Rule name.
 pub const RULE: &str = "command";
 
+/// The codes of every enum of a model, by enum index, as sets: a command's value is looked up
+/// in one rather than compared with every code.
+fn code_sets(model: &Model) -> Vec<HashSet<i64>> {
+    model
+        .enums
+        .iter()
+        .map(|def| def.codes.iter().map(|c| c.code).collect())
+        .collect()
+}
+
 /// True when `value` is a value `register` accepts (range, enum codes, type bounds).
-pub fn accepts(model: &Model, register: &Register, value: i64) -> bool {
+fn accepts(codes: &[HashSet<i64>], register: &Register, value: i64) -> bool {
     if let Some((min, max)) = register.range {
         if value < min || value > max {
             return false;
         }
     }
     match &register.kind {
-        Kind::Enum(reference) => model
-            .enum_def(reference)
-            .is_none_or(|def| def.codes.iter().any(|c| c.code == value)),
+        Kind::Enum(reference) => reference
+            .index
+            .and_then(|i| codes.get(i))
+            .is_none_or(|codes| codes.contains(&value)),
         Kind::Bool => value == 0 || value == 1,
         _ => register.scalar().is_none_or(|s| {
             let (min, max) = s.bounds();
@@ -28,10 +41,13 @@ pub fn accepts(model: &Model, register: &Register, value: i64) -> bool {
 
 /// Checks commands.
 pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+    let codes = code_sets(model);
     if let Some((name, code, path)) = &model.protocol.continuous_send {
         let code_path = path.parent().key("code");
         match model.register(name) {
-            Some(register) if u32::try_from(*code).is_err() || !accepts(model, register, *code) => {
+            Some(register)
+                if u32::try_from(*code).is_err() || !accepts(&codes, register, *code) =>
+            {
                 out.push(
                     Diagnostic::at(
                         RULE,
@@ -45,9 +61,10 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             _ => {}
         }
     }
+    let names = model.register_names();
     for command in &model.commands {
         let register_path = command.path.key("register");
-        match model.resolve(&command.register) {
+        match names.resolve(&command.register) {
             None if model.is_unread(&command.register) => {}
             None => out.push(
                 Diagnostic::at(
@@ -84,7 +101,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 )
                 .label("outside 0..=4294967295"),
             ),
-            Some(register) if !accepts(model, register, command.value) => out.push(
+            Some(register) if !accepts(&codes, register, command.value) => out.push(
                 Diagnostic::at(
                     RULE,
                     &command.path.key("value"),
@@ -99,7 +116,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             Some(_) => {}
         }
         for (i, target) in command.targets.iter().enumerate() {
-            if model.resolve(target).is_none() && !model.is_unread(target) {
+            if names.resolve(target).is_none() && !model.is_unread(target) {
                 out.push(
                     Diagnostic::at(
                         RULE,

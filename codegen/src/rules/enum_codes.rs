@@ -2,7 +2,7 @@
 //! they are stored in: 0 to 2^32 - 1 for any enum, and the bits of each register, field or
 //! exception reply that uses it.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use crate::diagnostic::Diagnostic;
 use crate::model::{ExceptionStyle, Kind, Model};
@@ -98,10 +98,16 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         }
     }
     {
+        // A code too wide for one user is too wide for all users of that width: reported with
+        // the first, so that many users of a large enum cost one pass over its codes each width.
+        let mut judged = HashSet::new();
         for (reference, bits, user) in users {
             let Some(def) = model.enum_def(reference) else {
                 continue;
             };
+            if !judged.insert((reference.index, bits)) {
+                continue;
+            }
             let max = if bits >= 63 {
                 i64::MAX
             } else {

@@ -8,6 +8,7 @@ pub const RULE: &str = "group";
 
 /// Checks groups.
 pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+    let names = model.register_names();
     for group in &model.groups {
         if group.registers.is_empty() {
             out.push(
@@ -21,7 +22,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         }
         let mut first: Option<(&str, crate::model::Table, &crate::source::Path)> = None;
         for (name, path) in &group.registers {
-            let Some(register) = model.resolve(name) else {
+            let Some(register) = names.resolve(name) else {
                 if model.is_unread(name) {
                     continue;
                 }

@@ -12,14 +12,28 @@ pub const RULE: &str = "duplicate-name";
 /// Rule name of the format check.
 pub const FORMAT_RULE: &str = "name-format";
 
-fn unique<'a>(kind: &str, items: impl Iterator<Item = (&'a str, Path)>, out: &mut Vec<Diagnostic>) {
-    let mut seen: HashMap<&str, Path> = HashMap::new();
+/// Reports every name of `items` given before; each item is a name and the path of what it
+/// names (with the `name` key when `keyed`), joined only for a report.
+fn unique<'a>(
+    kind: &str,
+    keyed: bool,
+    items: impl Iterator<Item = (&'a str, &'a Path)>,
+    out: &mut Vec<Diagnostic>,
+) {
+    let at = |path: &Path| {
+        if keyed {
+            path.key("name")
+        } else {
+            path.clone()
+        }
+    };
+    let mut seen: HashMap<&str, &Path> = HashMap::new();
     for (name, path) in items {
         match seen.get(name) {
             Some(first) => out.push(
-                Diagnostic::at(RULE, &path, format!("{kind} `{name}` is defined twice"))
+                Diagnostic::at(RULE, &at(path), format!("{kind} `{name}` is defined twice"))
                     .label("defined again here")
-                    .also(first, "first defined here")
+                    .also(&at(first), "first defined here")
                     .help(format!(
                         "rename one of them{}",
                         if kind == "register" {
@@ -38,47 +52,21 @@ fn unique<'a>(kind: &str, items: impl Iterator<Item = (&'a str, Path)>, out: &mu
 
 /// Checks uniqueness.
 pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
-    unique(
-        "register",
-        model
-            .registers
-            .iter()
-            .map(|r| (r.name.as_str(), r.path.key("name"))),
-        out,
-    );
+    let registers = model.registers.iter().map(|r| (r.name.as_str(), &r.path));
+    unique("register", true, registers, out);
+    let enums = model.enums.iter().filter(|e| e.shared);
     unique(
         "enum",
-        model
-            .enums
-            .iter()
-            .filter(|e| e.shared)
-            .map(|e| (e.name.as_str(), e.path.clone())),
+        false,
+        enums.map(|e| (e.name.as_str(), &e.path)),
         out,
     );
-    unique(
-        "command",
-        model
-            .commands
-            .iter()
-            .map(|c| (c.name.as_str(), c.path.key("name"))),
-        out,
-    );
-    unique(
-        "group",
-        model
-            .groups
-            .iter()
-            .map(|g| (g.name.as_str(), g.path.key("name"))),
-        out,
-    );
-    unique(
-        "repeat",
-        model
-            .repeats
-            .iter()
-            .map(|r| (r.name.as_str(), r.path.key("name"))),
-        out,
-    );
+    let commands = model.commands.iter().map(|c| (c.name.as_str(), &c.path));
+    unique("command", true, commands, out);
+    let groups = model.groups.iter().map(|g| (g.name.as_str(), &g.path));
+    unique("group", true, groups, out);
+    let repeats = model.repeats.iter().map(|r| (r.name.as_str(), &r.path));
+    unique("repeat", true, repeats, out);
 }
 
 /// Keywords no Rust name may be, not even as `r#…`.

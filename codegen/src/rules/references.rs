@@ -7,14 +7,26 @@ use crate::model::{EnumRef, Kind, Model};
 /// Rule name.
 pub const RULE: &str = "unknown-reference";
 
-fn check_enum(model: &Model, reference: &EnumRef, out: &mut Vec<Diagnostic>) {
+/// How many declared enums the help of an unknown enum lists.
+const KNOWN_SHOWN: usize = 20;
+
+/// The declared enums, as the help of an unknown enum lists them.
+fn known_enums(model: &Model) -> String {
+    let shared: Vec<&str> = model
+        .enums
+        .iter()
+        .filter(|e| e.shared)
+        .map(|e| e.name.as_str())
+        .collect();
+    let mut known = shared[..shared.len().min(KNOWN_SHOWN)].join(", ");
+    if shared.len() > KNOWN_SHOWN {
+        known.push_str(&format!(" and {} more", shared.len() - KNOWN_SHOWN));
+    }
+    known
+}
+
+fn check_enum(model: &Model, reference: &EnumRef, known: &str, out: &mut Vec<Diagnostic>) {
     if reference.index.is_none() && !model.is_unread(&reference.name) {
-        let known: Vec<&str> = model
-            .enums
-            .iter()
-            .filter(|e| e.shared)
-            .map(|e| e.name.as_str())
-            .collect();
         out.push(
             Diagnostic::at(
                 RULE,
@@ -22,25 +34,27 @@ fn check_enum(model: &Model, reference: &EnumRef, out: &mut Vec<Diagnostic>) {
                 format!("no enum named `{}`", reference.name),
             )
             .label("unknown enum")
-            .help(format!("declared enums: {}", known.join(", "))),
+            .help(format!("declared enums: {known}")),
         );
     }
 }
 
 /// Checks references.
 pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+    let names = model.register_names();
+    let known = known_enums(model);
     for register in super::declared(model) {
         match &register.kind {
-            Kind::Enum(reference) => check_enum(model, reference, out),
+            Kind::Enum(reference) => check_enum(model, reference, &known, out),
             Kind::Packed(fields) | Kind::Record(fields) => {
                 for reference in fields.iter().filter_map(|f| f.enum_ref.as_ref()) {
-                    check_enum(model, reference, out);
+                    check_enum(model, reference, &known, out);
                 }
             }
             _ => {}
         }
         if let Some(target) = &register.alias_of {
-            if model.register(target).is_none() && !model.is_unread(target) {
+            if names.register(target).is_none() && !model.is_unread(target) {
                 out.push(
                     Diagnostic::at(
                         RULE,

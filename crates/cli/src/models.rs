@@ -36,7 +36,8 @@ pub(crate) fn load(path: &Path) -> Result<&'static DeviceInfo, CliError> {
     static LOADED: OnceLock<Result<&'static DeviceInfo, String>> = OnceLock::new();
     let loaded = LOADED.get_or_init(|| {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {name}: {e}"))?;
+        let text = optobus_codegen::source::read_yaml(path)
+            .map_err(|e| format!("cannot read {name}: {e}"))?;
         describe(&name, &text).map_err(|e| e.to_string())
     });
     loaded.clone().map_err(CliError::new)

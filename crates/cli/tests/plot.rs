@@ -87,12 +87,15 @@ fn tick_labels(chart: &str) -> Vec<String> {
 fn a_buffer_at_ratio_10_is_drawn_at_ten_times_the_sampling_interval() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let at = served.at.clone();
-    ok(&["set", "sampling_interval", "100us", "--tcp", &at]);
-    ok(&["set", "sampled_data_ratio", "10", "--tcp", &at]);
+    let model = ["--model", "p-series", "--tcp", &at];
+    ok(&[&["set", "sampling_interval", "100us"][..], &model].concat());
+    ok(&[&["set", "sampled_data_ratio", "10"][..], &model].concat());
     let out = scratch("ratio.svg");
     let output = run(&[
-        "buffer", "--count", "20", "--wait", "100ms", "--plot", &out, "--tcp", &at,
-    ]);
+        &["buffer", "--count", "20", "--wait", "100ms", "--plot", &out][..],
+        &model,
+    ]
+    .concat());
     assert!(output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
@@ -122,6 +125,25 @@ fn what_cannot_be_drawn_is_refused() {
     let stderr = fails(&["buffer", "--count", "10", "--plot", &scratch("x.pdf")]);
     assert!(
         stderr.contains("written as SVG or PNG") && !stderr.contains("buffering"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_device_or_an_oversized_recording_is_refused_with_the_limit() {
+    let stderr = fails(&["plot", "/dev/zero", "--out", &scratch("z.svg")]);
+    assert!(
+        stderr.contains("cannot read /dev/zero: not a regular file"),
+        "{stderr}"
+    );
+    // Sparse: one byte over the 256 MiB limit costs no disk.
+    let csv = scratch("huge.csv");
+    let file = std::fs::File::create(&csv).expect("create");
+    file.set_len(256 * 1024 * 1024 + 1).expect("grow");
+    let stderr = fails(&["plot", &csv, "--out", &scratch("huge.svg")]);
+    let _ = std::fs::remove_file(&csv);
+    assert!(
+        stderr.contains("larger than the limit of 256 MiB"),
         "{stderr}"
     );
 }

@@ -84,3 +84,30 @@ fn a_trial_spec_of_another_sensor_works_before_any_build() {
     let stderr = fails(&["--spec", &spec, "do", "factory_reset"]);
     assert!(stderr.contains("--yes"), "{stderr}");
 }
+
+#[test]
+fn a_hostile_spec_file_is_refused_at_once() {
+    // "Billion laughs": a few hundred bytes that would expand to 9^12 nodes.
+    let bomb = std::env::temp_dir().join(format!("optobus-bomb-{}.yaml", std::process::id()));
+    let mut text = String::from("family: bomb\na: &a [lol, lol, lol, lol, lol, lol, lol, lol]\n");
+    for (from, to) in ('a'..'l').zip('b'..='l') {
+        text.push_str(&format!(
+            "{to}: &{to} [{}]\n",
+            vec![format!("*{from}"); 9].join(",")
+        ));
+    }
+    std::fs::write(&bomb, text).expect("write");
+    let (code, _, stderr) = outcome(&["--spec", &bomb.display().to_string(), "registers"]);
+    let _ = std::fs::remove_file(&bomb);
+    assert_eq!(code, Some(REFUSED), "{stderr}");
+    assert!(
+        stderr.contains("error[yaml-alias]: YAML anchor `&a`: specs use no anchors or aliases"),
+        "{stderr}"
+    );
+    assert!(stderr.contains(":2:4"), "{stderr}");
+    let stderr = fails(&["--spec", "/dev/zero", "registers"]);
+    assert!(
+        stderr.contains("cannot read /dev/zero: not a regular file"),
+        "{stderr}"
+    );
+}

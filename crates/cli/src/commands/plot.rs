@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use optobus_codegen::source::{open_limited, size_text, ReadError};
 
 use crate::chart::{check_out, draw, Series};
 use crate::error::CliError;
@@ -18,11 +19,32 @@ pub(crate) struct PlotArgs {
     out: PathBuf,
 }
 
+/// The largest recording `plot` reads: 256 MiB, some three million rows of five values (hours
+/// of `optobus record` at the fastest serial line). Its points take about two and a half times
+/// the file in memory (some 700 MB at the limit, drawn in about five seconds); a larger file is
+/// refused rather than left to exhaust the machine.
+const RECORDING_LIMIT: u64 = 256 * 1024 * 1024;
+
 /// Reads the recording: the x axis label and one series per value column with a number in it.
 fn series(args: &PlotArgs) -> Result<(String, Vec<Series>), CliError> {
     let shown = args.file.display();
-    let unreadable = |e: csv::Error| CliError::new(format!("cannot read {shown}: {e}"));
-    let mut reader = csv::Reader::from_path(&args.file).map_err(unreadable)?;
+    let too_large = |error: String| {
+        CliError::new(format!("cannot read {shown}: {error}")).hint(format!(
+            "plot draws recordings of up to {}; plot a part, e.g. `head -n 1000000 {shown} > part.csv`",
+            size_text(RECORDING_LIMIT)
+        ))
+    };
+    let unreadable = |e: csv::Error| match e.kind() {
+        csv::ErrorKind::Io(io) if io.kind() == std::io::ErrorKind::FileTooLarge => {
+            too_large(io.to_string())
+        }
+        _ => CliError::new(format!("cannot read {shown}: {e}")),
+    };
+    let file = open_limited(&args.file, RECORDING_LIMIT).map_err(|e| match e {
+        ReadError::TooLarge { .. } => too_large(e.to_string()),
+        _ => CliError::new(format!("cannot read {shown}: {e}")),
+    })?;
+    let mut reader = csv::Reader::from_reader(file);
     let headers = reader.headers().map_err(unreadable)?.clone();
     let Some(x_label) = headers.get(1).filter(|h| h.starts_with("elapsed")) else {
         return Err(CliError::new(format!(
