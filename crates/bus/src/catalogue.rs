@@ -62,7 +62,8 @@ impl Catalogue {
 
 fn describe(path: &Path) -> Result<&'static DeviceInfo, String> {
     let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {name}: {e}"))?;
+    let text =
+        optobus_codegen::source::read_yaml(path).map_err(|e| format!("cannot read {name}: {e}"))?;
     match optobus_codegen::check_source(&name, &text) {
         Ok(model) => Ok(optobus_codegen::describe(&model)),
         Err(rejected) => Err(format!(

@@ -253,3 +253,36 @@ fn text_that_is_not_yaml_or_empty_is_refused() {
     assert!(parse("lines: [").unwrap_err().contains("error[yaml]"));
     assert!(parse("").unwrap_err().contains("the bus file is empty"));
 }
+
+#[test]
+fn a_bus_file_with_anchors_and_aliases_is_refused_at_its_first_anchor() {
+    // Nine aliases a level, twelve levels: expanded, billions of nodes; refused, none.
+    let mut text = String::from("a: &a [x, x, x, x, x, x, x, x, x]\n");
+    let mut previous = 'a';
+    for name in "bcdefghijklm".chars() {
+        text += &format!("{name}: &{name} [*{previous}, *{previous}, *{previous}, *{previous}, *{previous}, *{previous}, *{previous}, *{previous}, *{previous}]\n");
+        previous = name;
+    }
+    text += "lines: *m\n";
+    let rendered = parse(&text).expect_err("aliases are refused");
+    assert!(rendered.contains("error[yaml-alias]"), "{rendered}");
+    assert!(rendered.contains("bus.yaml:1:4"), "{rendered}");
+}
+
+#[test]
+fn devices_and_oversized_files_are_refused_before_they_are_read() {
+    let error = BusFile::load(Path::new("/dev/zero"), &catalogue()).unwrap_err();
+    assert!(error.to_string().contains("not a regular file"), "{error}");
+    let big = std::env::temp_dir().join(format!("optobus-big-bus-{}.yaml", std::process::id()));
+    let file = std::fs::File::create(&big).unwrap();
+    // Sparse: 17 MiB long, nothing written.
+    file.set_len(17 * 1024 * 1024).unwrap();
+    let error = BusFile::load(&big, &catalogue()).unwrap_err();
+    let _ = std::fs::remove_file(&big);
+    assert!(
+        error
+            .to_string()
+            .contains("larger than the limit of 16 MiB"),
+        "{error}"
+    );
+}

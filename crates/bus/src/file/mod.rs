@@ -14,7 +14,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use optobus_codec::LineFormat;
-use optobus_codegen::{render_all, Diagnostic, SourceFile};
+use optobus_codegen::source::{read_yaml, ReadError};
+use optobus_codegen::SourceFile;
 use optobus_device::{DeviceInfo, RegisterInfo};
 
 use crate::catalogue::Catalogue;
@@ -133,29 +134,8 @@ pub struct PollConfig {
     pub priority: u8,
 }
 
-/// A bus file that did not pass: its source and every problem found.
-#[derive(Debug)]
-pub struct Rejected {
-    /// The file's text, for rendering.
-    pub source: SourceFile,
-    /// Every problem, in file order.
-    pub diagnostics: Vec<Diagnostic>,
-}
-
-impl Rejected {
-    /// The problems rendered like rustc.
-    pub fn render(&self) -> String {
-        render_all(&self.diagnostics, &self.source)
-    }
-}
-
-impl std::fmt::Display for Rejected {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.render().trim_end())
-    }
-}
-
-impl std::error::Error for Rejected {}
+/// A bus file that did not pass: its source and every problem found, rendered like rustc.
+pub use optobus_codegen::Rejected;
 
 impl BusFile {
     /// Reads and checks a bus file's text. `name` is shown in diagnostics; spec files the
@@ -197,9 +177,10 @@ impl BusFile {
         }
     }
 
-    /// Reads and checks the bus file at `path`.
+    /// Reads and checks the bus file at `path`: a regular file (or a pipe) of at most
+    /// [`YAML_LIMIT`](optobus_codegen::source::YAML_LIMIT) bytes of UTF-8, read as specs are.
     pub fn load(path: &Path, catalogue: &Catalogue) -> Result<Self, LoadError> {
-        let text = std::fs::read_to_string(path).map_err(|source| LoadError::Read {
+        let text = read_yaml(path).map_err(|source| LoadError::Read {
             path: path.to_path_buf(),
             source,
         })?;
@@ -225,7 +206,7 @@ pub enum LoadError {
         /// The path given.
         path: PathBuf,
         /// Why.
-        source: std::io::Error,
+        source: ReadError,
     },
     /// The file did not pass its checks.
     Rejected(Box<Rejected>),

@@ -98,7 +98,7 @@ pub(super) struct Reader<'a> {
 /// The diagnostic for text that is not YAML.
 pub(super) fn syntax(error: &SyntaxError) -> Diagnostic {
     Diagnostic {
-        rule: "yaml",
+        rule: error.rule,
         message: error.message.clone(),
         primary: Label {
             location: Location::Position {
@@ -108,7 +108,7 @@ pub(super) fn syntax(error: &SyntaxError) -> Diagnostic {
             text: String::new(),
         },
         secondary: Vec::new(),
-        help: Some("the bus file is not valid YAML".into()),
+        help: Some(error.help.into()),
     }
 }
 
