@@ -33,13 +33,15 @@ pub(crate) fn describe(name: &str, text: &str) -> Result<&'static DeviceInfo, Cl
 
 /// The model a spec file describes (read and described once per run).
 pub(crate) fn load(path: &Path) -> Result<&'static DeviceInfo, CliError> {
-    static LOADED: OnceLock<Result<&'static DeviceInfo, String>> = OnceLock::new();
+    static LOADED: OnceLock<Result<&'static DeviceInfo, CliError>> = OnceLock::new();
     let loaded = LOADED.get_or_init(|| {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {name}: {e}"))?;
-        describe(&name, &text).map_err(|e| e.to_string())
+        // A file that cannot be read is the system's failure; one that fails the checks, input refused.
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| CliError::failed(format!("cannot read {name}: {e}")))?;
+        describe(&name, &text)
     });
-    loaded.clone().map_err(CliError::new)
+    loaded.clone()
 }
 
 /// Every built-in model, in the order of their manuals.

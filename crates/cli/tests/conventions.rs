@@ -286,3 +286,33 @@ fn exit_codes_tell_failure_usage_and_refusal_apart() {
     assert_eq!(code, Some(FAILED), "{stderr}");
     assert!(stderr.contains("no reply within 50 ms"), "{stderr}");
 }
+
+#[test]
+fn point_10_files_and_ports_the_system_cannot_give_exit_1() {
+    // A listen port another server holds.
+    let busy = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
+    let at = busy.local_addr().expect("its address").to_string();
+    let (code, _, stderr) = outcome(&["simulate", "--tcp", &at, "--duration", "1s"]);
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    assert!(
+        stderr.contains(&format!("cannot listen on {at}")),
+        "{stderr}"
+    );
+    // A --spec file that is not there.
+    let (code, _, stderr) = outcome(&["--spec", "/nonexistent/spec.yaml", "registers"]);
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    assert!(
+        stderr.contains("cannot read /nonexistent/spec.yaml"),
+        "{stderr}"
+    );
+    // A recording that is not there.
+    let missing = std::env::temp_dir().join("optobus-no-such-recording.csv");
+    let missing = missing.display().to_string();
+    let out = std::env::temp_dir().join("optobus-never-drawn.svg");
+    let (code, _, stderr) = outcome(&["plot", &missing, "--out", &out.display().to_string()]);
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    assert!(
+        stderr.contains(&format!("cannot read {missing}")),
+        "{stderr}"
+    );
+}

@@ -21,7 +21,14 @@ pub(crate) struct PlotArgs {
 /// Reads the recording: the x axis label and one series per value column with a number in it.
 fn series(args: &PlotArgs) -> Result<(String, Vec<Series>), CliError> {
     let shown = args.file.display();
-    let unreadable = |e: csv::Error| CliError::new(format!("cannot read {shown}: {e}"));
+    // A file that cannot be read is the system's failure; text that is no CSV, input refused.
+    let unreadable = |e: csv::Error| {
+        let message = format!("cannot read {shown}: {e}");
+        match e.kind() {
+            csv::ErrorKind::Io(_) => CliError::failed(message),
+            _ => CliError::new(message),
+        }
+    };
     let mut reader = csv::Reader::from_path(&args.file).map_err(unreadable)?;
     let headers = reader.headers().map_err(unreadable)?.clone();
     let Some(x_label) = headers.get(1).filter(|h| h.starts_with("elapsed")) else {

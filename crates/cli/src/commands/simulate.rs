@@ -157,7 +157,7 @@ async fn serve(
             Some(line) => sim.serve_pty_line(line),
             None => sim.serve_pty(),
         }
-        .map_err(|e| CliError::new(format!("cannot open a pty: {e}")))?;
+        .map_err(|e| CliError::failed(format!("cannot open a pty: {e}")))?;
         let path = pty.path().display().to_string();
         print(&path);
         (Box::new(pty), format!("RTU at {path}"))
@@ -166,7 +166,7 @@ async fn serve(
         settings.line = global.target.line_format(device);
         let port = settings
             .open()
-            .map_err(|e| CliError::new(format!("cannot open {path}: {e}")))?;
+            .map_err(|e| CliError::failed(format!("cannot open {path}: {e}")))?;
         print(path);
         let sim = sim.clone();
         let task = tokio::spawn(async move {
@@ -180,7 +180,7 @@ async fn serve(
         let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
         let address = link::resolve_tcp(address, 5020).await?;
         let server = sim.serve_tcp(address).await.map_err(|e| {
-            CliError::new(format!("cannot listen on {address}: {e}"))
+            CliError::failed(format!("cannot listen on {address}: {e}"))
                 .hint("is another server using the port? try --tcp 127.0.0.1:0")
         })?;
         let address = server.local_addr();
