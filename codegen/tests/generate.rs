@@ -40,3 +40,14 @@ fn generated_code_parses_as_rust() {
     let generated = generate_mini();
     assert!(syn::parse_file(&generated).is_ok());
 }
+
+#[test]
+fn point_10_the_parameter_that_picks_a_copy_is_named_after_its_repeat() {
+    let generated = generate_mini();
+    assert!(
+        generated.contains("pub async fn exposure(&mut self, channel: Channel)"),
+        "{generated}"
+    );
+    assert!(generated.contains("EXPOSURE[channel.index()]"));
+    assert!(!generated.contains("copy: Channel"), "{generated}");
+}

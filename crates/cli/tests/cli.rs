@@ -218,7 +218,7 @@ fn set_takes_engineering_units_and_code_names() {
 fn invalid_values_are_refused_before_anything_is_sent() {
     for (line, message) in [
         ("set light_power 100.1", "allowed 0.5 % ..= 100.0 %"),
-        ("set light_power 50.05", "whole steps of 1e-1 %"),
+        ("set light_power 50.05", "whole steps of 0.1 %"),
         ("set sampling_interval 7us", "codes are us_6_25 (8)"),
         ("set distance_1 1", "read-only"),
         ("--model ccf set exposure_time 1", "--channel"),

@@ -78,6 +78,7 @@ impl Parts {
                 min: 0,
                 max: i64::from(self.info.most),
                 scale: None,
+                unit: None,
             });
         }
         Ok(())

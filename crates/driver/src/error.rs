@@ -24,6 +24,8 @@ pub enum Error {
         max: i64,
         /// One raw step, for showing the values in units.
         scale: Option<Scale>,
+        /// The register's unit, if it has one.
+        unit: Option<&'static str>,
     },
     /// The value lies within the range but is not one of the values the manual lists for the
     /// register (LC-RS baud rates).
@@ -36,6 +38,8 @@ pub enum Error {
         allowed: &'static [i64],
         /// One raw step, for showing the values in units.
         scale: Option<Scale>,
+        /// The register's unit, if it has one.
+        unit: Option<&'static str>,
     },
     /// The value is not a whole number of the register's steps, or has too many of them.
     NotRepresentable {
@@ -45,6 +49,8 @@ pub enum Error {
         value: Fixed,
         /// The register's step.
         scale: Scale,
+        /// The register's unit, if it has one.
+        unit: Option<&'static str>,
     },
     /// The code is not one the manual defines for the register or field.
     UndefinedCode {
@@ -95,10 +101,20 @@ pub enum Error {
     },
 }
 
-fn show(raw: i64, scale: Option<Scale>) -> String {
-    match scale {
+/// `raw` steps of `scale` in `unit`: `5000.1 us`.
+fn show(raw: i64, scale: Option<Scale>, unit: Option<&str>) -> String {
+    let number = match scale {
         Some(scale) => Fixed::new(raw, scale).to_string(),
         None => raw.to_string(),
+    };
+    with_unit(number, unit)
+}
+
+/// `number unit`, or the number alone.
+fn with_unit(number: impl fmt::Display, unit: Option<&str>) -> String {
+    match unit {
+        Some(unit) => format!("{number} {unit}"),
+        None => number.to_string(),
     }
 }
 
@@ -112,24 +128,27 @@ impl fmt::Display for Error {
                 min,
                 max,
                 scale,
+                unit,
             } => write!(
                 f,
                 "{} is out of range for `{register}` ({} ..= {})",
-                show(*raw, *scale),
-                show(*min, *scale),
-                show(*max, *scale)
+                show(*raw, *scale, *unit),
+                show(*min, *scale, *unit),
+                show(*max, *scale, *unit)
             ),
             Self::NotListed {
                 register,
                 raw,
                 allowed,
                 scale,
+                unit,
             } => {
-                let allowed: Vec<String> = allowed.iter().map(|v| show(*v, *scale)).collect();
+                let allowed: Vec<String> =
+                    allowed.iter().map(|v| show(*v, *scale, *unit)).collect();
                 write!(
                     f,
                     "{} is not a value `{register}` accepts (only {})",
-                    show(*raw, *scale),
+                    show(*raw, *scale, *unit),
                     allowed.join(", ")
                 )
             }
@@ -137,9 +156,12 @@ impl fmt::Display for Error {
                 register,
                 value,
                 scale,
+                unit,
             } => write!(
                 f,
-                "{value} cannot be written to `{register}` exactly: it holds whole steps of {scale} within its width"
+                "{} cannot be written to `{register}` exactly: it holds whole steps of {} within its width",
+                with_unit(value, *unit),
+                with_unit(scale.step(), *unit)
             ),
             Self::UndefinedCode {
                 register,
@@ -202,6 +224,7 @@ impl Error {
                 min,
                 max,
                 scale: field.map_or(register.scale, |field| field.scale),
+                unit: field.map_or(register.unit, |field| field.unit),
             },
             Invalid::UndefinedCode { field, code } => Self::UndefinedCode {
                 register: register.name,
@@ -213,6 +236,7 @@ impl Error {
                 raw: value,
                 allowed,
                 scale: register.scale,
+                unit: register.unit,
             },
             Invalid::StrayBits { .. } => Self::FieldTooWide {
                 register: register.name,

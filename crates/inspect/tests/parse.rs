@@ -100,7 +100,7 @@ fn bad_values_are_refused_in_one_line() {
         (
             "light_power",
             "50.05",
-            "`light_power` does not take `50.05`: it holds whole steps of 1e-1 %",
+            "`light_power` does not take `50.05`: it holds whole steps of 0.1 %",
         ),
         (
             "light_power",
@@ -194,7 +194,7 @@ fn other_si_prefixes_of_the_registers_unit_convert_exactly() {
     assert_eq!(exposure("0.0002s"), Ok(vec![2000]));
     // 0.00001 ms is 10 ns: not a whole 0.1 µs step, refused rather than rounded.
     let error = exposure("0.00001ms").unwrap_err();
-    assert!(error.contains("whole steps of 1e-1 us"), "{error}");
+    assert!(error.contains("whole steps of 0.1 us"), "{error}");
     // P-series position_1_offset: steps of 1 nm in mm.
     let offset = |text: &str| parsed(P, "position_1_offset", text);
     assert_eq!(offset("1.5 mm"), offset("1500um"));
