@@ -207,17 +207,74 @@ impl Global {
     }
 }
 
-/// Reads `registers` in the fewest requests and decodes them.
+/// Reads `registers` in the fewest requests and decodes them; a failure names the registers
+/// of the request that failed.
 pub(crate) async fn read_values(
     core: &mut Core<Link>,
     registers: &[&'static RegisterInfo],
 ) -> Result<Vec<(&'static RegisterInfo, Value)>, CliError> {
-    let readings = core.read_group(registers).await.map_err(|e| {
-        let names: Vec<&str> = registers.iter().map(|r| r.name).collect();
-        driver_error(e, Some(&names.join(", ")))
-    })?;
-    Ok(registers
-        .iter()
-        .map(|r| (*r, decode_value(r, readings.words(r))))
-        .collect())
+    read_each_request(core, registers)
+        .await
+        .map_err(|failed| failed.explained())
+}
+
+/// A read that failed: the driver's error and the registers of the request that failed.
+pub(crate) struct FailedRead {
+    pub(crate) error: optobus_driver::Error,
+    registers: Vec<&'static RegisterInfo>,
+}
+
+impl FailedRead {
+    /// The error as the tool says it, with the failing request's registers.
+    pub(crate) fn explained(self) -> CliError {
+        let names: Vec<&str> = self.registers.iter().map(|r| r.name).collect();
+        driver_error(self.error, Some(&names.join(", ")))
+    }
+}
+
+/// Reads `registers` request by request, as [`optobus_driver::plan_reads`] plans them (the
+/// fewest requests), and decodes them in the order given.
+pub(crate) async fn read_each_request(
+    core: &mut Core<Link>,
+    registers: &[&'static RegisterInfo],
+) -> Result<Vec<(&'static RegisterInfo, Value)>, FailedRead> {
+    let device = core.device();
+    let mut values: Vec<Option<Value>> = vec![None; registers.len()];
+    for span in optobus_driver::plan_reads(device, registers) {
+        let (indexes, members): (Vec<usize>, Vec<&'static RegisterInfo>) = registers
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| span.offset_of(r, device.addressing).is_some())
+            .map(|(i, r)| (i, *r))
+            .unzip();
+        let readings = core
+            .read_group(&members)
+            .await
+            .map_err(|error| FailedRead {
+                error,
+                registers: members.clone(),
+            })?;
+        for (i, register) in indexes.into_iter().zip(&members) {
+            values[i] = Some(decode_value(register, readings.words(register)));
+        }
+    }
+    let mut decoded = Vec::with_capacity(registers.len());
+    for (register, value) in registers.iter().zip(values) {
+        let value = match value {
+            Some(value) => value,
+            // In no planned request (a register no read may touch): the driver says why.
+            None => {
+                let readings = core
+                    .read_group(&[register])
+                    .await
+                    .map_err(|error| FailedRead {
+                        error,
+                        registers: vec![register],
+                    })?;
+                decode_value(register, readings.words(register))
+            }
+        };
+        decoded.push((*register, value));
+    }
+    Ok(decoded)
 }

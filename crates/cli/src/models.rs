@@ -75,7 +75,7 @@ pub(crate) fn find(name: &str) -> Result<&'static DeviceInfo, CliError> {
 
 /// The model's name as users type it (`p-series`).
 pub(crate) fn name(device: &DeviceInfo) -> String {
-    device.family.replace('_', "-")
+    device.model_name().to_string()
 }
 
 /// The models' names as users type them.

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{fails, json, ok, outcome, refused, run, words, Served, REFUSED};
+use common::{fails, json, ok, outcome, refused, run, words, Served, FAILED, REFUSED};
 
 /// Runs each command line, which must succeed and print the line given.
 fn prints(cases: &[(&[&str], &str)]) {
@@ -439,4 +439,17 @@ fn verbose_frames_carry_the_local_time_and_the_reply_delay() {
     // `14:23:54.830 +01:00 <- 01 03 02 00 00 B8 44 (0.074 ms)`
     assert_eq!(&reply[12..14], " +", "{reply}");
     assert!(reply.ends_with(" ms)"), "{reply}");
+}
+
+#[test]
+fn point_7_a_failed_dump_names_the_failing_requests_registers_only() {
+    let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0", "--faults", "drop=1"]);
+    let (code, _, stderr) = outcome(&["dump", "--tcp", &served.at, "--timeout", "100ms"]);
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    // The first request reads the holding registers; the input registers come later.
+    assert!(
+        stderr.contains("no reply within 100 ms for `laser_enabled, "),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("distance_1"), "{stderr}");
 }

@@ -101,8 +101,7 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
         };
         let mut out = std::io::stdout().lock();
         if terminal {
-            let size = terminal::size().unwrap_or((u16::MAX, u16::MAX));
-            drawn_lines = redraw(&mut out, drawn_lines, &block, size);
+            drawn_lines = redraw(&mut out, drawn_lines, &block, screen(terminal::size().ok()));
         } else {
             let _ = out.write_all(block.as_bytes());
         }
@@ -116,6 +115,15 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
         }
     }
     Ok(())
+}
+
+/// The terminal's `(columns, rows)`; where it reports none, or a zero (a serial console, some
+/// CI terminals), the classic 80 × 24, so a drawing is cut to something that shows.
+fn screen(reported: Option<(u16, u16)>) -> (u16, u16) {
+    match reported {
+        Some((columns, rows)) if columns > 0 && rows > 0 => (columns, rows),
+        _ => (80, 24),
+    }
 }
 
 /// Readings a sparkline shows.
@@ -187,7 +195,23 @@ fn redraw(out: &mut impl Write, drawn: u16, block: &str, (columns, rows): (u16, 
 
 #[cfg(test)]
 mod tests {
-    use super::{redraw, sparkline};
+    use super::{redraw, screen, sparkline};
+
+    #[test]
+    fn point_10_a_terminal_reporting_0x0_draws_at_a_sane_size() {
+        assert_eq!(screen(Some((0, 0))), (80, 24));
+        assert_eq!(screen(Some((120, 0))), (80, 24));
+        assert_eq!(screen(None), (80, 24));
+        assert_eq!(screen(Some((100, 30))), (100, 30));
+        let block = "13:05:01.250  p-series · slave 1\ndistance_1  3.584190 mm\n";
+        let mut out = Vec::new();
+        assert_eq!(redraw(&mut out, 0, block, screen(Some((0, 0)))), 2);
+        let clear = "\u{1b}[2K";
+        assert_eq!(
+            String::from_utf8_lossy(&out),
+            format!("{clear}13:05:01.250  p-series · slave 1\n{clear}distance_1  3.584190 mm\n")
+        );
+    }
 
     #[test]
     fn a_sparkline_spans_its_readings_lowest_to_highest_with_gaps() {
