@@ -453,3 +453,44 @@ fn point_7_a_failed_dump_names_the_failing_requests_registers_only() {
     );
     assert!(!stderr.contains("distance_1"), "{stderr}");
 }
+
+#[test]
+fn point_9_watch_reports_a_lasting_failure_once_then_its_recovery() {
+    use std::io::{BufRead, BufReader, Read};
+    let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
+    let at = served.at.clone();
+    let mut watch = common::optobus()
+        .args(["watch", "distance_1", "--interval", "50ms", "--count", "60"])
+        .args(["--tcp", &at, "--timeout", "200ms"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start optobus watch");
+    let mut stdout = BufReader::new(watch.stdout.take().expect("stdout"));
+    let mut first = String::new();
+    stdout.read_line(&mut first).expect("a first reading");
+    // The device goes away for a while (several refreshes), then comes back at its address.
+    drop(served);
+    std::thread::sleep(std::time::Duration::from_millis(600));
+    let _back = Served::start(&["p-series", "--tcp", &at]);
+    let mut rest = String::new();
+    stdout
+        .read_to_string(&mut rest)
+        .expect("the other readings");
+    let mut stderr = String::new();
+    let mut pipe = watch.stderr.take().expect("stderr");
+    pipe.read_to_string(&mut stderr).expect("stderr");
+    assert!(watch.wait().expect("watch ends").success(), "{stderr}");
+    let lines = |sign: &str| stderr.lines().filter(|l| l.contains(sign)).count();
+    // Each attempt's count differs; the failure is still said once.
+    assert_eq!(lines("cannot connect"), 1, "{stderr}");
+    assert_eq!(lines("recovered after"), 1, "{stderr}");
+    // At most a closed connection, then the refused ones, then the recovery.
+    assert!(stderr.lines().count() <= 4, "{stderr}");
+    assert!(
+        rest.lines()
+            .last()
+            .is_some_and(|l| l.starts_with("distance_1")),
+        "{rest}"
+    );
+}

@@ -265,3 +265,89 @@ impl Error {
         }
     }
 }
+
+/// The kind of a failure ([`Error::kind`]): two failures of one kind compare equal whatever
+/// their counts, durations and messages, so `cannot connect (1 attempts)` and `(2 attempts)`
+/// are one kind, while a refused connection and an unreachable host, or exceptions 02 and 04,
+/// are two.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ErrorKind {
+    variant: std::mem::Discriminant<Error>,
+    wire: Option<std::mem::Discriminant<optobus_transport::Error>>,
+    detail: Detail,
+}
+
+/// What tells failures of one variant apart.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Detail {
+    None,
+    Exception(optobus_transport::ExceptionCode),
+    Io(std::io::ErrorKind),
+}
+
+impl Error {
+    /// The kind of this failure: a tool that reports a lasting failure once says it again only
+    /// when its kind changes (or it recovers).
+    pub fn kind(&self) -> ErrorKind {
+        use optobus_transport::Error as Wire;
+        let wire = match self {
+            Self::Transport(wire) => Some(wire),
+            Self::NotReady { last, .. } => Some(last.as_ref()),
+            _ => None,
+        };
+        let detail = match wire {
+            Some(Wire::Exception { code, .. }) => Detail::Exception(*code),
+            Some(Wire::Connect { source, .. } | Wire::Io(source)) => Detail::Io(source.kind()),
+            _ => Detail::None,
+        };
+        ErrorKind {
+            variant: std::mem::discriminant(self),
+            wire: wire.map(std::mem::discriminant),
+            detail,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Error;
+    use optobus_transport::{Error as Wire, ExceptionCode};
+    use std::io;
+
+    fn cannot_connect(attempts: u32, kind: io::ErrorKind) -> Error {
+        Error::Transport(Wire::Connect {
+            attempts,
+            source: io::Error::new(kind, format!("attempt {attempts}")),
+        })
+    }
+
+    fn exception(code: u16) -> Error {
+        Error::Transport(Wire::Exception {
+            function: 3,
+            code: ExceptionCode(code),
+        })
+    }
+
+    #[test]
+    fn point_9_failures_of_one_kind_compare_equal_whatever_their_text() {
+        let refused = io::ErrorKind::ConnectionRefused;
+        let first = cannot_connect(1, refused);
+        let second = cannot_connect(2, refused);
+        assert_ne!(first.to_string(), second.to_string());
+        assert_eq!(first.kind(), second.kind());
+        // Another cause, another wire failure, another exception: another kind.
+        assert_ne!(
+            first.kind(),
+            cannot_connect(3, io::ErrorKind::TimedOut).kind()
+        );
+        let timeout = |ms| {
+            Error::Transport(Wire::Timeout {
+                after: std::time::Duration::from_millis(ms),
+            })
+        };
+        assert_eq!(timeout(100).kind(), timeout(200).kind());
+        assert_ne!(first.kind(), timeout(100).kind());
+        assert_eq!(exception(2).kind(), exception(2).kind());
+        assert_ne!(exception(2).kind(), exception(4).kind());
+    }
+}

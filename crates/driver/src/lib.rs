@@ -43,7 +43,7 @@ pub use convert::{
     encode_code, encode_integer, encode_packed, raw_bits, word_array, CodeEnum, Decode, Encode,
     RawValue,
 };
-pub use error::Error;
+pub use error::{Error, ErrorKind};
 pub use optobus_codec::value::{Fixed, ParseFixedError, Scale};
 pub use optobus_device::{BufferInfo, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo};
 pub use optobus_transport::{self as transport, Transport};

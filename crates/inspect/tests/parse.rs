@@ -201,7 +201,7 @@ fn point_7_a_misspelt_name_suggests_the_nearest_names() {
         panic!("{error:?}");
     };
     assert_eq!(near.first(), Some(&"exposure_time"), "{near:?}");
-    let error = Error::from(resolve(P, "zzzzzzzz", None).err().expect("refused"));
+    let error = Error::from(resolve(P, "zzzzzzzz", None).expect_err("refused"));
     assert!(
         error
             .to_string()

@@ -9,12 +9,13 @@ use clap::Args;
 use crossterm::{cursor, terminal, QueueableCommand};
 use serde_json::json;
 
-use crate::connect::{read_values, DeviceArgs, Global, Names};
+use crate::connect::{read_each_request, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{time_of_day, timestamp, values_json, values_text};
 use crate::{inputs, models};
 use optobus_device::RegisterInfo;
+use optobus_driver::ErrorKind;
 use optobus_inspect::Value;
 
 #[derive(Debug, Args)]
@@ -49,23 +50,43 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
     let mut last: Option<String> = None;
     let mut refresh = 0u64;
     let mut history = vec![VecDeque::new(); registers.len()];
-    // The failure last reported on stderr, while the device keeps failing so.
-    let mut failing: Option<String> = None;
+    // The kind of failure last reported on stderr and the reads failed since, while the
+    // device keeps failing.
+    let mut failing: Option<(ErrorKind, u64)> = None;
     let ctrl_c = tokio::signal::ctrl_c();
     tokio::pin!(ctrl_c);
     loop {
         let started = tokio::time::Instant::now();
         let outcome = tokio::select! {
-            outcome = read_values(&mut core, &registers) => outcome,
+            outcome = read_each_request(&mut core, &registers) => outcome,
             _ = &mut ctrl_c => break,
         };
         refresh += 1;
+        // Piped: a failure on stderr once, again when its kind changes, and the recovery.
+        let piped = !terminal && !global.json;
+        let outcome = match outcome {
+            Ok(values) => {
+                if let Some((_, failed)) = failing.take().filter(|_| piped) {
+                    note!("{}  recovered after {failed} failed reads", time_of_day());
+                }
+                Ok(values)
+            }
+            Err(failed) => {
+                let kind = failed.error.kind();
+                let error = failed.explained();
+                let (known, failed) = failing.map_or((None, 0), |(k, n)| (Some(k), n));
+                if piped && known != Some(kind) {
+                    note!("{}  ! {error} — retrying", time_of_day());
+                }
+                failing = Some((kind, failed + 1));
+                Err(error)
+            }
+        };
         let block = match &outcome {
             Ok(values) if global.json => {
                 json!({"time": timestamp(), "values": values_json(values)}).to_string() + "\n"
             }
             Ok(values) => {
-                failing = None;
                 let text = if args.chart {
                     chart_text(values, &mut history)
                 } else {
@@ -83,15 +104,8 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
             Err(error) if global.json => {
                 json!({"time": timestamp(), "error": error.to_string()}).to_string() + "\n"
             }
-            // Piped: the failure on stderr, once until it changes; stdout keeps the values.
-            Err(error) if !terminal => {
-                let text = error.to_string();
-                if failing.as_deref() != Some(text.as_str()) {
-                    note!("{}  ! {text} — retrying", time_of_day());
-                    failing = Some(text);
-                }
-                String::new()
-            }
+            // Piped: the failure went to stderr above; stdout keeps the values.
+            Err(_) if !terminal => String::new(),
             // Keep the last values on screen, marked, and try again.
             Err(error) => format!(
                 "{}  ! {error} — retrying\n{}",
