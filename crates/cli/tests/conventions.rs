@@ -94,6 +94,27 @@ fn device_options_show_only_on_commands_that_reach_a_device() {
 }
 
 #[test]
+fn point_8_an_option_of_other_commands_names_them() {
+    let stderr = refused(
+        &words("read distance_1 --interval 100ms"),
+        USAGE,
+        "unexpected argument '--interval': it belongs to `watch` and `record`",
+    );
+    assert!(!stderr.contains("similar argument"), "{stderr}");
+    refused(
+        &words("dump --chart"),
+        USAGE,
+        "unexpected argument '--chart': it belongs to `watch`",
+    );
+    // A subcommand's own option is named with its path; `=value` is the same option.
+    refused(
+        &words("read distance_1 --count=3"),
+        USAGE,
+        "it belongs to `watch`, `record`, `buffer` and `raw read`",
+    );
+}
+
+#[test]
 fn frame_names_its_model_once() {
     for command in ["frame encode", "frame decode"] {
         let text = help(command);
