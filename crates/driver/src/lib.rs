@@ -19,6 +19,7 @@
 //!
 //! Nothing here knows about sockets: the bytes go through an [`optobus_transport::Transport`].
 #![forbid(unsafe_code)]
+#![cfg_attr(docsrs, feature(doc_cfg))]
 
 #[cfg(feature = "serde")]
 pub mod array_serde;
@@ -36,6 +37,7 @@ pub mod units;
 
 pub use crate::buffer::DownloadProgress;
 #[cfg(feature = "tcp")]
+#[cfg_attr(docsrs, doc(cfg(feature = "tcp")))]
 pub use crate::connect::tcp_config;
 pub use crate::connect::{line_format, rtu_config, serial_settings};
 pub use crate::core::{Core, Readings, TRACE_TARGET};
