@@ -74,11 +74,11 @@ pub(crate) struct Target {
     /// read and written, on stderr.
     #[arg(long, short)]
     pub(crate) verbose: bool,
-    /// How fast the built-in simulator answers (no --serial or --tcp): `line`, timed as the
-    /// model's serial line (factory format, or --baud, --parity…), as a device would; `full`,
-    /// as fast as memory allows.
-    #[arg(long, value_enum, default_value = "line", conflicts_with_all = ["serial", "tcp"])]
-    pub(crate) sim_speed: SimSpeed,
+    /// How fast the built-in simulator answers (no --serial or --tcp): `line` (the default),
+    /// timed as the model's serial line (factory format, or --baud, --parity…), as a device
+    /// would; `full`, as fast as memory allows.
+    #[arg(long, value_enum, conflicts_with_all = ["serial", "tcp"])]
+    pub(crate) sim_speed: Option<SimSpeed>,
 }
 
 impl Target {
@@ -163,7 +163,7 @@ pub(crate) async fn open(
         crate::models::name(device)
     );
     let simulator = Simulator::new(device).slave(address);
-    let (stream, _server) = match target.sim_speed {
+    let (stream, _server) = match target.sim_speed.unwrap_or(SimSpeed::Line) {
         SimSpeed::Line => {
             let format = target.line_format(device);
             format.check().map_err(|e| {

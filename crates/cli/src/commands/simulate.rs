@@ -73,6 +73,12 @@ fn line(device: &DeviceInfo, global: &Global, args: &SimulateArgs) -> Result<Lin
 /// thread of its own ([`Log`]), so a slow or closed stderr never holds up a reply.
 pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliError> {
     let device = global.device_or(args.model.as_deref())?;
+    if global.target.sim_speed.is_some() {
+        return Err(CliError::new(
+            "--sim-speed sets how fast a device command's own simulator answers (no --serial or --tcp)",
+        )
+        .hint("time a served RTU line with --line-timing"));
+    }
     global.check_line(device)?;
     let slave = global.slave.unwrap_or(device.default_slave);
     if slave == 0 {
