@@ -9,7 +9,7 @@ use optobus_driver::transport::{
 };
 use optobus_driver::{Core, DownloadProgress, Error, Fixed};
 use optobus_p_series::{MeasurementSource, DEVICE};
-use optobus_simulator::Simulator;
+use optobus_simulator::{BufferReadCount, Quirks, Simulator};
 use optobus_tests::{e2e, specs};
 
 /// Passes requests on and keeps what went by: the writes (address, value) and the reads that
@@ -232,4 +232,143 @@ async fn a_device_without_a_buffer_is_refused_without_a_request() {
         .unwrap_err();
     assert!(error.to_string().contains("no such buffer"), "{error}");
     assert_eq!(core.transport_mut().requests(), 0);
+}
+
+/// A P-series simulator that reads the manual's buffer read count (appendix 3 (3)) the
+/// other way: the values handed out before this page.
+fn counting_before_the_page(sim: &Simulator) -> Quirks {
+    Quirks {
+        buffer_read_count: BufferReadCount::BeforePage,
+        ..sim.current_quirks()
+    }
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_device_counting_before_the_page_downloads_in_full() {
+    let sim = Simulator::new(&DEVICE).sentinel_every(0);
+    sim.set_quirks(counting_before_the_page(&sim));
+    let mut core = watched_core(&sim);
+    core.start_buffering(Some(&MeasurementSource::Distance1), 130)
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    // Page 2 as this device shows it: 60 handed out before it, 60 valid.
+    let read_count = DEVICE.register("buffer_read_count").unwrap();
+    let mut counts = Vec::new();
+    let values: Vec<Option<Fixed>> = core
+        .download_buffer(|_| counts.push(sim.peek(read_count.table, read_count.address)))
+        .await
+        .unwrap();
+    assert_eq!(
+        counts,
+        [Some(vec![0]), Some(vec![60]), Some(vec![120])],
+        "the device reports the count before each page"
+    );
+    assert_eq!(values.len(), 130);
+    assert_eq!(core.transport_mut().page_reads, 3);
+    // The same values as a device counting the page in: the buffered distance 1 of the
+    // first 130 sampling intervals, which the simulator computes alike for both readings.
+    let reference = Simulator::new(&DEVICE).sentinel_every(0);
+    let mut plain = watched_core(&reference);
+    plain
+        .start_buffering(Some(&MeasurementSource::Distance1), 130)
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let expected: Vec<Option<Fixed>> = plain.download_buffer(|_| {}).await.unwrap();
+    assert!(values.iter().all(|v| v.is_some()));
+    assert_eq!(values, expected);
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_device_switching_its_count_reading_mid_download_is_out_of_step() {
+    let sim = Simulator::new(&DEVICE).sentinel_every(0);
+    let mut core = watched_core(&sim);
+    core.start_buffering(Some(&MeasurementSource::Distance1), 300)
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    // Page 1 counts itself in (60), page 2 does not (60 again, where 120 was due).
+    let switched = counting_before_the_page(&sim);
+    let error = core
+        .download_buffer::<Option<Fixed>>(|_| sim.set_quirks(switched))
+        .await
+        .unwrap_err();
+    match error {
+        Error::OutOfStep {
+            received, reported, ..
+        } => assert_eq!((received, reported), (120, 60)),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(core.transport_mut().page_reads, 2, "stopped at page 2");
+    assert_eq!(buffer_locked(&sim), [0], "unlocked after the failure");
+}
+
+// ------------------------------------------------ sampling interval × ratio (appendix 3 (5))
+
+/// A P-series simulator sampling every 100 µs with sampling ratio `ratio`, buffering `count`
+/// values of distance 1 for one second, and a watched driver on it.
+async fn buffering_at_ratio(ratio: u32, count: u32) -> (Simulator, WatchedCore) {
+    let sim = Simulator::new(&DEVICE).sentinel_every(0);
+    let mut core = watched_core(&sim);
+    let interval = DEVICE.register("sampling_interval").unwrap();
+    let us_100 = interval
+        .codes
+        .iter()
+        .find(|c| c.meaning == "100us")
+        .unwrap();
+    core.write(interval, &us_100.code).await.unwrap();
+    let ratio_register = DEVICE.register("sampled_data_ratio").unwrap();
+    core.write(ratio_register, &ratio).await.unwrap();
+    core.start_buffering(Some(&MeasurementSource::Distance1), count)
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    (sim, core)
+}
+
+#[tokio::test(start_paused = true)]
+async fn ratio_10_buffers_every_tenth_value() {
+    let (_every, mut core) = buffering_at_ratio(1, 500).await;
+    let every: Vec<Option<Fixed>> = core.download_buffer(|_| {}).await.unwrap();
+    let (_tenth, mut core) = buffering_at_ratio(10, 50).await;
+    let tenth: Vec<Option<Fixed>> = core.download_buffer(|_| {}).await.unwrap();
+    assert_eq!((every.len(), tenth.len()), (500, 50));
+    assert!(tenth.iter().all(Option::is_some));
+    // The k-th buffered value at ratio 10 is the (10k + 10)-th measurement: value 10k + 9 of
+    // the buffer at ratio 1 (appendix 3 (5): "每采集到 10 个数据，就将第 10 个数据写入缓存").
+    let tenths: Vec<Option<Fixed>> = every.iter().skip(9).step_by(10).copied().collect();
+    assert_eq!(tenth, tenths);
+    // The measurement moves, so every value is not every tenth.
+    assert_ne!(tenth[..], every[..50]);
+}
+
+#[tokio::test(start_paused = true)]
+async fn the_time_axis_at_ratio_10_is_the_interval_times_10() {
+    let (_sim, mut core) = buffering_at_ratio(10, 20).await;
+    let timing = core.read_buffer_timing().await.unwrap().expect("a timing");
+    assert_eq!(
+        (timing.interval, timing.ratio),
+        (Duration::from_micros(100), 10)
+    );
+    assert_eq!(timing.period(), Duration::from_millis(1));
+    let axis: Vec<Duration> = (0..20).map(|i| timing.time_of(i)).collect();
+    assert_eq!(axis[1], Duration::from_millis(1));
+    assert_eq!(axis[19], Duration::from_millis(19));
+}
+
+#[tokio::test(start_paused = true)]
+async fn changing_the_ratio_clears_the_buffer_and_its_lock() {
+    let (sim, mut core) = buffering_at_ratio(10, 50).await;
+    // One second at 1 ms per value: the 50 asked for are buffered.
+    let ratio = DEVICE.register("sampled_data_ratio").unwrap();
+    let lock = DEVICE.command("lock_buffer").unwrap();
+    let lock_register = DEVICE.register(lock.register).unwrap();
+    core.run(lock, lock_register).await.unwrap();
+    assert_eq!(buffer_locked(&sim), [1]);
+    // 4.2.2 note 5, appendix 3 (5) note 1: changing the ratio resets the buffer and its lock.
+    core.write(ratio, &5u32).await.unwrap();
+    assert_eq!(buffer_locked(&sim), [0], "the lock flag is reset");
+    let values: Vec<Option<Fixed>> = core.download_buffer(|_| {}).await.unwrap();
+    assert!(values.is_empty(), "{} values survived", values.len());
 }

@@ -184,6 +184,7 @@ impl<'m> Describer<'m> {
                     valid_count: text(&b.valid_count.name),
                     values: text(&b.values.name),
                     interval: b.interval.as_ref().map(|n| text(&n.name)),
+                    ratio: b.ratio.as_ref().map(|n| text(&n.name)),
                 })
             }),
         }

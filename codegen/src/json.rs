@@ -113,6 +113,7 @@ pub fn dump(model: &Model) -> Value {
             "valid_count": b.valid_count.name,
             "values": b.values.name,
             "interval": b.interval.as_ref().map(|n| n.name.clone()),
+            "ratio": b.ratio.as_ref().map(|n| n.name.clone()),
             "doc": b.doc,
         })),
     })

@@ -203,6 +203,7 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
             valid_count: name("valid_count", &decl.valid_count),
             values: name("values", &decl.values),
             interval: decl.interval.as_ref().map(|n| name("interval", n)),
+            ratio: decl.ratio.as_ref().map(|n| name("ratio", n)),
             path: path.clone(),
         }
     });

@@ -211,7 +211,7 @@ pub struct Register {
     /// What reading the register changes in the device (a read that turns a buffer page):
     /// such a read is never retried.
     pub read_side_effect: Option<String>,
-    /// Writing it acts and the manual defines no read: it is never read.
+    /// Writing it acts and the manual does not say what a read returns: it is never read.
     pub action: bool,
     /// Set for repeat copies.
     pub repeat: Option<RepeatCopy>,
@@ -245,7 +245,7 @@ pub struct Reserved {
     pub from: u32,
     /// Last address (inclusive).
     pub to: u32,
-    /// The manual sanctions reading it.
+    /// Reads may cover it (inferred from the manual's table sizes, see `specs/README.md`).
     pub readable: bool,
     /// Where it is declared.
     pub path: Path,
@@ -323,6 +323,8 @@ pub struct Buffer {
     pub values: NameRef,
     /// Enum register whose code meanings are durations.
     pub interval: Option<NameRef>,
+    /// Unsigned integer register: measurements per buffered value (the interval's multiple).
+    pub ratio: Option<NameRef>,
     /// Where it is declared.
     pub path: Path,
 }

@@ -577,6 +577,7 @@ fn buffer_tokens(model: &Model, imports: &Imports) -> TokenStream {
     let source = option_str(buffer.source.as_ref().map(|n| n.name.as_str()));
     let most = lit(buffer.most.0);
     let interval = option_str(buffer.interval.as_ref().map(|n| n.name.as_str()));
+    let ratio = option_str(buffer.ratio.as_ref().map(|n| n.name.as_str()));
     let [count, lock, unlock, page, read_count, valid_count, values] = [
         &buffer.count,
         &buffer.lock,
@@ -600,5 +601,6 @@ fn buffer_tokens(model: &Model, imports: &Imports) -> TokenStream {
         valid_count: #valid_count,
         values: #values,
         interval: #interval,
+        ratio: #ratio,
     }))
 }

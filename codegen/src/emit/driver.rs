@@ -108,7 +108,9 @@ fn register_doc(model: &Model, register: &Register, copies: Option<&[&Register]>
     let access = match (register.readable(), register.access.writable()) {
         (true, true) => "read-write",
         (true, false) => "read-only",
-        _ if register.action => "write-only (an action: the manual defines no read)",
+        _ if register.action => {
+            "written only (an action: the manual does not say what a read returns)"
+        }
         _ => "write-only",
     };
     lines.push(format!("| access | {access} |"));

@@ -1,5 +1,6 @@
-//! `action`: an action register (writing acts, the manual defines no read) can be written and
-//! is never named where registers are read: in groups or as the continuous-send switch.
+//! `action`: an action register (writing acts, the manual does not say what a read returns)
+//! can be written and is never named where registers are read: in groups or as the
+//! continuous-send switch.
 
 use crate::diagnostic::Diagnostic;
 use crate::model::Model;

@@ -1,7 +1,8 @@
 //! `buffer`: the data buffer names what it needs: a writable unsigned count register whose
 //! range holds `most` (not 0), lock and unlock commands, a page group holding the read count,
-//! the valid count and a repeat member of values, an enum source register and an enum interval
-//! register whose codes are durations.
+//! the valid count and a repeat member of values, an enum source register, an enum interval
+//! register whose codes are durations and a writable unsigned ratio register that never
+//! takes 0.
 
 use optobus_device::parse_duration;
 
@@ -61,55 +62,68 @@ fn is_writable_enum(
     false
 }
 
+/// Whether `register` (named by `reference`) is a writable unsigned integer register without
+/// a scale; a diagnostic if not.
+fn is_writable_count(
+    register: &Register,
+    reference: &NameRef,
+    role: &str,
+    out: &mut Vec<Diagnostic>,
+) -> bool {
+    let unsigned = matches!(register.kind, Kind::Scalar(Scalar::U16 | Scalar::U32));
+    if unsigned && register.scale.is_none() && register.access.writable() {
+        return true;
+    }
+    out.push(
+        Diagnostic::at(
+            RULE,
+            &reference.path,
+            format!(
+                "the buffer's {role} `{}` is not a writable unsigned integer register",
+                register.name
+            ),
+        )
+        .label(format!(
+            "a {} {} register{}",
+            access_name(register),
+            register.kind.name(),
+            if register.scale.is_some() {
+                " with a scale"
+            } else {
+                ""
+            }
+        ))
+        .also(&register.path.key("name"), "register defined here"),
+    );
+    false
+}
+
 /// Checks the buffer section.
 pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
     let Some(buffer) = &model.buffer else {
         return;
     };
-    if let Some(count) = register(model, &buffer.count, "count", out) {
-        let unsigned = matches!(count.kind, Kind::Scalar(Scalar::U16 | Scalar::U32));
-        if !unsigned || count.scale.is_some() || !count.access.writable() {
-            out.push(
-                Diagnostic::at(
-                    RULE,
-                    &buffer.count.path,
-                    format!(
-                        "the buffer's count `{}` is not a writable unsigned integer register",
-                        count.name
-                    ),
+    let count = register(model, &buffer.count, "count", out);
+    if let Some(count) = count.filter(|found| is_writable_count(found, &buffer.count, "count", out))
+    {
+        let (most, most_path) = &buffer.most;
+        let max = count
+            .range
+            .map_or_else(|| count.scalar().map_or(0, |s| s.bounds().1), |r| r.1);
+        if *most == 0 || i64::from(*most) > max {
+            let message = if *most == 0 {
+                "the buffer's `most` is 0: no value could ever be read out".to_owned()
+            } else {
+                format!(
+                    "the buffer hands out at most {most} values, but `{}` takes counts up to {max}",
+                    count.name
                 )
-                .label(format!(
-                    "a {} {} register{}",
-                    access_name(count),
-                    count.kind.name(),
-                    if count.scale.is_some() {
-                        " with a scale"
-                    } else {
-                        ""
-                    }
-                ))
-                .also(&count.path.key("name"), "register defined here"),
+            };
+            out.push(
+                Diagnostic::at(RULE, most_path, message)
+                    .label("not a count the register takes")
+                    .help("`most` is the largest count that may be read out, 1 or more"),
             );
-        } else {
-            let (most, most_path) = &buffer.most;
-            let max = count
-                .range
-                .map_or_else(|| count.scalar().map_or(0, |s| s.bounds().1), |r| r.1);
-            if *most == 0 || i64::from(*most) > max {
-                let message = if *most == 0 {
-                    "the buffer's `most` is 0: no value could ever be read out".to_owned()
-                } else {
-                    format!(
-                        "the buffer hands out at most {most} values, but `{}` takes counts up to {max}",
-                        count.name
-                    )
-                };
-                out.push(
-                    Diagnostic::at(RULE, most_path, message)
-                        .label("not a count the register takes")
-                        .help("`most` is the largest count that may be read out, 1 or more"),
-                );
-            }
         }
     }
     for (reference, role) in [(&buffer.lock, "lock"), (&buffer.unlock, "unlock")] {
@@ -188,6 +202,9 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             is_writable_enum(found, source, "source", out);
         }
     }
+    if let Some(ratio) = &buffer.ratio {
+        check_ratio(model, ratio, out);
+    }
     if let Some(interval) = &buffer.interval {
         let register = register(model, interval, "interval", out)
             .filter(|found| is_writable_enum(found, interval, "interval", out));
@@ -217,6 +234,33 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 );
             }
         }
+    }
+}
+
+/// The ratio: a writable unsigned integer register that never takes 0 (one value in
+/// `ratio` is buffered).
+fn check_ratio(model: &Model, ratio: &NameRef, out: &mut Vec<Diagnostic>) {
+    let Some(found) = register(model, ratio, "ratio", out) else {
+        return;
+    };
+    if !is_writable_count(found, ratio, "ratio", out) {
+        return;
+    }
+    if found.range.is_none_or(|(min, _)| min < 1) {
+        let (at, what) = match found.range {
+            Some(_) => (found.path.key("range"), "its range"),
+            None => (found.path.key("name"), "defined here without a range"),
+        };
+        out.push(
+            Diagnostic::at(
+                RULE,
+                &ratio.path,
+                format!("the buffer's ratio `{}` may be 0", ratio.name),
+            )
+            .label("one value in 0 cannot be buffered")
+            .also(&at, what)
+            .help("give the register `range: [1, …]`, as the manual does"),
+        );
     }
 }
 

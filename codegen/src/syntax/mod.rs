@@ -125,6 +125,7 @@ record! {
         valid_count: String,
         values: String,
         interval: Option<String>,
+        ratio: Option<String>,
         note: Option<String>,
     }
 }
@@ -273,7 +274,7 @@ record! {
         write_order: Option<OrderName>,
         alias_of: Option<String>,
         read_side_effect: Option<String>,
-        /// Writing acts and the manual defines no read.
+        /// Writing acts and the manual does not say what a read returns.
         action: bool = default,
         note: Option<String>,
         fields: Option<Vec<FieldDecl>>,
@@ -306,7 +307,7 @@ record! {
         table: Table,
         from: u32,
         to: u32,
-        /// The manual sanctions reading the range.
+        /// Reads may cover the range (an inference the spec cites in `section`).
         readable: bool = default,
         section: Option<String>,
         note: Option<String>,

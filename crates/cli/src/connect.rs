@@ -3,7 +3,8 @@
 
 use clap::Args;
 use optobus_device::{DeviceInfo, RegisterInfo};
-use optobus_driver::Core;
+use optobus_driver::identify::{identify, ConnectAs, Identification};
+use optobus_driver::{Core, Readings};
 use optobus_inspect::{decode_value, Value};
 
 use crate::error::{driver_error, CliError};
@@ -13,9 +14,10 @@ use crate::{inputs, models};
 /// Options every command takes: which model, and how to print.
 #[derive(Debug, Args)]
 pub(crate) struct Options {
-    /// Sensor family (help and default from the models, at startup).
+    /// Sensor family (help from the models, at startup; see [`MODEL_VARIABLE`] for the
+    /// default).
     #[arg(long, short, global = true)]
-    pub(crate) model: String,
+    pub(crate) model: Option<String>,
     /// A spec file to use as the model instead of a built-in one (checked like
     /// `optobus-codegen check`).
     #[arg(long, global = true, value_name = "SPEC.yaml")]
@@ -46,7 +48,7 @@ pub(crate) struct DeviceArgs {
 /// device options.
 #[derive(Debug)]
 pub(crate) struct Global {
-    pub(crate) model: String,
+    pub(crate) model: Option<String>,
     pub(crate) spec: Option<std::path::PathBuf>,
     pub(crate) json: bool,
     pub(crate) target: Target,
@@ -59,7 +61,7 @@ impl Options {
     /// or else the one `--model` names. (A command's own model argument shares `--model`'s
     /// id, so it also carries `--model`'s value.)
     pub(crate) fn device_or(&self, named: Option<&str>) -> Result<&'static DeviceInfo, CliError> {
-        model(self.spec.as_deref(), &self.model, named)
+        model(self.spec.as_deref(), self.model.as_deref(), named, None)
     }
 
     /// These options with a device command's `device` options.
@@ -80,15 +82,43 @@ impl Options {
     }
 }
 
-/// The model `spec` describes, or else the one `named`, or else `model`.
+/// The environment variable holding the user's default model.
+pub(crate) const MODEL_VARIABLE: &str = "OPTOBUS_MODEL";
+
+/// The model `spec` describes, or else the one `named`, or else `model`, or else the one
+/// [`MODEL_VARIABLE`] names, or else the first built-in one, unless `addressed` names a real
+/// device (`--tcp …`, `--serial …`): a register map guessed for a real device reads wrong
+/// values, so there the model must be given.
 fn model(
     spec: Option<&std::path::Path>,
-    model: &str,
+    model: Option<&str>,
     named: Option<&str>,
+    addressed: Option<&str>,
 ) -> Result<&'static DeviceInfo, CliError> {
-    match spec {
-        Some(spec) => models::load(spec),
-        None => models::find(named.unwrap_or(model)),
+    if let Some(spec) = spec {
+        return models::load(spec);
+    }
+    if let Some(name) = named.or(model) {
+        return models::find(name);
+    }
+    if let Some(name) = std::env::var(MODEL_VARIABLE)
+        .ok()
+        .filter(|n| !n.trim().is_empty())
+    {
+        return models::find(&name).map_err(|e| e.prefixed(&format!("{MODEL_VARIABLE}: ")));
+    }
+    match addressed {
+        None => models::all()
+            .first()
+            .copied()
+            .ok_or_else(|| CliError::new("the tool has no built-in model")),
+        Some(device) => Err(CliError::new(format!(
+            "which model is at {device}? give --model ({}) or --spec FILE",
+            models::names().join(", ")
+        ))
+        .hint(format!(
+            "or set {MODEL_VARIABLE}; `optobus identify {device}` finds the model that answers"
+        ))),
     }
 }
 
@@ -119,21 +149,28 @@ pub(crate) struct Names {
 }
 
 impl Global {
-    /// The model `--spec` describes, or else the one `--model` names.
+    /// The model `--spec` describes, or else the one `--model` names, or else the user's
+    /// default; the built-in simulator's default only when no real device is addressed.
     pub(crate) fn device(&self) -> Result<&'static DeviceInfo, CliError> {
-        self.device_or(None)
+        model(
+            self.spec.as_deref(),
+            self.model.as_deref(),
+            None,
+            self.target.addressed().as_deref(),
+        )
     }
 
     /// The model `--spec` describes, or else the one a command names itself, or else the one
-    /// `--model` names.
+    /// `--model` names, or else a default (for `simulate`, which serves rather than reaches a
+    /// device).
     pub(crate) fn device_or(&self, named: Option<&str>) -> Result<&'static DeviceInfo, CliError> {
-        model(self.spec.as_deref(), &self.model, named)
+        model(self.spec.as_deref(), self.model.as_deref(), named, None)
     }
 
     /// Before a write to the built-in simulator (neither --serial nor --tcp given), says on
     /// stderr that its state lasts for this command only.
     pub(crate) fn note_if_simulated(&self, command: &str) {
-        if self.target.serial.is_none() && self.target.tcp.is_none() {
+        if self.target.addressed().is_none() {
             crate::log::note!(
                 "optobus: the built-in simulator's state lasts for this `{command}` only; serve \
                  a lasting one with `optobus simulate` and point --tcp or --serial at it"
@@ -207,15 +244,52 @@ impl Global {
     }
 }
 
+/// Links to the device a [`Target`] addresses, framed for each candidate model.
+struct LinksAs<'a>(&'a Target);
+
+impl ConnectAs for LinksAs<'_> {
+    type Link = Link;
+    type Error = CliError;
+
+    async fn connect_as(&mut self, model: &'static DeviceInfo) -> Result<Link, CliError> {
+        link::open(model, model.default_slave, self.0).await
+    }
+}
+
+impl Global {
+    /// The models `identify` and `scan` try: the `--spec` model, then every built-in one (all
+    /// of them, so that no request reads where one of them changes the device by a read).
+    pub(crate) fn candidates(&self) -> Result<Vec<&'static DeviceInfo>, CliError> {
+        let mut candidates = Vec::new();
+        if let Some(spec) = &self.spec {
+            candidates.push(models::load(spec)?);
+        }
+        candidates.extend(models::all());
+        Ok(candidates)
+    }
+
+    /// Which of the candidates the device `target` addresses is, asked at `slave` or each
+    /// candidate's factory slave.
+    pub(crate) async fn identify(
+        &self,
+        target: &Target,
+        slave: Option<u8>,
+    ) -> Result<Identification, CliError> {
+        let candidates = self.candidates()?;
+        identify(&mut LinksAs(target), &candidates, slave).await
+    }
+}
+
 /// Reads `registers` in the fewest requests and decodes them; a failure names the registers
 /// of the request that failed.
 pub(crate) async fn read_values(
     core: &mut Core<Link>,
     registers: &[&'static RegisterInfo],
 ) -> Result<Vec<(&'static RegisterInfo, Value)>, CliError> {
-    read_each_request(core, registers)
+    let readings = read_each_request(core, registers)
         .await
-        .map_err(|failed| failed.explained())
+        .map_err(FailedRead::explained)?;
+    Ok(decode_values(registers, &readings))
 }
 
 /// A read that failed: the driver's error and the registers of the request that failed.
@@ -233,48 +307,63 @@ impl FailedRead {
 }
 
 /// Reads `registers` request by request, as [`optobus_driver::plan_reads`] plans them (the
-/// fewest requests), and decodes them in the order given.
+/// fewest requests), so that a failure names the registers of its request; gives each
+/// request's readings (the device's answers, around reserved rows where it refuses them).
 pub(crate) async fn read_each_request(
     core: &mut Core<Link>,
     registers: &[&'static RegisterInfo],
-) -> Result<Vec<(&'static RegisterInfo, Value)>, FailedRead> {
+) -> Result<Vec<Readings>, FailedRead> {
     let device = core.device();
-    let mut values: Vec<Option<Value>> = vec![None; registers.len()];
-    for span in optobus_driver::plan_reads(device, registers) {
-        let (indexes, members): (Vec<usize>, Vec<&'static RegisterInfo>) = registers
+    let spans = optobus_driver::plan_reads(device, registers);
+    let in_span = |span: &optobus_driver::ReadSpan, r: &RegisterInfo| {
+        span.offset_of(r, device.addressing).is_some()
+    };
+    let mut requests: Vec<Vec<&'static RegisterInfo>> = spans
+        .iter()
+        .map(|span| {
+            registers
+                .iter()
+                .copied()
+                .filter(|r| in_span(span, r))
+                .collect()
+        })
+        .collect();
+    // A register in no planned request (one no read may touch) alone: the driver says why.
+    requests.extend(
+        registers
             .iter()
-            .enumerate()
-            .filter(|(_, r)| span.offset_of(r, device.addressing).is_some())
-            .map(|(i, r)| (i, *r))
-            .unzip();
-        let readings = core
-            .read_group(&members)
-            .await
-            .map_err(|error| FailedRead {
-                error,
-                registers: members.clone(),
-            })?;
-        for (i, register) in indexes.into_iter().zip(&members) {
-            values[i] = Some(decode_value(register, readings.words(register)));
+            .filter(|r| !spans.iter().any(|span| in_span(span, r)))
+            .map(|r| vec![*r]),
+    );
+    let mut readings = Vec::with_capacity(requests.len());
+    for members in requests {
+        match core.read_group(&members).await {
+            Ok(answer) => readings.push(answer),
+            Err(error) => {
+                return Err(FailedRead {
+                    error,
+                    registers: members,
+                })
+            }
         }
     }
-    let mut decoded = Vec::with_capacity(registers.len());
-    for (register, value) in registers.iter().zip(values) {
-        let value = match value {
-            Some(value) => value,
-            // In no planned request (a register no read may touch): the driver says why.
-            None => {
-                let readings = core
-                    .read_group(&[register])
-                    .await
-                    .map_err(|error| FailedRead {
-                        error,
-                        registers: vec![register],
-                    })?;
-                decode_value(register, readings.words(register))
-            }
-        };
-        decoded.push((*register, value));
-    }
-    Ok(decoded)
+    Ok(readings)
+}
+
+/// The values of `registers` in `readings`, in the order given.
+pub(crate) fn decode_values(
+    registers: &[&'static RegisterInfo],
+    readings: &[Readings],
+) -> Vec<(&'static RegisterInfo, Value)> {
+    registers
+        .iter()
+        .map(|r| {
+            let words = readings
+                .iter()
+                .map(|answer| answer.words(r))
+                .find(|words| !words.is_empty())
+                .unwrap_or(&[]);
+            (*r, decode_value(r, words))
+        })
+        .collect()
 }

@@ -15,7 +15,7 @@ pub(crate) enum Exit {
     /// The command line is malformed (clap's own code for usage errors).
     Usage = 2,
     /// Refused before anything was sent: an unknown name, a value out of range, a missing
-    /// `--yes`.
+    /// `--yes`, no model named for a real device.
     Refused = 3,
 }
 
@@ -29,7 +29,7 @@ impl Exit {
 pub(crate) const EXIT_CODES: &str =
     "Exit codes: 0 done; 1 the device, the line or the system failed \
 (timeout, exception, bad reply, port or address unreachable); 2 usage error; 3 refused before \
-anything was sent (unknown name, value out of range, missing --yes).";
+anything was sent (unknown name, value out of range, missing --yes, no model for a device).";
 
 /// A failure the user sees as one line on stderr (with a hint in parentheses where one helps)
 /// and the exit code of its kind.
@@ -59,6 +59,12 @@ impl CliError {
     /// The error with what to try instead.
     pub(crate) fn hint(mut self, hint: impl Into<String>) -> Self {
         self.error = self.error.hint(hint);
+        self
+    }
+
+    /// The error with `prefix` before its message (where the input came from).
+    pub(crate) fn prefixed(mut self, prefix: &str) -> Self {
+        self.error.message.insert_str(0, prefix);
         self
     }
 
@@ -116,12 +122,23 @@ pub(crate) fn driver_error(error: optobus_driver::Error, register: Option<&str>)
         error,
         optobus_driver::Error::Transport(WireError::Timeout { .. })
     );
+    // A reply of another shape than the model's (length, byte count, exception frame) is
+    // most often another model's reply.
+    let misfit = matches!(
+        error,
+        optobus_driver::Error::Transport(WireError::Frame(_) | WireError::WordCount { .. })
+    );
     let explained = CliError {
         error: optobus_inspect::Error::new(format!("{error}{subject}")),
         exit: exit_of(&error),
     };
     if timed_out {
         explained.hint("check wiring, --slave, --baud and --parity, or raise --timeout")
+    } else if misfit {
+        explained.hint(
+            "check --model: the reply does not fit this model's framing, `optobus identify` \
+             names the model that answers; then wiring, --baud and --parity",
+        )
     } else {
         explained
     }

@@ -82,6 +82,16 @@ pub(crate) struct Target {
 }
 
 impl Target {
+    /// The real device the options address, as given (`--tcp HOST`, `--serial PORT`); `None`
+    /// for the built-in simulator.
+    pub(crate) fn addressed(&self) -> Option<String> {
+        match (&self.tcp, &self.serial) {
+            (Some(address), _) => Some(format!("--tcp {address}")),
+            (None, Some(port)) => Some(format!("--serial {port}")),
+            (None, None) => None,
+        }
+    }
+
     /// The model's factory line format with `--baud`, `--parity`, `--data-bits` and
     /// `--stop-bits` applied.
     pub(crate) fn line_format(&self, device: &DeviceInfo) -> LineFormat {

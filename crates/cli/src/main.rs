@@ -38,8 +38,8 @@ struct Cli {
 /// not show `--model`.
 const WITHOUT_MODEL: [&str; 3] = ["models", "plot", "frame"];
 
-/// Every argument that takes a model lists the models the tool has in its help, and
-/// `--model` defaults to the first of them.
+/// Every argument that takes a model lists the models the tool has in its help; `--model`
+/// says its default: `OPTOBUS_MODEL`, else the first model for the built-in simulator only.
 fn with_models(command: clap::Command) -> clap::Command {
     let names = models::names();
     let list = names.join(", ");
@@ -49,10 +49,12 @@ fn with_models(command: clap::Command) -> clap::Command {
     command
         .mut_args(|arg| match arg {
             arg if !takes_model(&arg) => arg,
-            arg if arg.is_global_set() => arg
-                .help(format!("Sensor family: {list} (see `optobus models`)"))
-                .default_value(names.first().cloned().unwrap_or_default())
-                .required(false),
+            arg if arg.is_global_set() => arg.help(format!(
+                "Sensor family: {list} (see `optobus models`). Default: ${}, else {} for the \
+                 built-in simulator; a device reached with --tcp or --serial needs it",
+                connect::MODEL_VARIABLE,
+                names.first().map_or("", String::as_str)
+            )),
             arg if arg.is_required_set() => arg.help(format!("Sensor family: {list}")),
             arg => arg.help(format!("Sensor family: {list} (default: --model)")),
         })

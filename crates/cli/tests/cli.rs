@@ -4,6 +4,7 @@
 mod common;
 
 use common::{fails, json, ok, outcome, refused, run, words, Served, FAILED, REFUSED};
+use std::sync::{Arc, Mutex};
 
 /// Runs each command line, which must succeed and print the line given.
 fn prints(cases: &[(&[&str], &str)]) {
@@ -288,8 +289,23 @@ fn simulate_over_tcp_serves_other_clients() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let address = served.at.clone();
     assert!(address.starts_with("127.0.0.1:"), "{address}");
-    ok(&["set", "light_power", "33.3", "--tcp", &address]);
-    let values = json(&["read", "light_power", "--tcp", &address]);
+    ok(&[
+        "--model",
+        "p-series",
+        "set",
+        "light_power",
+        "33.3",
+        "--tcp",
+        &address,
+    ]);
+    let values = json(&[
+        "--model",
+        "p-series",
+        "read",
+        "light_power",
+        "--tcp",
+        &address,
+    ]);
     assert_eq!(values["light_power"]["value"], "33.3");
 }
 
@@ -297,21 +313,36 @@ fn simulate_over_tcp_serves_other_clients() {
 fn scan_finds_the_device_on_a_pty() {
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
     let text = ok(&[
-        "scan", "--serial", &served.at, "--bauds", "115200", "--slaves", "1-4",
+        "--model", "p-series", "scan", "--serial", &served.at, "--bauds", "115200", "--slaves",
+        "1-4",
     ]);
-    assert_eq!(text.trim(), "found: slave 3 at 115200 baud");
+    assert_eq!(text.trim(), "found: slave 3 at 115200 baud: p-series");
 }
 
 #[test]
 fn connection_errors_are_one_clear_line() {
     // Nothing listens on port 1.
-    let error = fails(&["read", "distance_1", "--tcp", "127.0.0.1:1"]);
+    let error = fails(&[
+        "--model",
+        "p-series",
+        "read",
+        "distance_1",
+        "--tcp",
+        "127.0.0.1:1",
+    ]);
     assert!(
         error.starts_with("optobus: cannot connect to 127.0.0.1:1"),
         "{error}"
     );
     assert_eq!(error.lines().count(), 1, "{error}");
-    let error = fails(&["read", "distance_1", "--serial", "/dev/nonexistent-port"]);
+    let error = fails(&[
+        "--model",
+        "p-series",
+        "read",
+        "distance_1",
+        "--serial",
+        "/dev/nonexistent-port",
+    ]);
     assert!(
         error.contains("cannot open /dev/nonexistent-port"),
         "{error}"
@@ -345,7 +376,15 @@ fn watch_over_tcp_carries_on_after_the_server_restarts() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let address = served.at.clone();
     let watch = common::optobus()
-        .args(["watch", "laser", "--interval", "100ms", "--count", "40"])
+        .args([
+            "--model",
+            "p-series",
+            "watch",
+            "laser",
+            "--interval",
+            "100ms",
+        ])
+        .args(["--count", "40"])
         .args(["--tcp", &address, "--json", "--timeout", "200ms"])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::null())
@@ -444,7 +483,15 @@ fn verbose_frames_carry_the_local_time_and_the_reply_delay() {
 #[test]
 fn point_7_a_failed_dump_names_the_failing_requests_registers_only() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0", "--faults", "drop=1"]);
-    let (code, _, stderr) = outcome(&["dump", "--tcp", &served.at, "--timeout", "100ms"]);
+    let (code, _, stderr) = outcome(&[
+        "--model",
+        "p-series",
+        "dump",
+        "--tcp",
+        &served.at,
+        "--timeout",
+        "100ms",
+    ]);
     assert_eq!(code, Some(FAILED), "{stderr}");
     // The first request reads the holding registers; the input registers come later.
     assert!(
@@ -460,7 +507,16 @@ fn point_9_watch_reports_a_lasting_failure_once_then_its_recovery() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let at = served.at.clone();
     let mut watch = common::optobus()
-        .args(["watch", "distance_1", "--interval", "50ms", "--count", "60"])
+        .args([
+            "--model",
+            "p-series",
+            "watch",
+            "distance_1",
+            "--interval",
+            "50ms",
+            "--count",
+            "60",
+        ])
         .args(["--tcp", &at, "--timeout", "200ms"])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
@@ -500,4 +556,58 @@ fn point_9_watch_reports_a_lasting_failure_once_then_its_recovery() {
             .is_some_and(|l| l.starts_with("distance_1")),
         "{rest}"
     );
+}
+
+/// Reads a simulator saw: first address, words, whether answered with words.
+type SeenReads = Arc<Mutex<Vec<(u16, u16, bool)>>>;
+
+/// A P series that refuses reads crossing reserved rows (exception 02), served over TCP from
+/// a thread of this test, and the reads it saw with whether each was answered with words.
+fn serve_refusing_reserved() -> (String, SeenReads) {
+    use optobus_simulator::{Quirks, Reply, Simulator, UnreadableReads};
+    let seen: SeenReads = Arc::default();
+    let log = Arc::clone(&seen);
+    let sim = Simulator::new(&optobus_p_series::DEVICE).observe(move |exchange| {
+        if let Some(optobus_codec::Request::Read { address, count, .. }) = exchange.request {
+            let answered = matches!(exchange.reply, Reply::Read { .. });
+            log.lock().unwrap().push((*address, *count, answered));
+        }
+    });
+    sim.set_quirks(Quirks {
+        readable_reserved: UnreadableReads::Refused,
+        ..sim.current_quirks()
+    });
+    let (sender, receiver) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        runtime.block_on(async move {
+            let server = sim.serve_tcp("127.0.0.1:0").await.expect("serve");
+            sender.send(server.local_addr().to_string()).unwrap();
+            std::future::pending::<()>().await;
+        });
+    });
+    (receiver.recv().expect("served"), seen)
+}
+
+#[test]
+fn dump_of_a_device_refusing_reserved_rows_answers_in_full() {
+    let (at, seen) = serve_refusing_reserved();
+    let dump = json(&["dump", "--tcp", &at]);
+    let values = dump["values"].as_object().expect("values");
+    assert_eq!(values.len(), 46, "every register a dump reads");
+    assert!(values.contains_key("connected_host_port"));
+    // Input 140-154 over the reserved 141-149 refused once, then read as 140 and 150-154:
+    // four answered requests.
+    assert_eq!(dump["requests"], 4);
+    let refused: Vec<(u16, u16)> = seen
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|(_, _, answered)| !answered)
+        .map(|&(address, count, _)| (address, count))
+        .collect();
+    assert_eq!(refused, [(140, 15)]);
 }

@@ -154,21 +154,39 @@ fn raw_access_reads_and_writes_words_by_address() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let at = served.at.as_str();
     // light_power is holding 2 in steps of 0.1 %.
-    ok(&["set", "light_power", "42.5", "--tcp", at]);
-    let text = ok(&["raw", "read", "holding", "2", "--tcp", at]);
+    ok(&[
+        "--model",
+        "p-series",
+        "set",
+        "light_power",
+        "42.5",
+        "--tcp",
+        at,
+    ]);
+    let text = ok(&[
+        "--model", "p-series", "raw", "read", "holding", "2", "--tcp", at,
+    ]);
     assert_eq!(text.trim(), "holding 0x0002 (2)  0x01A9 (425)");
-    let read = json(&["raw", "read", "holding", "0x1", "--count", "2", "--tcp", at]);
+    let read = json(&[
+        "--model", "p-series", "raw", "read", "holding", "0x1", "--count", "2", "--tcp", at,
+    ]);
     assert_eq!(read["table"], "holding");
     assert_eq!(read["words"][1]["address"], 2);
     assert_eq!(read["words"][1]["value"], 425);
-    let text = ok(&["raw", "write", "20", "1", "--yes", "--tcp", at]);
+    let text = ok(&[
+        "--model", "p-series", "raw", "write", "20", "1", "--yes", "--tcp", at,
+    ]);
     assert_eq!(text.trim(), "holding 0x0014 (20)  0x0001 (1): written");
-    let text = ok(&["raw", "write", "0x0002", "300", "--tcp", at]);
+    let text = ok(&[
+        "--model", "p-series", "raw", "write", "0x0002", "300", "--tcp", at,
+    ]);
     assert_eq!(text.trim(), "holding 0x0002 (2)  0x012C (300): written");
-    let values = json(&["read", "light_power", "--tcp", at]);
+    let values = json(&["--model", "p-series", "read", "light_power", "--tcp", at]);
     assert_eq!(values["light_power"]["value"], "30.0");
     // The device's own refusal (an address it lacks) is the device's failure, exit 1.
-    let (code, _, stderr) = outcome(&["raw", "read", "input", "0x7000", "--tcp", at]);
+    let (code, _, stderr) = outcome(&[
+        "--model", "p-series", "raw", "read", "input", "0x7000", "--tcp", at,
+    ]);
     assert_eq!(code, Some(FAILED), "{stderr}");
     assert!(stderr.contains("input 0x7000 (28672)"), "{stderr}");
 }
@@ -230,6 +248,8 @@ fn scan_json_is_json_only_and_stops_at_the_first_device() {
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
     let scan = |extra: &[&str]| {
         let mut args = vec![
+            "--model",
+            "p-series",
             "scan",
             "--serial",
             &served.at,
@@ -246,7 +266,10 @@ fn scan_json_is_json_only_and_stops_at_the_first_device() {
     let (code, stdout, stderr) = scan(&[]);
     assert_eq!(code, Some(0), "{stderr}");
     let found: serde_json::Value = serde_json::from_str(&stdout).expect("stdout is JSON only");
-    assert_eq!(found, serde_json::json!([{"baud": 115200, "slave": 3}]));
+    assert_eq!(
+        found,
+        serde_json::json!([{"baud": 115200, "slave": 3, "model": "p-series"}])
+    );
     assert!(stderr.contains("found: slave 3 at 115200 baud"), "{stderr}");
     // Slave 2 and 3 were asked, 4 and 5 not.
     assert!(stderr.contains(" -> 02 03"), "{stderr}");
@@ -256,7 +279,10 @@ fn scan_json_is_json_only_and_stops_at_the_first_device() {
     let (code, stdout, stderr) = scan(&["--all"]);
     assert_eq!(code, Some(0), "{stderr}");
     let found: serde_json::Value = serde_json::from_str(&stdout).expect("stdout is JSON only");
-    assert_eq!(found, serde_json::json!([{"baud": 115200, "slave": 3}]));
+    assert_eq!(
+        found,
+        serde_json::json!([{"baud": 115200, "slave": 3, "model": "p-series"}])
+    );
     assert!(stderr.contains(" -> 05 03"), "{stderr}");
 }
 
@@ -278,7 +304,15 @@ fn writes_to_the_built_in_simulator_say_they_do_not_last() {
     let (_, _, stderr) = outcome(&["read", "light_power"]);
     assert!(!stderr.contains("lasts for this"), "{stderr}");
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
-    let (_, _, stderr) = outcome(&["set", "light_power", "42.5", "--tcp", &served.at]);
+    let (_, _, stderr) = outcome(&[
+        "--model",
+        "p-series",
+        "set",
+        "light_power",
+        "42.5",
+        "--tcp",
+        &served.at,
+    ]);
     assert!(!stderr.contains("lasts for this"), "{stderr}");
 }
 
@@ -298,7 +332,14 @@ fn exit_codes_tell_failure_usage_and_refusal_apart() {
     assert_eq!(outcome(&["set", "light_power", "101"]).0, Some(REFUSED));
     assert_eq!(outcome(&["do", "reboot"]).0, Some(REFUSED));
     // The device or the line failed: nothing listens on port 1; a silent slave times out.
-    let (code, _, stderr) = outcome(&["read", "distance_1", "--tcp", "127.0.0.1:1"]);
+    let (code, _, stderr) = outcome(&[
+        "--model",
+        "p-series",
+        "read",
+        "distance_1",
+        "--tcp",
+        "127.0.0.1:1",
+    ]);
     assert_eq!(code, Some(FAILED), "{stderr}");
     let served = Served::start(&["p-series", "--pty", "--slave", "3"]);
     let (code, _, stderr) = outcome(&words(

@@ -131,8 +131,15 @@ fn slave_0_is_for_writes_only() {
         vec!["watch", "distance_1", "--count", "1"],
         vec!["dump"],
         vec!["buffer", "--count", "10"],
-        vec!["read", "distance_1", "--serial", "/dev/nonexistent-port"],
-        vec!["dump", "--tcp", "127.0.0.1:1"],
+        vec![
+            "--model",
+            "p-series",
+            "read",
+            "distance_1",
+            "--serial",
+            "/dev/nonexistent-port",
+        ],
+        vec!["--model", "p-series", "dump", "--tcp", "127.0.0.1:1"],
     ] {
         let mut args = args.clone();
         args.extend(["--slave", "0"]);
@@ -143,7 +150,15 @@ fn slave_0_is_for_writes_only() {
         );
     }
     refused(
-        &["scan", "--serial", "/dev/nonexistent-port", "--slave", "0"],
+        &[
+            "--model",
+            "p-series",
+            "scan",
+            "--serial",
+            "/dev/nonexistent-port",
+            "--slave",
+            "0",
+        ],
         REFUSED,
         "no device answers slave 0",
     );
@@ -180,6 +195,8 @@ fn slave_0_is_for_writes_only() {
     // Modbus TCP has no broadcast: refused before connecting.
     refused(
         &[
+            "--model",
+            "p-series",
             "set",
             "light_power",
             "42",
@@ -326,6 +343,9 @@ fn baud_rates_come_from_the_manual_unless_any_baud() {
     ] {
         let args = words(line);
         let mut args = args.clone();
+        if !args.contains(&"--model") {
+            args.extend(["--model", "p-series"]);
+        }
         args.extend(["--serial", port]);
         refused(&args, REFUSED, message);
     }
@@ -354,6 +374,9 @@ fn baud_rates_come_from_the_manual_unless_any_baud() {
         vec!["read", "distance_1", "--baud", "9600"],
     ] {
         let mut args = args.clone();
+        if !args.contains(&"--model") {
+            args.extend(["--model", "p-series"]);
+        }
         args.extend(["--serial", port]);
         let (code, _, stderr) = outcome(&args);
         assert_eq!(code, Some(FAILED), "{args:?}");
@@ -388,7 +411,9 @@ fn scan_lists_are_strict() {
         ("x", "`x` is not an address or a range"),
     ] {
         refused(
-            &["scan", "--serial", port, "--slaves", list],
+            &[
+                "--model", "p-series", "scan", "--serial", port, "--slaves", list,
+            ],
             REFUSED,
             message,
         );
@@ -400,13 +425,17 @@ fn scan_lists_are_strict() {
         ("fast", "`fast` is not a baud rate"),
     ] {
         refused(
-            &["scan", "--serial", port, "--bauds", list],
+            &[
+                "--model", "p-series", "scan", "--serial", port, "--bauds", list,
+            ],
             REFUSED,
             message,
         );
     }
     // A good list gets as far as the port.
     let (code, _, stderr) = outcome(&[
+        "--model",
+        "p-series",
         "scan",
         "--serial",
         port,

@@ -59,6 +59,7 @@ fn exchange(optobus: &[&str], connection: &[&str], target: &str) {
     let with = |more: &[&str]| -> Vec<String> {
         more.iter()
             .chain(optobus)
+            .chain(&["--model", "p-series"])
             .map(|s| (*s).to_owned())
             .collect()
     };

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{fails, ok};
+use common::{fails, ok, run, Served};
 
 /// A file in the temporary directory, unique to this test process.
 fn scratch(name: &str) -> String {
@@ -63,12 +63,48 @@ fn a_recording_is_drawn_as_png_with_its_text() {
 }
 
 #[test]
-fn a_buffer_download_is_drawn_over_its_index() {
+fn a_buffer_download_is_drawn_over_time() {
     let out = scratch("buffer.svg");
     ok(&["buffer", "--count", "120", "--wait", "0", "--plot", &out]);
     let chart = svg(&out);
-    assert!(chart.contains("distance_1 [mm]") && chart.contains("index"));
+    assert!(chart.contains("distance_1 [mm]") && chart.contains("time ["));
     assert!(chart.contains("<polyline"));
+}
+
+/// The texts of an SVG chart: axis descriptions and tick labels.
+fn tick_labels(chart: &str) -> Vec<String> {
+    chart
+        .split("<text")
+        .skip(1)
+        .filter_map(|text| {
+            let label = text.split('>').nth(1)?.split('<').next()?;
+            Some(label.trim().to_owned())
+        })
+        .collect()
+}
+
+#[test]
+fn a_buffer_at_ratio_10_is_drawn_at_ten_times_the_sampling_interval() {
+    let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
+    let at = served.at.clone();
+    ok(&["set", "sampling_interval", "100us", "--tcp", &at]);
+    ok(&["set", "sampled_data_ratio", "10", "--tcp", &at]);
+    let out = scratch("ratio.svg");
+    let output = run(&[
+        "buffer", "--count", "20", "--wait", "100ms", "--plot", &out, "--tcp", &at,
+    ]);
+    assert!(output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("values 1ms apart (sampling interval 100µs × ratio 10)"),
+        "{stderr}"
+    );
+    // 20 values 1 ms apart: 0 to 19 ms (at ratio 1 they would span 0 to 1.9 ms).
+    let chart = svg(&out);
+    let texts = tick_labels(&chart);
+    let has = |label: &str| texts.iter().any(|t| t == label);
+    assert!(has("time [ms]") && has("0") && has("18"), "{texts:?}");
+    assert!(!has("1.8"), "{texts:?}");
 }
 
 #[test]

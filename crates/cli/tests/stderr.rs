@@ -95,9 +95,22 @@ fn messages_on_a_closed_stderr_do_not_panic() {
     let served = common::Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     for (args, code) in [
         // Success with a note on stderr ("… registers in … requests").
-        (vec!["dump", "--tcp", served.at.as_str()], 0),
+        (
+            vec!["--model", "p-series", "dump", "--tcp", served.at.as_str()],
+            0,
+        ),
         // Every frame traced to a stderr that is gone.
-        (vec!["dump", "--tcp", served.at.as_str(), "--verbose"], 0),
+        (
+            vec![
+                "--model",
+                "p-series",
+                "dump",
+                "--tcp",
+                served.at.as_str(),
+                "--verbose",
+            ],
+            0,
+        ),
         // A refusal: its one line goes nowhere, the exit code still says so.
         (vec!["read", "distance_1", "--slave", "0"], common::REFUSED),
     ] {

@@ -308,8 +308,8 @@ pub struct RegisterInfo {
     /// What reading the register changes in the device (it turns a buffer page), if
     /// anything: such a read is made once, never retried.
     pub read_side_effect: Option<&'static str>,
-    /// Writing it acts and the manual defines no read (LC-RS factory reset): it is written,
-    /// never read.
+    /// Writing it acts and the manual does not say what a read returns (LC-RS factory reset):
+    /// it is written, never read.
     pub action: bool,
 }
 
@@ -375,8 +375,9 @@ pub struct ReservedInfo {
     pub from: u16,
     /// Last address, inclusive.
     pub to: u16,
-    /// The manual sanctions reading it (it lies inside the table the manual says may be
-    /// read): reads answer zeros, and a read plan may ask for it to join two reads in one.
+    /// Reading it is expected to work (inferred: it lies inside the table the manual says may
+    /// be read, and the manual says nothing against it): reads answer zeros, and a read plan
+    /// may ask for it to join two reads in one.
     pub readable: bool,
 }
 
@@ -483,14 +484,18 @@ pub struct BufferInfo {
     pub unlock: &'static str,
     /// Group read once per page; reading it turns the page.
     pub page: &'static str,
-    /// Page member: values handed out since the lock, this page included.
+    /// Page member: values handed out since the lock (this page included, or before it: the
+    /// P series manual leaves it open, appendix 3 (3)).
     pub read_count: &'static str,
     /// Page member: valid values in this page.
     pub valid_count: &'static str,
     /// Repeat member of the page: the page's values, oldest first.
     pub values: &'static str,
-    /// Enum register whose code meanings are the intervals between buffered values.
+    /// Enum register whose code meanings are the sampling intervals.
     pub interval: Option<&'static str>,
+    /// Unsigned integer register: one value in this many is buffered, so values lie
+    /// `interval × ratio` apart (P series appendix 3 (5)); without it, every value.
+    pub ratio: Option<&'static str>,
 }
 
 /// Serial line settings.
@@ -653,7 +658,7 @@ impl DeviceInfo {
         self.readable_registers().filter(|r| r.read_is_repeatable())
     }
 
-    /// Whether `address` of `table` lies in a reserved range the manual sanctions reading.
+    /// Whether `address` of `table` lies in a reserved range the spec marks readable.
     pub fn reserved_readable(&self, table: Table, address: u16) -> bool {
         self.reserved
             .iter()

@@ -3,8 +3,11 @@
 //! locked, read out a page at a time, and unlocked.
 
 use std::fmt;
+use std::time::Duration;
 
-use optobus_device::{BufferInfo, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo};
+use optobus_device::{
+    parse_duration, BufferInfo, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo,
+};
 use optobus_transport::Transport;
 
 use crate::convert::{Decode, Encode};
@@ -22,6 +25,29 @@ pub struct DownloadProgress {
     pub pages: usize,
 }
 
+/// When a buffer's values were taken: one every sampling interval × sampling ratio (P series
+/// appendix 3 (5): at ratio 10 every 10th measurement is buffered).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BufferTiming {
+    /// The sampling interval: the time between two measurements.
+    pub interval: Duration,
+    /// Measurements per buffered value (1 for a buffer without a ratio register).
+    pub ratio: u32,
+}
+
+impl BufferTiming {
+    /// The time between two buffered values, `interval × ratio`.
+    pub fn period(&self) -> Duration {
+        self.interval.saturating_mul(self.ratio)
+    }
+
+    /// The time of value `index` (0 the oldest) after the oldest.
+    pub fn time_of(&self, index: usize) -> Duration {
+        let index = u32::try_from(index).unwrap_or(u32::MAX);
+        self.period().saturating_mul(index)
+    }
+}
+
 /// A buffer's items, looked up in the device description.
 struct Parts {
     info: &'static BufferInfo,
@@ -33,6 +59,54 @@ struct Parts {
     valid_count: &'static RegisterInfo,
     /// Every copy of the values register, in page order.
     values: Vec<&'static RegisterInfo>,
+}
+
+/// What a page's read count counts. The manual (P series appendix 3 (3)) says the count of
+/// values read since the lock reaches the total once all are read, but not whether a reply's
+/// count already includes that reply's own page: a download decides from the first page with
+/// values and holds the device to that reading for the rest.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ReadCount {
+    /// The values handed out so far, this page included.
+    IncludingPage,
+    /// The values handed out before this page.
+    BeforePage,
+}
+
+impl ReadCount {
+    /// The reading a page's `reported` count agrees with, given the values handed out
+    /// `before` the page and `after` it; `reading` is what earlier pages decided (`None`
+    /// while no page told the two apart). A count that fits neither, or contradicts the
+    /// reading decided before, is [`Error::OutOfStep`]: a page was lost, or the device is
+    /// not counting as it did.
+    fn check(
+        reading: Option<Self>,
+        before: u64,
+        after: u64,
+        reported: u64,
+    ) -> Result<Option<Self>, Error> {
+        let fits = |reading: Self| match reading {
+            Self::IncludingPage => reported == after,
+            Self::BeforePage => reported == before,
+        };
+        let decided = match reading {
+            Some(reading) => fits(reading).then_some(Some(reading)),
+            // A page without values fits both readings and decides nothing.
+            None if before == after => fits(Self::IncludingPage).then_some(None),
+            None => [Self::IncludingPage, Self::BeforePage]
+                .into_iter()
+                .find(|&r| fits(r))
+                .map(Some),
+        };
+        decided.ok_or(Error::OutOfStep {
+            what: "the buffer download",
+            received: match reading {
+                Some(Self::BeforePage) => before,
+                _ => after,
+            },
+            reported,
+        })
+    }
 }
 
 /// Refused: `device` describes no buffer, or one naming items it lacks.
@@ -91,6 +165,53 @@ impl<T: Transport> Core<T> {
         self.device().buffer
     }
 
+    /// Reads when the buffer takes its values: the sampling interval register's code (its
+    /// meaning is the duration) and the ratio register, where the buffer names them (`None`
+    /// for a buffer that names no interval). An interval code the spec does not define, or a
+    /// ratio of 0, is [`Error::UndefinedCode`] / [`Error::OutOfRange`]: no time axis is
+    /// better than a wrong one.
+    pub async fn read_buffer_timing(&mut self) -> Result<Option<BufferTiming>, Error> {
+        let device = self.device();
+        let info = device.buffer.ok_or_else(|| no_buffer(""))?;
+        let Some(name) = info.interval else {
+            return Ok(None);
+        };
+        let register = device.register(name).ok_or_else(|| no_buffer(name))?;
+        let code = register.raw(&self.read_words(register).await?);
+        let seconds = register
+            .codes
+            .iter()
+            .find(|c| c.code == code)
+            .and_then(|c| parse_duration(c.meaning))
+            .ok_or(Error::UndefinedCode {
+                register: register.name,
+                field: None,
+                code,
+            })?;
+        // Code meanings are written to the nanosecond at most (`6.25us`).
+        let interval = Duration::from_nanos((seconds * 1e9).round() as u64);
+        let ratio = match info.ratio {
+            None => 1,
+            Some(name) => {
+                let register = device.register(name).ok_or_else(|| no_buffer(name))?;
+                match register.raw(&self.read_words(register).await?) {
+                    0 => {
+                        return Err(Error::OutOfRange {
+                            register: register.name,
+                            raw: 0,
+                            min: 1,
+                            max: i64::from(u32::MAX),
+                            scale: None,
+                            unit: register.unit,
+                        })
+                    }
+                    ratio => ratio,
+                }
+            }
+        };
+        Ok(Some(BufferTiming { interval, ratio }))
+    }
+
     /// Starts buffering `count` values of `source` (writes the source register, if the
     /// buffer has one, and the count, then unlocks): 0 turns buffering off. A count above
     /// the buffer's `most` is refused with [`Error::OutOfRange`], and every value is checked,
@@ -129,7 +250,9 @@ impl<T: Transport> Core<T> {
     /// Reading a page turns it, so a page read is never retried, and at most the pages the
     /// count needs are read. Every page's read count (the device's count of values handed
     /// out since the lock) is checked against the values received: a page lost on the way
-    /// fails the download with [`Error::OutOfStep`] instead of returning fewer values.
+    /// fails the download with [`Error::OutOfStep`] instead of returning fewer values. The
+    /// manual leaves open whether that count includes the page it comes with; the first page
+    /// with values decides, and a later page counting the other way is [`Error::OutOfStep`].
     pub async fn download_buffer<V: Decode + fmt::Debug>(
         &mut self,
         mut progress: impl FnMut(DownloadProgress),
@@ -157,6 +280,7 @@ impl<T: Transport> Core<T> {
         let mut values = Vec::with_capacity(expected);
         // Values the device handed out in the pages we received.
         let mut handed_out = 0u64;
+        let mut reading = None;
         // Each page must be read whole, or values are lost; a device that keeps reporting
         // values is stopped after the pages `expected` needs.
         let max_pages = expected.div_ceil(page_values);
@@ -167,14 +291,9 @@ impl<T: Transport> Core<T> {
             let valid_in_page = usize::try_from(valid_count)
                 .unwrap_or(usize::MAX)
                 .min(page_values);
+            let before = handed_out;
             handed_out += valid_in_page as u64;
-            if u64::from(read_count) != handed_out {
-                return Err(Error::OutOfStep {
-                    what: "the buffer download",
-                    received: handed_out,
-                    reported: u64::from(read_count),
-                });
-            }
+            reading = ReadCount::check(reading, before, handed_out, u64::from(read_count))?;
             let valid = valid_in_page.min(expected - values.len());
             values.extend(parts.values[..valid].iter().map(|r| page.get::<V>(r)));
             progress(DownloadProgress {

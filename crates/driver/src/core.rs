@@ -10,7 +10,8 @@ use optobus_transport::{ReadRequest, Transport};
 
 use crate::convert::{Decode, Encode};
 use crate::error::Error;
-use crate::plan::{plan_reads, plan_write, ReadSpan};
+use crate::memory::DeviceMemory;
+use crate::plan::{plan_write, ReadSpan};
 
 /// The target of the driver's events: register names, words and decoded values at DEBUG.
 pub const TRACE_TARGET: &str = "optobus_driver";
@@ -34,6 +35,8 @@ pub struct Core<T> {
     device: &'static DeviceInfo,
     /// The requests of each declared group read so far (group name, copy), planned once.
     plans: Vec<GroupPlan>,
+    /// What the device has shown about itself (reads it refused).
+    memory: DeviceMemory,
 }
 
 /// The requests that read one of the device's declared groups (or one copy of it).
@@ -41,6 +44,14 @@ pub struct Core<T> {
 struct GroupPlan {
     group: &'static str,
     copy: Option<u8>,
+    /// Shared with the reads in progress.
+    plan: Arc<Plan>,
+}
+
+/// Registers and the requests that read them.
+#[derive(Debug)]
+struct Plan {
+    registers: Box<[&'static RegisterInfo]>,
     spans: Arc<[PlannedRead]>,
 }
 
@@ -87,6 +98,14 @@ impl Readings {
         value
     }
 
+    fn push(&mut self, span: ReadSpan, words: Vec<u16>) {
+        if self.first.is_none() {
+            self.first = Some((span, words));
+        } else {
+            self.rest.push((span, words));
+        }
+    }
+
     /// The requests that were made.
     pub fn requests(&self) -> impl Iterator<Item = &ReadSpan> {
         self.first.iter().chain(&self.rest).map(|(span, _)| span)
@@ -113,6 +132,7 @@ impl<T: Transport> Core<T> {
             slave: check_slave(slave)?,
             device,
             plans: Vec::new(),
+            memory: DeviceMemory::default(),
         })
     }
 
@@ -123,6 +143,7 @@ impl<T: Transport> Core<T> {
             slave: device.default_slave,
             device,
             plans: Vec::new(),
+            memory: DeviceMemory::default(),
         }
     }
 
@@ -131,10 +152,27 @@ impl<T: Transport> Core<T> {
         self.slave
     }
 
-    /// Sends later requests to another slave address (refused like in [`Core::new`]).
+    /// Sends later requests to another slave address (refused like in [`Core::new`]). What
+    /// was learned about the device at the old address ([`Core::memory`]) is forgotten.
     pub fn set_slave(&mut self, slave: u8) -> Result<(), Error> {
-        self.slave = check_slave(slave)?;
+        let slave = check_slave(slave)?;
+        if slave != self.slave {
+            self.forget(DeviceMemory::default());
+        }
+        self.slave = slave;
         Ok(())
+    }
+
+    /// What the driver has learned about its device from the device's answers (for example
+    /// that it refuses reads crossing reserved ranges), used by every read plan.
+    pub fn memory(&self) -> &DeviceMemory {
+        &self.memory
+    }
+
+    /// Takes `memory` as what is known about the device, and plans groups anew with it.
+    fn forget(&mut self, memory: DeviceMemory) {
+        self.memory = memory;
+        self.plans.clear();
     }
 
     /// The slave address for a request that expects a reply.
@@ -207,7 +245,9 @@ impl<T: Transport> Core<T> {
         Ok(value)
     }
 
-    /// Reads several registers in the fewest requests (see [`plan_reads`]).
+    /// Reads several registers in the fewest requests (see [`crate::plan_reads`]). A device
+    /// that refuses a read crossing a reserved range (exception 02) is read without crossing
+    /// one, at once and from then on ([`DeviceMemory`]).
     pub async fn read_group(
         &mut self,
         registers: &[&'static RegisterInfo],
@@ -215,8 +255,8 @@ impl<T: Transport> Core<T> {
         if let Some(unreadable) = registers.iter().find(|r| !r.readable()) {
             return Err(Error::unreadable(unreadable));
         }
-        let plan = planned(self.device, plan_reads(self.device, registers));
-        self.read_plan(&plan).await
+        let plan = planned(self.device, self.memory.plan_reads(self.device, registers));
+        self.read_plan(registers, &plan).await
     }
 
     /// Reads a group the device declares (every copy of a repeat member it names), in the
@@ -260,32 +300,62 @@ impl<T: Transport> Core<T> {
                 if let Some(unreadable) = registers.iter().find(|r| !r.readable()) {
                     return Err(Error::unreadable(unreadable));
                 }
+                let spans = planned(device, self.memory.plan_reads(device, &registers));
                 self.plans.push(GroupPlan {
                     group: group.name,
                     copy,
-                    spans: planned(device, plan_reads(device, &registers)),
+                    plan: Arc::new(Plan {
+                        registers: registers.into(),
+                        spans,
+                    }),
                 });
                 self.plans.len() - 1
             }
         };
-        let spans = Arc::clone(&self.plans[index].spans);
-        self.read_plan(&spans).await
+        let plan = Arc::clone(&self.plans[index].plan);
+        self.read_plan(&plan.registers, &plan.spans).await
     }
 
-    async fn read_plan(&mut self, plan: &[PlannedRead]) -> Result<Readings, Error> {
+    /// Makes the requests of `plan` (planned for `registers`). A request the device refuses
+    /// for crossing a reserved range is replaced by requests that do not, and the group plans
+    /// are made anew for the next reads.
+    async fn read_plan(
+        &mut self,
+        registers: &[&'static RegisterInfo],
+        plan: &[PlannedRead],
+    ) -> Result<Readings, Error> {
         let mut readings = Readings {
             first: None,
             rest: Vec::new(),
             addressing: self.device.addressing,
         };
         for &(span, repeatable) in plan {
-            let words = self
+            match self
                 .read_span(span.table, span.address, span.count, repeatable)
-                .await?;
-            if readings.first.is_none() {
-                readings.first = Some((span, words));
-            } else {
-                readings.rest.push((span, words));
+                .await
+            {
+                Ok(words) => readings.push(span, words),
+                Err(error) => {
+                    let mut memory = self.memory;
+                    let Some(instead) = memory.fallback(self.device, registers, &span, &error)
+                    else {
+                        return Err(error);
+                    };
+                    tracing::debug!(
+                        target: TRACE_TARGET,
+                        table = span.table.as_str(),
+                        address = span.address,
+                        count = span.count,
+                        "the device refused a read crossing a reserved range; reading around it"
+                    );
+                    self.forget(memory);
+                    for &(span, repeatable) in planned(self.device, instead).iter() {
+                        let words = self
+                            .read_span(span.table, span.address, span.count, repeatable)
+                            .await?;
+                        readings.push(span, words);
+                    }
+                }
             }
         }
         Ok(readings)

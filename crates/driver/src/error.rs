@@ -250,7 +250,7 @@ impl Error {
         Self::NotAllowed {
             register: register.name,
             what: if register.action {
-                "read (it is an action register: the manual defines no read)"
+                "read (it is an action register: the manual does not say what a read returns)"
             } else {
                 "read (it is write-only)"
             },

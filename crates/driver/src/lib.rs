@@ -5,12 +5,15 @@
 //! the Rust type of its value. Everything else happens here, once for all families:
 //!
 //! - [`Core`] reads a register or a group (merging adjacent registers into the fewest reads,
-//!   split at the device's maximum), writes one register (two words in the spec's write
+//!   split at the device's maximum, and reading around reserved ranges for a device that
+//!   refuses them, remembered in its [`DeviceMemory`]), writes one register (two words in the spec's write
 //!   order, or the rangefinder's 4-byte FC06), runs commands and waits out their busy time,
 //!   and downloads a data buffer page by page where the spec describes one.
 //! - [`Decode`] and [`Encode`] turn words into typed values and back; every write is
 //!   validated (range, defined codes, fits its bits, exactly representable) before a byte is
 //!   sent.
+//! - [`identify`] finds which model a device is, from each candidate spec's fingerprint
+//!   (its registers, its table bounds, its stored settings), with read-only requests.
 //! - [`units`] holds the exact fixed-point quantities readings come in (`Millimetres`, …).
 //!
 //! Register reads and writes are `tracing` events at DEBUG, target `optobus_driver` (register
@@ -30,12 +33,14 @@ mod connect;
 mod convert;
 mod core;
 mod error;
+pub mod identify;
+mod memory;
 mod plan;
 #[cfg(feature = "serde")]
 pub mod shapes;
 pub mod units;
 
-pub use crate::buffer::DownloadProgress;
+pub use crate::buffer::{BufferTiming, DownloadProgress};
 #[cfg(feature = "tcp")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tcp")))]
 pub use crate::connect::tcp_config;
@@ -46,7 +51,10 @@ pub use convert::{
     RawValue,
 };
 pub use error::{Error, ErrorKind};
+pub use memory::DeviceMemory;
 pub use optobus_codec::value::{Fixed, ParseFixedError, Scale};
 pub use optobus_device::{BufferInfo, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo};
 pub use optobus_transport::{self as transport, Transport};
-pub use plan::{plan_reads, plan_write, ReadSpan, WritePart, WriteStep};
+pub use plan::{
+    plan_reads, plan_reads_bridging, plan_write, Bridging, ReadSpan, WritePart, WriteStep,
+};

@@ -32,6 +32,16 @@ impl ReadSpan {
         })
     }
 
+    /// Whether this span passes over a reserved range (one the spec marks `readable`, the
+    /// only kind a plan asks for).
+    pub fn bridges_reserved(&self, device: &DeviceInfo) -> bool {
+        let end = u32::from(self.address) + u32::from(self.count);
+        device
+            .reserved
+            .iter()
+            .any(|r| r.table == self.table && u32::from(r.from) < end && self.address <= r.to)
+    }
+
     /// Where `register`'s words start in this span's reply, if it lies inside.
     pub fn offset_of(&self, register: &RegisterInfo, addressing: Addressing) -> Option<usize> {
         if register.table != self.table {
@@ -47,13 +57,34 @@ impl ReadSpan {
     }
 }
 
+/// What a read plan may pass over to join two reads into one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Bridging {
+    /// Readable registers whose read changes nothing, and reserved ranges the spec marks
+    /// `readable` (the default).
+    #[default]
+    Reserved,
+    /// Readable registers whose read changes nothing only: for a device that refuses reads
+    /// of reserved addresses (see [`crate::DeviceMemory`]).
+    RegistersOnly,
+}
+
 /// The requests that read `registers`: adjacent registers of one table merged, split at the
 /// device's `max_read_words`. A gap between two registers is bridged only when readable
-/// registers and reserved ranges the manual sanctions reading cover it, so a plan never asks
+/// registers and reserved ranges the spec marks readable cover it, so a plan never asks
 /// for an address the device may reject, nor reads a register whose read changes the device
 /// or is undefined. With one address per field (the rangefinder) every register is its own
 /// request.
 pub fn plan_reads(device: &DeviceInfo, registers: &[&RegisterInfo]) -> Vec<ReadSpan> {
+    plan_reads_bridging(device, registers, Bridging::Reserved)
+}
+
+/// [`plan_reads`], bridging gaps only as `bridging` allows.
+pub fn plan_reads_bridging(
+    device: &DeviceInfo,
+    registers: &[&RegisterInfo],
+    bridging: Bridging,
+) -> Vec<ReadSpan> {
     let mut sorted: Vec<&RegisterInfo> = registers.to_vec();
     sorted.sort_by_key(|r| (r.table, r.address));
     sorted.dedup_by_key(|r| (r.table, r.address));
@@ -76,7 +107,8 @@ pub fn plan_reads(device: &DeviceInfo, registers: &[&RegisterInfo]) -> Vec<ReadS
             let last_start = u32::from(last.address);
             let last_end = last_start + u32::from(last.count);
             let joinable = last.table == register.table
-                && (start <= last_end || covered(device, register.table, last_end, start))
+                && (start <= last_end
+                    || covered(device, bridging, register.table, last_end, start))
                 && end.max(last_end) - last_start <= limit;
             if joinable {
                 last.count = u16::try_from(end.max(last_end) - last_start).unwrap_or(u16::MAX);
@@ -94,8 +126,9 @@ pub fn plan_reads(device: &DeviceInfo, registers: &[&RegisterInfo]) -> Vec<ReadS
 
 /// True when every address of `table` in `from..to` may be read in passing: it belongs to a
 /// readable register whose read changes nothing (never a buffer page, never an action
-/// register), or to a reserved range the manual sanctions reading, and to no other register.
-fn covered(device: &DeviceInfo, table: Table, from: u32, to: u32) -> bool {
+/// register), or to a reserved range the spec marks readable (when `bridging` allows it),
+/// and to no other register.
+fn covered(device: &DeviceInfo, bridging: Bridging, table: Table, from: u32, to: u32) -> bool {
     (from..to).all(|at| {
         let Ok(address) = u16::try_from(at) else {
             return false;
@@ -113,7 +146,7 @@ fn covered(device: &DeviceInfo, table: Table, from: u32, to: u32) -> bool {
         if any {
             harmless
         } else {
-            device.reserved_readable(table, address)
+            bridging == Bridging::Reserved && device.reserved_readable(table, address)
         }
     })
 }

@@ -191,8 +191,8 @@ fn read_request(device: &DeviceInfo, pdu: &[u8]) -> ExplainedPdu {
         if let Held::Whole(r) | Held::Part(r, 0) = slot.held {
             if r.action {
                 notes.push(format!(
-                    "`{}` is an action register: the manual defines no read, so the words it \
-                     answers mean nothing",
+                    "`{}` is an action register: the manual does not say what a read \
+                     returns, so the words it answers have no known meaning",
                     r.name
                 ));
             }

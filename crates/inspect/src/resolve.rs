@@ -88,7 +88,7 @@ pub fn resolve_readable(
         for register in resolve(device, name.as_ref(), copy)? {
             if !register.readable() {
                 let why = if register.action {
-                    "is an action register: the manual defines no read"
+                    "is an action register: the manual does not say what a read returns"
                 } else {
                     "is write-only: there is nothing to read"
                 };

@@ -198,6 +198,39 @@ fn lc_rs_exceptions_have_seven_bytes_and_the_specs_meaning() {
 }
 
 #[test]
+fn ccs_and_ccf_exceptions_carry_the_meaning_of_their_table_3_10() {
+    for device in [&optobus_ccs::DEVICE, CCF] {
+        let codes: Vec<(u32, &str)> = device
+            .exception_codes
+            .iter()
+            .map(|c| (c.code, c.name))
+            .collect();
+        assert_eq!(
+            codes,
+            [
+                (1, "illegal_function"),
+                (2, "illegal_data_address"),
+                (3, "illegal_data_value")
+            ],
+            "{}",
+            device.family
+        );
+        // 3.3 table 3-10: "02 非法的数据地址 指定的地址超出从机的范围".
+        let frames = rtu(device, "01 83 02 C0 F1");
+        let frame = frames.first().expect("frame");
+        assert_eq!(frame.kind, FrameKind::Exception);
+        assert!(
+            frame
+                .summary
+                .contains("illegal_data_address (The address is outside the device's range)"),
+            "{}: {}",
+            device.family,
+            frame.summary
+        );
+    }
+}
+
+#[test]
 fn a_wide_write_and_a_split_half_are_named() {
     let frames = rtu(RANGEFINDER, "19 06 00 04 01 00 E1 00 5F 01");
     let frame = frames.first().expect("frame");
@@ -340,7 +373,7 @@ fn an_unlisted_value_gets_a_note_in_units() {
 
 #[test]
 fn reading_an_action_register_gets_a_note() {
-    // LC-RS factory reset (0089H): the manual defines no read.
+    // LC-RS factory reset (0089H): the manual does not say what a read returns.
     let frames = rtu(LC_RS, "01 03 00 89 00 01 55 E0");
     assert!(
         frames[0]

@@ -4,14 +4,17 @@
 //! names are the registers buffered, the page's read count, valid count and values are named.
 //!
 //! Behaviour: while unlocked and the count N is non-zero, one value of the source's
-//! register is buffered per sampling interval, up to N (appendix 3 (1), (5)). Locking freezes
+//! register is buffered every sampling interval × sampling ratio (the ratio-th measurement,
+//! appendix 3 (5): at ratio 10 every 10th), up to N (appendix 3 (1)). Locking freezes
 //! what is buffered (appendix 3 (2)) and restarts the read-out. Every read that covers a
 //! buffered-value register returns the next page: up to a page of values, the valid count of
 //! this page and the total read so far, including this page (appendix 3 (3)-(4), 5.4 (5): 1000
-//! values take 17 reads, the 17th with 40 valid); values past the valid count read as the
+//! values take 17 reads, the 17th with 40 valid; the manual leaves open whether the total
+//! includes this page, [`crate::Quirks::buffer_read_count`] gives it before); values past the valid count read as the
 //! value register's sentinel. A read of the two counts alone does not turn the page. Unlocking
-//! clears the buffer and starts buffering anew; changing the count, the source or the
-//! sampling interval resets the buffer and the lock flag (4.2.2 note 5). Unlocked, the
+//! clears the buffer and starts buffering anew; changing the count, the source, the
+//! sampling interval or the ratio resets the buffer and the lock flag (4.2.2 note 5,
+//! appendix 3 (5) note 1). Unlocked, the
 //! counts read 0 and every value is invalid.
 
 use optobus_device::{BufferInfo, DeviceInfo};
@@ -38,6 +41,8 @@ pub(crate) struct BufferLayout {
     pub(crate) source: Option<usize>,
     /// The sampling interval register, if any (else 1 ms).
     pub(crate) interval: Option<usize>,
+    /// The sampling ratio register, if any (else every value is buffered).
+    pub(crate) ratio: Option<usize>,
     read_count: usize,
     valid_count: usize,
     values: Vec<usize>,
@@ -58,6 +63,7 @@ impl BufferLayout {
             count: index(info.count)?,
             source: info.source.and_then(index),
             interval: info.interval.and_then(index),
+            ratio: info.ratio.and_then(index),
             read_count: index(info.read_count)?,
             valid_count: index(info.valid_count)?,
             values: (!values.is_empty()).then_some(values)?,
@@ -78,9 +84,9 @@ impl BufferLayout {
         }
     }
 
-    /// Whether a write to `index` resets the buffer (4.2.2 note 5).
+    /// Whether a write to `index` resets the buffer (4.2.2 note 5, appendix 3 (5) note 1).
     pub(crate) fn resets_on(&self, index: usize) -> bool {
-        index == self.count || Some(index) == self.source || Some(index) == self.interval
+        index == self.count || [self.source, self.interval, self.ratio].contains(&Some(index))
     }
 
     fn page_size(&self) -> u32 {

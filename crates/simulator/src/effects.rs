@@ -165,7 +165,7 @@ impl Device {
         }
     }
 
-    /// Locks the buffer with the current report count, sampling interval and data type.
+    /// Locks the buffer with the current report count, sampling interval, ratio and data type.
     fn lock_buffer(&mut self, t: f64) {
         let Some(buffer) = &self.buffer else {
             return;
@@ -179,11 +179,13 @@ impl Device {
             self.register(index)?.codes.iter().find(|c| c.code == raw)
         };
         let capacity = value(layout.count).unwrap_or(0);
-        let period = layout
+        let interval = layout
             .interval
             .and_then(code)
             .and_then(|c| parse_duration(c.meaning))
             .unwrap_or(1e-3);
+        let ratio = layout.ratio.and_then(value).unwrap_or(1).max(1);
+        let period = interval * f64::from(ratio);
         let source = layout
             .source
             .and_then(|index| code(index).or_else(|| self.register(index)?.codes.first()))

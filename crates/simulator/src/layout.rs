@@ -10,7 +10,7 @@ use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo, Table};
 pub(crate) enum Cell {
     /// Inside the table, but neither a register nor reserved.
     Undefined,
-    /// A reserved address; `readable` when the manual sanctions reading it.
+    /// A reserved address; `readable` when the spec marks it readable.
     Reserved { readable: bool },
     /// Word `offset` of register `index` (always 0 with field addressing: the whole field).
     Register { index: usize, offset: u16 },

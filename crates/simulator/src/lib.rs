@@ -75,8 +75,10 @@
 //!   values outside a register's `allowed_values`, undefined enum codes and packed fields with
 //!   undefined codes or stray bits, and the register keeps its value (P series/CCS/CCF 4.1.1
 //!   note 2).
-//! - **Reserved ranges marked `readable`** (the manual counts them in the table it allows
-//!   reading: P series, CCS, CCF 4.1.1 note 1 and 4.2.2 note) read as zeros on every device.
+//! - **Reserved ranges marked `readable`** (inferred: the manual counts them in the table it
+//!   allows reading, P series, CCS, CCF 4.1.1 note 1 and 4.2.2 note, and is silent on reading
+//!   them) read as zeros on every device, unless [`Quirks::readable_reserved`] refuses them
+//!   with the illegal-address exception.
 //! - **Other reserved addresses, write-only and action registers** read as zeros, except on
 //!   LC-RS, whose table 2 code 0x0001 "register address error" refuses them (the golden frame
 //!   lc-2.1.3).
@@ -105,8 +107,9 @@
 //! Not modelled: LC-RS continuous-send mode (its stream format is not described), baud rate
 //! and parity changes (a stream has no line speed; a [`Line`] has one fixed format), enable flags of statistics and encoder
 //! counters (they always run), the time code and sample number the P series attaches to its
-//! measurements (no register shows them), the P series' down-sampling (mode and ratio do not
-//! change the sampled readings or the buffering rate, 4.1.2 note 1, appendix 3 (5)), and
+//! measurements (no register shows them), the P series' down-sampling of its sampled readings
+//! (mode and ratio do not change them, 4.1.2 note 1; the ratio does set the buffering rate,
+//! see [`buffer`]), and
 //! power-up silence at creation (only after [`Simulator::power_cycle`]).
 #![forbid(unsafe_code)]
 
@@ -132,7 +135,7 @@ pub use line::{Line, LineStats};
 pub use model::Reply;
 #[cfg(unix)]
 pub use pty::Pty;
-pub use quirks::{Quirks, UnreadableReads};
+pub use quirks::{BufferReadCount, Quirks, UnreadableReads};
 pub use rtu::Bus;
 pub use sim::{Exchange, PokeError, RegisterState, Simulator};
 pub use tcp::TcpServer;

@@ -15,7 +15,7 @@ use crate::defaults::default_words;
 use crate::faults::Injector;
 use crate::layout::{stored_words, Cell, Layout};
 use crate::names;
-use crate::quirks::{Quirks, UnreadableReads};
+use crate::quirks::{BufferReadCount, Quirks, UnreadableReads};
 use crate::signal::{raw_reading, raw_value, Signals, StatisticKind};
 
 /// What the device answers to one request.
@@ -301,6 +301,7 @@ impl Device {
             return Err(Fault::Address);
         }
         let refuse_unreadable = self.quirks.unreadable == UnreadableReads::Refused;
+        let refuse_readable_reserved = self.quirks.readable_reserved == UnreadableReads::Refused;
         let t = self.seconds(now);
         match self.info.addressing {
             Addressing::Field => {
@@ -322,7 +323,12 @@ impl Device {
                         Ok(self.live_words(index, t))
                     }
                     Some(Cell::Reserved { readable }) if count == 1 => {
-                        if readable || !refuse_unreadable {
+                        let refused = if readable {
+                            refuse_readable_reserved
+                        } else {
+                            refuse_unreadable
+                        };
+                        if !refused {
                             Ok(vec![0])
                         } else {
                             Err(Fault::Address)
@@ -339,8 +345,11 @@ impl Device {
                     let cell = self.layout.cell(table, at).ok_or(Fault::Address)?;
                     match cell {
                         Cell::Undefined => return Err(Fault::Address),
-                        // Reading a range the manual sanctions answers zeros on every device.
+                        // A range the spec marks readable answers zeros, unless told to refuse.
                         Cell::Reserved { readable: false } if refuse_unreadable => {
+                            return Err(Fault::Address)
+                        }
+                        Cell::Reserved { readable: true } if refuse_readable_reserved => {
                             return Err(Fault::Address)
                         }
                         Cell::Register { index, .. }
@@ -470,7 +479,10 @@ impl Device {
     fn buffer_words(&self, buffer: &Buffer, register: &RegisterInfo, role: Role) -> Vec<u16> {
         let (read, valid) = buffer.counts();
         let raw = match role {
-            Role::ReadCount => read,
+            Role::ReadCount => match self.quirks.buffer_read_count {
+                BufferReadCount::IncludingPage => read,
+                BufferReadCount::BeforePage => read - valid,
+            },
             Role::ValidCount => valid,
             Role::Value(slot) => {
                 let value = buffer.sample(slot).and_then(|(source, at)| {

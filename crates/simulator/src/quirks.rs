@@ -5,7 +5,7 @@ use optobus_codec::{ExceptionCode, ExceptionShape};
 use optobus_device::DeviceInfo;
 
 /// What a read of an address without a readable register (a reserved range the manual does
-/// not sanction reading, a write-only or action register) answers.
+/// not mark readable, a write-only or action register) answers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum UnreadableReads {
     /// Zeros, as the spec schema says for reserved ranges (P series, CCS, CCF, rangefinder).
@@ -14,7 +14,18 @@ pub enum UnreadableReads {
     Refused,
 }
 
-/// Error codes and address rules of one device.
+/// What a data buffer page's read count shows. The P series manual (appendix 3 (3)) says the
+/// count of values read since the lock reaches the total once all are read, and leaves open
+/// whether a reply's count already includes that reply's own page; the driver accepts both.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BufferReadCount {
+    /// The values handed out since the lock, this page included (the default).
+    IncludingPage,
+    /// The values handed out before this page.
+    BeforePage,
+}
+
+/// Error codes, address rules and readings the manuals leave open, of one device.
 ///
 /// [`Quirks::of`] derives them from a `DeviceInfo`:
 ///
@@ -28,7 +39,9 @@ pub enum UnreadableReads {
 ///   illegal-function number) in the counted-word frame.
 ///
 /// The derivation from the frame shape stands in for spec data (see the crate docs); a test
-/// can override any field with [`crate::Simulator::quirks`].
+/// can override any field with [`crate::Simulator::quirks`], for instance to act out a
+/// device that reads the manual another way ([`Quirks::buffer_read_count`],
+/// [`Quirks::readable_reserved`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Quirks {
     /// Code for a function code the device does not implement.
@@ -40,6 +53,12 @@ pub struct Quirks {
     pub illegal_value: ExceptionCode,
     /// What reads of reserved and write-only addresses answer.
     pub unreadable: UnreadableReads,
+    /// What a read crossing a reserved range the spec marks `readable` answers: zeros (the
+    /// default, as the spec infers), or the illegal-address exception, as a device (or a
+    /// gateway) that refuses the reserved addresses the manual is silent on would.
+    pub readable_reserved: UnreadableReads,
+    /// What the data buffer's read count counts.
+    pub buffer_read_count: BufferReadCount,
     /// Whether a read sent to broadcast address 0 is answered from the device's own address
     /// (the rangefinder's 3.5 shows this; standard Modbus never answers a broadcast).
     pub answer_broadcast_reads: bool,
@@ -52,6 +71,8 @@ impl Quirks {
         illegal_address: ExceptionCode::ILLEGAL_DATA_ADDRESS,
         illegal_value: ExceptionCode::ILLEGAL_DATA_VALUE,
         unreadable: UnreadableReads::Zeros,
+        readable_reserved: UnreadableReads::Zeros,
+        buffer_read_count: BufferReadCount::IncludingPage,
         answer_broadcast_reads: false,
     };
 
@@ -61,6 +82,8 @@ impl Quirks {
         illegal_address: ExceptionCode(0x0001),
         illegal_value: ExceptionCode(0x0002),
         unreadable: UnreadableReads::Refused,
+        readable_reserved: UnreadableReads::Zeros,
+        buffer_read_count: BufferReadCount::IncludingPage,
         answer_broadcast_reads: false,
     };
 

@@ -169,6 +169,12 @@ impl Simulator {
         self
     }
 
+    /// Replaces the quirks in force from now on (all clones share them), e.g. to make a
+    /// device contradict itself halfway through a procedure.
+    pub fn set_quirks(&self, quirks: Quirks) {
+        self.lock().quirks = quirks;
+    }
+
     /// Injects `faults` into the replies of every server of this device (RTU and TCP; all
     /// clones share them). See [`crate::faults`].
     pub fn faults(self, faults: Faults) -> Self {

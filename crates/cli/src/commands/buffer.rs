@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use clap::Args;
 use optobus_device::{BufferInfo, DeviceInfo, RegisterInfo};
-use optobus_driver::{Core, Encode, Fixed};
+use optobus_driver::{BufferTiming, Core, Encode, Fixed};
 
 use crate::chart::{check_out, draw, Series};
 use crate::connect::{DeviceArgs, Global};
@@ -29,7 +29,8 @@ pub(crate) struct BufferArgs {
     /// Write `index,value_<unit>` CSV here instead of stdout.
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Also draw the values over their index here, as SVG or PNG (by the extension).
+    /// Also draw the values over time here (one every sampling interval × ratio, read from
+    /// the device), as SVG or PNG (by the extension).
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
     #[command(flatten)]
@@ -77,6 +78,22 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
         wait.as_millis()
     );
     tokio::time::sleep(wait).await;
+    // Read before the download: the interval and ratio the values were buffered at.
+    let timing = match &args.plot {
+        Some(_) => core
+            .read_buffer_timing()
+            .await
+            .map_err(|e| driver_error(e, buffer.interval))?,
+        None => None,
+    };
+    if let Some(timing) = timing {
+        note!(
+            "optobus: values {:?} apart (sampling interval {:?} × ratio {})",
+            timing.period(),
+            timing.interval,
+            timing.ratio
+        );
+    }
     let bar = progress_bar(u64::from(count), "[{bar:30}] {pos}/{len} values, {msg}");
     let values: Vec<Option<Fixed>> = core
         .download_buffer(|p| {
@@ -89,8 +106,9 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
     bar.finish();
     let unit = values_register.unit.unwrap_or("");
     if let Some(path) = &args.plot {
+        let (x_label, x_of) = time_axis(timing, values.len());
         let points = values.iter().enumerate();
-        let points = points.map(|(i, v)| (i as f64, v.as_ref().map(|v| v.to_f64())));
+        let points = points.map(|(i, v)| (x_of(i), v.as_ref().map(|v| v.to_f64())));
         let label = if unit.is_empty() {
             what.to_owned()
         } else {
@@ -100,7 +118,7 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
             label,
             points: points.collect(),
         };
-        draw(path, "index", &[series])?;
+        draw(path, &x_label, &[series])?;
     }
     if global.json && args.out.is_none() {
         // Exact text, as every quantity in the tool's JSON; null where invalid.
@@ -129,6 +147,27 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
         None => print(&csv),
     }
     Ok(())
+}
+
+/// The x axis of `count` buffered values: their time since the first, in a unit that suits
+/// the span, or their index when the buffer's timing is unknown.
+fn time_axis(timing: Option<BufferTiming>, count: usize) -> (String, impl Fn(usize) -> f64) {
+    let last = timing.map_or(0.0, |t| t.time_of(count.saturating_sub(1)).as_secs_f64());
+    let (unit, per_second) = match last {
+        _ if timing.is_none() => ("", 1.0),
+        last if last >= 10.0 => ("s", 1.0),
+        last if last >= 0.01 => ("ms", 1e3),
+        _ => ("µs", 1e6),
+    };
+    let label = match timing {
+        Some(_) => format!("time [{unit}]"),
+        None => "index".to_owned(),
+    };
+    let x = move |index: usize| match timing {
+        Some(timing) => timing.time_of(index).as_secs_f64() * per_second,
+        None => index as f64,
+    };
+    (label, x)
 }
 
 /// The model as the manual names it: its title up to any parenthesis.

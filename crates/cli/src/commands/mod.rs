@@ -5,6 +5,7 @@
 mod buffer;
 mod do_command;
 mod frame;
+mod identify;
 mod models;
 mod plot;
 mod raw;
@@ -44,6 +45,9 @@ pub(crate) enum Command {
     /// Buffer measurements in the device and download them, with a progress bar (models whose
     /// spec describes a data buffer).
     Buffer(buffer::BufferArgs),
+    /// Which model the device at --tcp or --serial is: each model's registers, table bounds
+    /// and settings read (never written) as that model would be read.
+    Identify(DeviceArgs),
     /// Find the slave address and baud rate a device answers on.
     Scan(scan::ScanArgs),
     /// Serve a virtual device for other Modbus tools: Modbus TCP on --tcp (default
@@ -71,6 +75,7 @@ pub(crate) async fn run(options: Options, command: Command) -> Result<(), CliErr
         Command::Set(args) => set::run(&options.with(&args.write.device), &args).await,
         Command::Do(args) => do_command::run(&options.with(&args.write.device), &args).await,
         Command::Buffer(args) => buffer::run(&options.with(&args.device), &args).await,
+        Command::Identify(device) => identify::run(&options.with(&device)).await,
         Command::Scan(args) => scan::run(&options.with(&args.device), &args).await,
         Command::Simulate(args) => simulate::run(&options.with(&args.device), &args).await,
         Command::Raw(command) => raw::run(&options, &command).await,

@@ -3,10 +3,11 @@
 
 use clap::Args;
 use optobus_device::RegisterInfo;
-use optobus_driver::plan_reads;
 use serde_json::json;
 
-use crate::connect::{read_values, DeviceArgs, Global, Names};
+use crate::connect::{
+    decode_values, read_each_request, read_values, DeviceArgs, FailedRead, Global, Names,
+};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{pretty, print, values_json, values_text};
@@ -34,10 +35,14 @@ pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
     let device = global.device()?;
     global.check_line(device)?;
     let registers: Vec<&'static RegisterInfo> = device.dump_registers().collect();
-    let requests = plan_reads(device, &registers).len();
     let slave = global.answering_slave(device, "dump")?;
     let mut core = global.connect(device, slave).await?;
-    let values = read_values(&mut core, &registers).await?;
+    let readings = read_each_request(&mut core, &registers)
+        .await
+        .map_err(FailedRead::explained)?;
+    // The requests answered: a device refusing a read over reserved rows is read around them.
+    let requests: usize = readings.iter().map(|r| r.requests().count()).sum();
+    let values = decode_values(&registers, &readings);
     let skipped = device.readable_registers().count() - registers.len();
     if skipped > 0 {
         note!(

@@ -1,16 +1,17 @@
-//! `optobus scan`: which baud rate and slave address a device answers on; the first one found
-//! ends the scan unless `--all`.
+//! `optobus scan`: which baud rate and slave address a device answers on, and which model
+//! answers there (as `identify` finds it); the first one found ends the scan unless `--all`.
 
 use std::time::Duration;
 
 use clap::Args;
+use optobus_driver::identify::Verdict;
 use optobus_driver::Core;
 
 use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{print, progress_bar};
-use crate::{inputs, link};
+use crate::{inputs, link, models};
 
 #[derive(Debug, Args)]
 pub(crate) struct ScanArgs {
@@ -66,19 +67,31 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
         target.baud = Some(baud);
         // A silent address costs the whole timeout: keep it short unless asked otherwise.
         target.timeout = global.target.timeout.min(Duration::from_millis(200));
-        let link = link::open(device, 0, &target).await?;
-        let mut core = Core::with_default_slave(link, device);
+        let mut core = None;
         for &slave in &slaves {
             progress.set_message(format!("{baud} baud: slave {slave}"));
             progress.inc(1);
-            core.set_slave(slave)?;
-            let answered = match core.read_words(probe).await {
+            let prober = match &mut core {
+                Some(core) => core,
+                None => core.insert(Core::with_default_slave(
+                    link::open(device, 0, &target).await?,
+                    device,
+                )),
+            };
+            prober.set_slave(slave)?;
+            let answered = match prober.read_words(probe).await {
                 Ok(_) => true,
                 // An exception is an answer too: something lives at this address.
                 Err(e) => e.exception().is_some(),
             };
             if answered {
-                let line = format!("found: slave {slave} at {baud} baud");
+                // The port is opened anew for each model identify tries.
+                core = None;
+                let model = global.identify(&target, Some(slave)).await?.verdict();
+                let line = format!(
+                    "found: slave {slave} at {baud} baud: {}",
+                    models::verdict(&model)
+                );
                 // With --json, stdout carries the JSON only.
                 progress.suspend(|| {
                     if global.json {
@@ -87,7 +100,7 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
                         print(&line);
                     }
                 });
-                found.push((baud, slave));
+                found.push((baud, slave, model));
                 if !args.all {
                     break 'bauds;
                 }
@@ -98,7 +111,13 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
     if global.json {
         let list: Vec<serde_json::Value> = found
             .iter()
-            .map(|(baud, slave)| serde_json::json!({"baud": baud, "slave": slave}))
+            .map(|(baud, slave, model)| {
+                let model = match model {
+                    Verdict::One(model) => Some(models::name(model)),
+                    _ => None,
+                };
+                serde_json::json!({"baud": baud, "slave": slave, "model": model})
+            })
             .collect();
         print(&serde_json::Value::Array(list).to_string());
     }

@@ -9,7 +9,7 @@ use clap::Args;
 use crossterm::{cursor, terminal, QueueableCommand};
 use serde_json::json;
 
-use crate::connect::{read_each_request, DeviceArgs, Global, Names};
+use crate::connect::{decode_values, read_each_request, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{time_of_day, timestamp, values_json, values_text};
@@ -65,11 +65,11 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
         // Piped: a failure on stderr once, again when its kind changes, and the recovery.
         let piped = !terminal && !global.json;
         let outcome = match outcome {
-            Ok(values) => {
+            Ok(readings) => {
                 if let Some((_, failed)) = failing.take().filter(|_| piped) {
                     note!("{}  recovered after {failed} failed reads", time_of_day());
                 }
-                Ok(values)
+                Ok(decode_values(&registers, &readings))
             }
             Err(failed) => {
                 let kind = failed.error.kind();

@@ -9,6 +9,8 @@ use std::process::{Child, Command, Output, Stdio};
 pub fn optobus() -> Command {
     let mut command = Command::new(assert_cmd::cargo::cargo_bin!("optobus"));
     command.env("NO_COLOR", "1");
+    // The user's default model would hide what a test leaves out.
+    command.env_remove("OPTOBUS_MODEL");
     command
 }
 
@@ -109,13 +111,15 @@ pub struct Served {
     child: Child,
     /// What it printed first: the TCP address or the pty path.
     pub at: String,
+    /// The model it serves (as named first; p-series by default).
+    pub model: String,
 }
 
 impl Served {
-    /// The command line `rest --serial <where it serves>`, for [`words`] (device options
-    /// follow the command).
+    /// The command line `rest --serial <where it serves> --model <its model>`, for
+    /// [`words`] (device options follow the command).
     pub fn serial(&self, rest: &str) -> String {
-        format!("{rest} --serial {}", self.at)
+        format!("{rest} --serial {} --model {}", self.at, self.model)
     }
 
     pub fn start(args: &[&str]) -> Self {
@@ -128,7 +132,11 @@ impl Served {
             .spawn()
             .expect("start optobus simulate");
         let at = serves_at(&mut child);
-        Self { child, at }
+        let model = match args.first() {
+            Some(name) if !name.starts_with('-') => (*name).to_owned(),
+            _ => "p-series".to_owned(),
+        };
+        Self { child, at, model }
     }
 }
 
