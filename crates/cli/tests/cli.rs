@@ -595,7 +595,7 @@ fn serve_refusing_reserved() -> (String, SeenReads) {
 #[test]
 fn dump_of_a_device_refusing_reserved_rows_answers_in_full() {
     let (at, seen) = serve_refusing_reserved();
-    let dump = json(&["dump", "--tcp", &at]);
+    let dump = json(&["--model", "p-series", "dump", "--tcp", &at]);
     let values = dump["values"].as_object().expect("values");
     assert_eq!(values.len(), 46, "every register a dump reads");
     assert!(values.contains_key("connected_host_port"));

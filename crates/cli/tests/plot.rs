@@ -87,11 +87,28 @@ fn tick_labels(chart: &str) -> Vec<String> {
 fn a_buffer_at_ratio_10_is_drawn_at_ten_times_the_sampling_interval() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let at = served.at.clone();
-    ok(&["set", "sampling_interval", "100us", "--tcp", &at]);
-    ok(&["set", "sampled_data_ratio", "10", "--tcp", &at]);
+    ok(&[
+        "--model",
+        "p-series",
+        "set",
+        "sampling_interval",
+        "100us",
+        "--tcp",
+        &at,
+    ]);
+    ok(&[
+        "--model",
+        "p-series",
+        "set",
+        "sampled_data_ratio",
+        "10",
+        "--tcp",
+        &at,
+    ]);
     let out = scratch("ratio.svg");
     let output = run(&[
-        "buffer", "--count", "20", "--wait", "100ms", "--plot", &out, "--tcp", &at,
+        "--model", "p-series", "buffer", "--count", "20", "--wait", "100ms", "--plot", &out,
+        "--tcp", &at,
     ]);
     assert!(output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
