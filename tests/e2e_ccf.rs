@@ -66,3 +66,27 @@ async fn channels_are_independent() {
     sensor.clear_position_zero(third).await.unwrap();
     assert!(Channel::new(5).is_none());
 }
+
+#[tokio::test(start_paused = true)]
+async fn point_10_a_refused_value_names_its_unit_and_step_as_numbers() {
+    let (_sim, client) = e2e::simulated(&DEVICE);
+    let mut sensor = Ccf::with_default_slave(client);
+    let channel = Channel::new(2).expect("channel 2");
+    let error = sensor
+        .set_exposure_time(channel, "5000.1".parse().unwrap())
+        .await
+        .unwrap_err();
+    assert_eq!(
+        error.to_string(),
+        "5000.1 us is out of range for `channel_2_exposure_time` (0.0 us ..= 5000.0 us)"
+    );
+    let error = sensor
+        .set_exposure_time(channel, "100.05".parse().unwrap())
+        .await
+        .unwrap_err();
+    assert_eq!(
+        error.to_string(),
+        "100.05 us cannot be written to `channel_2_exposure_time` exactly: it holds whole \
+         steps of 0.1 us within its width"
+    );
+}

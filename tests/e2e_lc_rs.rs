@@ -123,6 +123,7 @@ async fn an_unlisted_baud_rate_is_refused_before_anything_is_sent() {
                 raw: 57_600,
                 allowed: [2400, 4800, 9600, 19200, 38400, 115_200],
                 scale: None,
+                unit: None,
             }
         ),
         "{error:?}"

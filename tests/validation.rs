@@ -137,7 +137,7 @@ fn typed_setters_refuse_before_sending() {
             .unwrap_err();
         assert_eq!(
             error.to_string(),
-            "100.1 is out of range for `light_power` (0.5 ..= 100.0)"
+            "100.1 % is out of range for `light_power` (0.5 % ..= 100.0 %)"
         );
         // A step of 0.1 %: 50.05 would need rounding.
         let error = sensor

@@ -40,3 +40,39 @@ fn generated_code_parses_as_rust() {
     let generated = generate_mini();
     assert!(syn::parse_file(&generated).is_ok());
 }
+
+#[test]
+fn point_10_the_parameter_that_picks_a_copy_is_named_after_its_repeat() {
+    let generated = generate_mini();
+    assert!(
+        generated.contains("pub async fn exposure(&mut self, channel: Channel)"),
+        "{generated}"
+    );
+    assert!(generated.contains("EXPOSURE[channel.index()]"));
+    assert!(!generated.contains("copy: Channel"), "{generated}");
+}
+
+#[test]
+fn point_5_the_runtime_items_a_driver_user_needs_are_documented_in_place() {
+    let generated = generate_mini();
+    let reexports = generated
+        .split("#[doc(inline)]\npub use optobus_driver::{")
+        .nth(1)
+        .and_then(|rest| rest.split("};").next())
+        .unwrap_or_else(|| panic!("no inlined re-export: {generated}"));
+    for item in [
+        "transport",
+        "Core",
+        "Error",
+        "Transport",
+        "rtu_config",
+        "serial_settings",
+    ] {
+        assert!(
+            reexports
+                .split(|c: char| !c.is_alphanumeric() && c != '_')
+                .any(|w| w == item),
+            "{item} is not re-exported in place: {reexports}"
+        );
+    }
+}

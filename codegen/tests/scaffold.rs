@@ -94,3 +94,143 @@ fn new_writes_a_crate_once_and_never_overwrites() {
     assert!(error.to_string().contains("never overwrites"), "{error}");
     let _ = std::fs::remove_dir_all(&scratch);
 }
+
+/// The first `[dependencies]` block in `text`: (crate name, the rest of its line).
+fn dependencies(text: &str) -> Vec<(String, String)> {
+    text.lines()
+        .map(|line| line.trim_start_matches("//!").trim())
+        .skip_while(|line| *line != "[dependencies]")
+        .skip(1)
+        .take_while(|line| !line.starts_with("```"))
+        .filter_map(|line| {
+            let (name, rest) = line.split_once('=')?;
+            Some((name.trim().to_owned(), rest.trim().to_owned()))
+        })
+        .collect()
+}
+
+/// The first Rust code block (a fence without a language) of `//!` docs.
+fn rust_block(docs: &str) -> String {
+    let mut block = Vec::new();
+    let mut fence: Option<&str> = None;
+    for line in docs
+        .lines()
+        .filter_map(|l| l.strip_prefix("//!"))
+        .map(str::trim)
+    {
+        match (fence, line.strip_prefix("```")) {
+            (None, Some(info)) => fence = Some(info),
+            (Some(""), Some(_)) => break,
+            (Some(_), Some(_)) => fence = None,
+            (Some(""), None) => block.push(line),
+            _ => {}
+        }
+    }
+    block.join("\n")
+}
+
+/// The crates a piece of Rust names at the start of a path (`tokio` in `#[tokio::main]`),
+/// but for the standard library's.
+fn crate_roots(code: &str) -> Vec<String> {
+    let mut roots = Vec::new();
+    let bytes = code.as_bytes();
+    for (at, _) in code.match_indices("::") {
+        let start = code[..at]
+            .rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .map_or(0, |i| i + 1);
+        let name = &code[start..at];
+        let inside_a_path = start >= 2 && &bytes[start - 2..start] == b"::";
+        let lower = name.starts_with(|c: char| c.is_ascii_lowercase());
+        if lower
+            && !inside_a_path
+            && !["std", "core", "alloc", "self", "super", "crate"].contains(&name)
+        {
+            roots.push(name.replace('_', "-"));
+        }
+    }
+    roots.sort();
+    roots.dedup();
+    roots
+}
+
+/// `features = ["rt", "macros"]` of a dependency line.
+fn features(line: &str) -> Vec<String> {
+    line.split_once("features")
+        .and_then(|(_, rest)| rest.split_once('[')?.1.split_once(']'))
+        .map(|(list, _)| {
+            list.split(',')
+                .map(|f| f.trim().trim_matches('"').to_owned())
+                .filter(|f| !f.is_empty())
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+#[test]
+fn point_3_every_family_names_the_dependencies_its_example_needs() {
+    let mut checked = 0;
+    for spec in specs() {
+        let model = model(&spec);
+        let files: std::collections::HashMap<_, _> = optobus_codegen::scaffold::files(&model)
+            .into_iter()
+            .collect();
+        let (lib, readme, manifest) = (
+            &files["src/lib.rs"],
+            &files["README.md"],
+            &files["Cargo.toml"],
+        );
+        // The doc example: the Rust block of the crate's first page.
+        let example = rust_block(lib);
+        assert!(example.contains("optobus_simulator"), "{example}");
+        // Listed the same in the crate's docs and its README.
+        let listed = dependencies(lib);
+        assert_eq!(listed, dependencies(readme), "{}", spec.display());
+        let names: Vec<&str> = listed.iter().map(|(name, _)| name.as_str()).collect();
+        let roots = crate_roots(&example);
+        let crate_name = optobus_codegen::scaffold::crate_dir(&model);
+        let crate_name = format!(
+            "optobus-{}",
+            crate_name.file_name().unwrap().to_string_lossy()
+        );
+        assert_eq!(
+            roots,
+            [crate_name, "optobus-simulator".into(), "tokio".into()]
+        );
+        for root in roots {
+            assert!(
+                names.contains(&root.as_str()),
+                "{}: the example uses `{root}`, the list names {names:?}",
+                spec.display()
+            );
+        }
+        // The features the doc test is built with (the crate's dev-dependencies) are listed.
+        let tokio = listed
+            .iter()
+            .find(|(name, _)| name == "tokio")
+            .map(|(_, line)| features(line));
+        let built_with = dependencies(&manifest.replace("[dev-dependencies]", "[dependencies]"))
+            .into_iter()
+            .find(|(name, _)| name == "tokio")
+            .map(|(_, line)| features(&line))
+            .expect("tokio among the dev-dependencies");
+        for feature in built_with {
+            assert!(
+                tokio
+                    .as_ref()
+                    .is_some_and(|listed| listed.contains(&feature)),
+                "{}: tokio feature `{feature}` missing",
+                spec.display()
+            );
+        }
+        // And what to use for a real sensor.
+        for text in [lib, readme] {
+            assert!(
+                text.contains(r#"features = ["serial"]"#) && text.contains("tcp_config(&DEVICE)"),
+                "{}",
+                spec.display()
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked >= 5, "{checked} families");
+}

@@ -171,9 +171,18 @@ enum Target<'m> {
     },
 }
 
+/// The parameter that picks a copy of a repeat block, named after the block (`channel:
+/// Channel`); `value` is the setters' own parameter, so such a block's becomes `value_copy`.
+fn copy_param(repeat: &str) -> Ident {
+    match repeat {
+        "value" | "self" | "crate" | "super" => format_ident!("{repeat}_copy"),
+        _ => ident(repeat),
+    }
+}
+
 impl Target<'_> {
     /// `(parameter list, expression giving &'static RegisterInfo)`.
-    fn access(&self, param: &Ident) -> (TokenStream, TokenStream) {
+    fn access(&self) -> (TokenStream, TokenStream) {
         match self {
             Self::Single(register) => (quote!(), {
                 let path = register_path(&register.name);
@@ -186,6 +195,7 @@ impl Target<'_> {
                 ..
             } => {
                 let copies = copies_path(repeat, member);
+                let param = copy_param(repeat);
                 (
                     quote!(#param: #index_type,),
                     quote!(#copies[#param.index()]),
@@ -248,9 +258,9 @@ struct Member<'m> {
     copies: Option<(&'m str, usize)>,
 }
 
-/// The members of a group, and the repeat index type when the group is read per copy (every
-/// member a repeat block's member name: CCF's `read_measurements(channel)`).
-fn group_members<'m>(model: &'m Model, names: &[String]) -> (Vec<Member<'m>>, Option<Ident>) {
+/// The members of a group, and the repeat block's name when the group is read per copy
+/// (every member a repeat block's member name: CCF's `read_measurements(channel)`).
+fn group_members<'m>(model: &'m Model, names: &[String]) -> (Vec<Member<'m>>, Option<&'m str>) {
     let single = |name: &str| model.registers.iter().find(|r| r.name == name);
     let copies_of = |base: &str| -> Vec<&'m Register> {
         model
@@ -293,7 +303,7 @@ fn group_members<'m>(model: &'m Model, names: &[String]) -> (Vec<Member<'m>>, Op
             })
         })
         .collect();
-    let per_copy = per_copy_repeat.map(|repeat| type_ident(&model.repeats[repeat].name));
+    let per_copy = per_copy_repeat.map(|repeat| model.repeats[repeat].name.as_str());
     (members, per_copy)
 }
 
@@ -317,7 +327,6 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
     if model.buffer.is_some() {
         taken.extend(BUFFER_METHODS.map(str::to_owned));
     }
-    let copy_param = format_ident!("copy");
     let unit = quote!(());
 
     let mut methods = Vec::new();
@@ -334,7 +343,7 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
         };
         let doc = register_doc(model, register, copies);
         let alias = doc_alias(register.zh.as_deref());
-        let (param, info) = target.access(&copy_param);
+        let (param, info) = target.access();
         if register.readable() {
             taken.insert(name.clone());
             let method = ident(&name);
@@ -393,7 +402,8 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
         let values = members.iter().map(|m| match (m.copies, &per_copy) {
             (Some((repeat, _)), Some(_)) => {
                 let copies = copies_path(repeat, &m.name);
-                quote!(readings.get(#copies[#copy_param.index()]))
+                let param = copy_param(repeat);
+                quote!(readings.get(#copies[#param.index()]))
             }
             (Some((repeat, _)), None) => {
                 let copies = copies_path(repeat, &m.name);
@@ -414,10 +424,13 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
         );
         let group = group_path(&group.name);
         let (param, read) = match &per_copy {
-            Some(index_type) => (
-                quote!(#copy_param: #index_type),
-                quote!(self.core.read_declared_group_copy(&#group, #copy_param.number())),
-            ),
+            Some(repeat) => {
+                let (param, index_type) = (copy_param(repeat), type_ident(repeat));
+                (
+                    quote!(#param: #index_type),
+                    quote!(self.core.read_declared_group_copy(&#group, #param.number())),
+                )
+            }
             None => (quote!(), quote!(self.core.read_declared_group(&#group))),
         };
         let serde = super::serde_derives();
@@ -449,7 +462,7 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
         let Some((_, target)) = all_targets.iter().find(|(n, _)| *n == command.register) else {
             continue;
         };
-        let (param, info) = target.access(&copy_param);
+        let (param, info) = target.access();
         let mut doc = vec![doc_text(command.doc.as_deref()), String::new()];
         doc.push(format!(
             "Writes {} to `{}`{}.",

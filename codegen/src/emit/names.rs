@@ -90,13 +90,16 @@ impl TypeNames {
 
 /// What a driver crate re-exports from the runtime beside its generated items: the error, the
 /// transports and the helpers that open them, the unit and number types its methods take and
-/// return. The generated file is the crate root, so it says so itself.
-const REEXPORTS: [&str; 8] = [
+/// return, the core its `core()` hands out. The generated file is the crate root, so it says
+/// so itself, and documents them in place (`#[doc(inline)]`): one crate's docs are enough to
+/// use it.
+const REEXPORTS: [&str; 9] = [
     "optobus_driver::rtu_config",
     "optobus_driver::serial_settings",
     "optobus_driver::transport",
     "optobus_driver::units",
     "optobus_driver::CodeEnum",
+    "optobus_driver::Core",
     "optobus_driver::Error",
     "optobus_driver::Fixed",
     "optobus_driver::Transport",
@@ -200,7 +203,7 @@ impl Imports {
             .into_iter()
             .map(|(module, mut items)| {
                 sort_items(&mut items);
-                use_line("pub use", module, &items)
+                use_line("#[doc(inline)]\npub use", module, &items)
             })
             .collect();
         [std, ours, public]

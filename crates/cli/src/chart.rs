@@ -18,6 +18,8 @@ pub(crate) struct Series {
 
 /// Height of one panel in pixels.
 const PANEL_HEIGHT: u32 = 260;
+/// Width of a chart in pixels: no line is drawn with more columns than this.
+const WIDTH: u32 = 1000;
 
 /// The lowest and highest of `values`, widened where they are equal so that a flat line
 /// still has an axis.
@@ -41,6 +43,61 @@ fn decimals(low: f64, high: f64) -> usize {
     } else {
         0
     }
+}
+
+/// `points` thinned to what `columns` pixel columns between `low` and `high` can show: in
+/// each column, its lowest and highest reading in the order they came (so a spike one sample
+/// wide stays visible), then a gap if any reading in it was invalid. Fewer points than two
+/// per column are kept as they are.
+fn thin(
+    points: &[(f64, Option<f64>)],
+    (low, high): (f64, f64),
+    columns: usize,
+) -> Vec<(f64, Option<f64>)> {
+    if points.len() <= 2 * columns || high <= low {
+        return points.to_vec();
+    }
+    #[derive(Clone, Copy, Default)]
+    struct Column {
+        lowest: Option<(f64, f64)>,
+        highest: Option<(f64, f64)>,
+        gap: Option<f64>,
+    }
+    let mut kept = vec![Column::default(); columns];
+    let last = columns - 1;
+    for &(x, y) in points {
+        let at = ((x - low) / (high - low) * columns as f64).clamp(0.0, last as f64) as usize;
+        let column = &mut kept[at];
+        match y {
+            None => column.gap = Some(x),
+            Some(y) => {
+                if column.lowest.is_none_or(|(_, lowest)| y < lowest) {
+                    column.lowest = Some((x, y));
+                }
+                if column.highest.is_none_or(|(_, highest)| y > highest) {
+                    column.highest = Some((x, y));
+                }
+            }
+        }
+    }
+    let mut thinned = Vec::with_capacity(3 * columns);
+    for column in kept {
+        if let (Some(lowest), Some(highest)) = (column.lowest, column.highest) {
+            let (first, second) = if lowest.0 <= highest.0 {
+                (lowest, highest)
+            } else {
+                (highest, lowest)
+            };
+            thinned.push((first.0, Some(first.1)));
+            if second != first {
+                thinned.push((second.0, Some(second.1)));
+            }
+        }
+        if let Some(x) = column.gap {
+            thinned.push((x, None));
+        }
+    }
+    thinned
 }
 
 /// The runs of consecutive valid points: one line each, so that gaps show.
@@ -85,7 +142,7 @@ pub(crate) fn check_out(out: &Path) -> Result<(), CliError> {
 /// Draws `series` over `x_label` into `out`, SVG or PNG by its extension.
 pub(crate) fn draw(out: &Path, x_label: &str, series: &[Series]) -> Result<(), CliError> {
     let count = u32::try_from(series.len()).unwrap_or(u32::MAX).max(1);
-    let size = (1000, PANEL_HEIGHT.saturating_mul(count));
+    let size = (WIDTH, PANEL_HEIGHT.saturating_mul(count));
     let failed = |e: String| CliError::failed(format!("cannot draw {}: {e}", out.display()));
     match format_of(out)? {
         Format::Svg => panels(
@@ -149,11 +206,39 @@ fn panels<DB: DrawingBackend>(
             .y_label_formatter(&|y| format!("{y:.y_decimals$}"))
             .draw()
             .map_err(failed)?;
-        for run in runs(&one.points) {
+        let shown = thin(&one.points, (x_low, x_high), WIDTH as usize);
+        for run in runs(&shown) {
             chart
                 .draw_series(LineSeries::new(run, &BLUE))
                 .map_err(failed)?;
         }
     }
     root.present().map_err(failed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::thin;
+
+    #[test]
+    fn point_2_a_long_series_is_thinned_to_its_extremes_per_column() {
+        // 10,000 flat readings with one spike, one dip and one invalid reading, on 10 columns.
+        let mut points: Vec<(f64, Option<f64>)> =
+            (0..10_000).map(|i| (i as f64, Some(1.0))).collect();
+        points[4_321].1 = Some(99.5);
+        points[4_322].1 = Some(-7.25);
+        points[8_000].1 = None;
+        let thinned = thin(&points, (0.0, 10_000.0), 10);
+        assert!(thinned.len() <= 30, "{} points", thinned.len());
+        // The column of the spike keeps both, in the order they came.
+        let column: Vec<_> = thinned
+            .iter()
+            .filter(|(x, _)| (4_000.0..5_000.0).contains(x))
+            .collect();
+        assert_eq!(column, [&(4_321.0, Some(99.5)), &(4_322.0, Some(-7.25))]);
+        // The invalid reading still breaks the line.
+        assert!(thinned.contains(&(8_000.0, None)));
+        // A short series is drawn as it is.
+        assert_eq!(thin(&points[..20], (0.0, 20.0), 10), &points[..20]);
+    }
 }

@@ -280,33 +280,90 @@ impl Global {
     }
 }
 
-/// Reads `registers` in the fewest requests and decodes them.
+/// Reads `registers` in the fewest requests and decodes them; a failure names the registers
+/// of the request that failed.
 pub(crate) async fn read_values(
     core: &mut Core<Link>,
     registers: &[&'static RegisterInfo],
 ) -> Result<Vec<(&'static RegisterInfo, Value)>, CliError> {
-    let readings = read_readings(core, registers).await?;
+    let readings = read_each_request(core, registers)
+        .await
+        .map_err(FailedRead::explained)?;
     Ok(decode_values(registers, &readings))
 }
 
-/// Reads `registers` in the fewest requests.
-pub(crate) async fn read_readings(
-    core: &mut Core<Link>,
-    registers: &[&'static RegisterInfo],
-) -> Result<Readings, CliError> {
-    core.read_group(registers).await.map_err(|e| {
-        let names: Vec<&str> = registers.iter().map(|r| r.name).collect();
-        driver_error(e, Some(&names.join(", ")))
-    })
+/// A read that failed: the driver's error and the registers of the request that failed.
+pub(crate) struct FailedRead {
+    pub(crate) error: optobus_driver::Error,
+    registers: Vec<&'static RegisterInfo>,
 }
 
-/// The values of `registers` in `readings`.
+impl FailedRead {
+    /// The error as the tool says it, with the failing request's registers.
+    pub(crate) fn explained(self) -> CliError {
+        let names: Vec<&str> = self.registers.iter().map(|r| r.name).collect();
+        driver_error(self.error, Some(&names.join(", ")))
+    }
+}
+
+/// Reads `registers` request by request, as [`optobus_driver::plan_reads`] plans them (the
+/// fewest requests), so that a failure names the registers of its request; gives each
+/// request's readings (the device's answers, around reserved rows where it refuses them).
+pub(crate) async fn read_each_request(
+    core: &mut Core<Link>,
+    registers: &[&'static RegisterInfo],
+) -> Result<Vec<Readings>, FailedRead> {
+    let device = core.device();
+    let spans = optobus_driver::plan_reads(device, registers);
+    let in_span = |span: &optobus_driver::ReadSpan, r: &RegisterInfo| {
+        span.offset_of(r, device.addressing).is_some()
+    };
+    let mut requests: Vec<Vec<&'static RegisterInfo>> = spans
+        .iter()
+        .map(|span| {
+            registers
+                .iter()
+                .copied()
+                .filter(|r| in_span(span, r))
+                .collect()
+        })
+        .collect();
+    // A register in no planned request (one no read may touch) alone: the driver says why.
+    requests.extend(
+        registers
+            .iter()
+            .filter(|r| !spans.iter().any(|span| in_span(span, r)))
+            .map(|r| vec![*r]),
+    );
+    let mut readings = Vec::with_capacity(requests.len());
+    for members in requests {
+        match core.read_group(&members).await {
+            Ok(answer) => readings.push(answer),
+            Err(error) => {
+                return Err(FailedRead {
+                    error,
+                    registers: members,
+                })
+            }
+        }
+    }
+    Ok(readings)
+}
+
+/// The values of `registers` in `readings`, in the order given.
 pub(crate) fn decode_values(
     registers: &[&'static RegisterInfo],
-    readings: &Readings,
+    readings: &[Readings],
 ) -> Vec<(&'static RegisterInfo, Value)> {
     registers
         .iter()
-        .map(|r| (*r, decode_value(r, readings.words(r))))
+        .map(|r| {
+            let words = readings
+                .iter()
+                .map(|answer| answer.words(r))
+                .find(|words| !words.is_empty())
+                .unwrap_or(&[]);
+            (*r, decode_value(r, words))
+        })
         .collect()
 }

@@ -120,6 +120,16 @@ pub(crate) fn parse_slave(text: &str) -> Result<u8, CliError> {
 }
 
 /// `--parity`.
+/// `--sim-speed`: how fast the built-in simulator answers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub(crate) enum SimSpeed {
+    /// At the model's line speed: a character time per byte and t3.5 gaps, as a device on
+    /// its serial line.
+    Line,
+    /// As fast as memory allows (tests, or a quick look at many values).
+    Full,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub(crate) enum ParityArg {
     /// No parity bit.

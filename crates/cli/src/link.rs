@@ -11,11 +11,11 @@ use optobus_driver::transport::{
     WriteValue,
 };
 use optobus_driver::{line_format, rtu_config, serial_settings, tcp_config, Transport};
-use optobus_simulator::Simulator;
+use optobus_simulator::{Line, Simulator};
 use tokio::io::DuplexStream;
 
 use crate::error::CliError;
-use crate::inputs::{self, ParityArg};
+use crate::inputs::{self, ParityArg, SimSpeed};
 
 /// Where requests go.
 #[derive(Debug)]
@@ -74,6 +74,11 @@ pub(crate) struct Target {
     /// read and written, on stderr.
     #[arg(long, short)]
     pub(crate) verbose: bool,
+    /// How fast the built-in simulator answers (no --serial or --tcp): `line` (the default),
+    /// timed as the model's serial line (factory format, or --baud, --parity…), as a device
+    /// would; `full`, as fast as memory allows.
+    #[arg(long, value_enum, conflicts_with_all = ["serial", "tcp"])]
+    pub(crate) sim_speed: Option<SimSpeed>,
 }
 
 impl Target {
@@ -167,8 +172,23 @@ pub(crate) async fn open(
          {address}{reached})",
         crate::models::name(device)
     );
-    let (line, _server) = Simulator::new(device).slave(address).duplex();
-    // The line is memory: no serial timing.
-    config.line = None;
-    Ok(Link::Simulator(RtuClient::with_config(line, config)))
+    let simulator = Simulator::new(device).slave(address);
+    let (stream, _server) = match target.sim_speed.unwrap_or(SimSpeed::Line) {
+        SimSpeed::Line => {
+            let format = target.line_format(device);
+            format.check().map_err(|e| {
+                CliError::new(format!("the simulator cannot time this line: {e}"))
+                    .hint("give a rate the model's manual lists, or --sim-speed full")
+            })?;
+            // The client keeps the line's t3.5, as on a serial port.
+            config.line = Some(format);
+            simulator.duplex_line(Line::new(format))
+        }
+        SimSpeed::Full => {
+            // The line is memory: no serial timing.
+            config.line = None;
+            simulator.duplex()
+        }
+    };
+    Ok(Link::Simulator(RtuClient::with_config(stream, config)))
 }

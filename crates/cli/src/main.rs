@@ -68,29 +68,67 @@ fn with_models(command: clap::Command) -> clap::Command {
         })
 }
 
-/// A device option given to a command that reaches no device: clap's tip (`-- --tcp`, as if
-/// it were a value) would mislead, so the error says what the option is for instead.
-fn explain_device_option(error: clap::Error) -> clap::Error {
+/// An option given to a command that does not take it: clap's tip (a similar argument, or `--
+/// --tcp` as if it were a value) would mislead, so the error says what the option is for
+/// instead: a device option says that this command reaches no device, and an option of other
+/// commands names them (`--interval` belongs to `watch` and `record`).
+fn explain_misplaced_option(error: clap::Error, command: &clap::Command) -> clap::Error {
     use clap::error::{ContextKind, ContextValue, ErrorKind};
+    if error.kind() != ErrorKind::UnknownArgument {
+        return error;
+    }
     let Some(ContextValue::String(given)) = error.get(ContextKind::InvalidArg) else {
         return error;
     };
     let option = given.split('=').next().unwrap_or(given);
-    let device_options = connect::DeviceArgs::augment_args(clap::Command::new("device"));
-    let is_device_option = device_options.get_arguments().any(|arg| {
-        arg.get_long()
-            .is_some_and(|long| option == format!("--{long}"))
-    });
-    if error.kind() != ErrorKind::UnknownArgument || !is_device_option {
+    let Some(long) = option.strip_prefix("--") else {
         return error;
-    }
+    };
+    let takes =
+        |command: &clap::Command| command.get_arguments().any(|a| a.get_long() == Some(long));
+    let device_options = connect::DeviceArgs::augment_args(clap::Command::new("device"));
+    let why = if takes(&device_options) {
+        "it says how to reach a device, and this command reaches none (`frame` writes Modbus \
+         TCP frames with --mbap)"
+            .to_owned()
+    } else {
+        let owners = commands_taking(command, "", &takes);
+        if owners.is_empty() {
+            return error;
+        }
+        format!("it belongs to {}", listed(&owners))
+    };
     clap::Error::raw(
         ErrorKind::UnknownArgument,
-        format!(
-            "unexpected argument '{option}': it says how to reach a device, and this command \
-             reaches none (`frame` writes Modbus TCP frames with --mbap)"
-        ),
+        format!("unexpected argument '{option}': {why}"),
     )
+}
+
+/// The subcommands of `command` (named from `prefix`, `raw read`) that `takes` holds for.
+fn commands_taking(
+    command: &clap::Command,
+    prefix: &str,
+    takes: &dyn Fn(&clap::Command) -> bool,
+) -> Vec<String> {
+    let mut owners = Vec::new();
+    for sub in command.get_subcommands() {
+        let name = format!("{prefix}{}", sub.get_name());
+        if takes(sub) {
+            owners.push(name.clone());
+        }
+        owners.extend(commands_taking(sub, &format!("{name} "), takes));
+    }
+    owners
+}
+
+/// `` `a` ``, `` `a` and `b` ``, `` `a`, `b` and `c` ``.
+fn listed(names: &[String]) -> String {
+    let quoted: Vec<String> = names.iter().map(|n| format!("`{n}`")).collect();
+    match quoted.split_last() {
+        Some((last, [])) => last.clone(),
+        Some((last, rest)) => format!("{} and {last}", rest.join(", ")),
+        None => String::new(),
+    }
 }
 
 /// The names of the subcommands `args` runs, outermost first, for the usage line of an error.
@@ -117,7 +155,7 @@ fn main() -> ExitCode {
         Err(error) => {
             let args: Vec<String> = std::env::args().skip(1).collect();
             let path = subcommand_path(&command, &args);
-            let error = explain_device_option(error);
+            let error = explain_misplaced_option(error, &command);
             let error = match path
                 .iter()
                 .try_fold(&mut command, |c, name| c.find_subcommand_mut(name))

@@ -33,14 +33,21 @@ pub(crate) fn describe(name: &str, text: &str) -> Result<&'static DeviceInfo, Cl
 
 /// The model a spec file describes (read and described once per run).
 pub(crate) fn load(path: &Path) -> Result<&'static DeviceInfo, CliError> {
-    static LOADED: OnceLock<Result<&'static DeviceInfo, String>> = OnceLock::new();
+    static LOADED: OnceLock<Result<&'static DeviceInfo, CliError>> = OnceLock::new();
     let loaded = LOADED.get_or_init(|| {
         let name = path.display().to_string();
-        let text = optobus_codegen::source::read_yaml(path)
-            .map_err(|e| format!("cannot read {name}: {e}"))?;
-        describe(&name, &text).map_err(|e| e.to_string())
+        // A file that cannot be read is the system's failure; one that is too large, no file or
+        // no text, or fails the checks, input refused.
+        let text = optobus_codegen::source::read_yaml(path).map_err(|e| {
+            let message = format!("cannot read {name}: {e}");
+            match e {
+                optobus_codegen::source::ReadError::Io(_) => CliError::failed(message),
+                _ => CliError::new(message),
+            }
+        })?;
+        describe(&name, &text)
     });
-    loaded.clone().map_err(CliError::new)
+    loaded.clone()
 }
 
 /// Every built-in model, in the order of their manuals.
@@ -74,7 +81,7 @@ pub(crate) fn find(name: &str) -> Result<&'static DeviceInfo, CliError> {
 
 /// The model's name as users type it (`p-series`).
 pub(crate) fn name(device: &DeviceInfo) -> String {
-    device.family.replace('_', "-")
+    device.model_name().to_string()
 }
 
 /// The models' names as users type them.

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{fails, json, ok, outcome, refused, run, words, Served, REFUSED};
+use common::{fails, json, ok, outcome, refused, run, words, Served, FAILED, REFUSED};
 use std::sync::{Arc, Mutex};
 
 /// Runs each command line, which must succeed and print the line given.
@@ -219,7 +219,7 @@ fn set_takes_engineering_units_and_code_names() {
 fn invalid_values_are_refused_before_anything_is_sent() {
     for (line, message) in [
         ("set light_power 100.1", "allowed 0.5 % ..= 100.0 %"),
-        ("set light_power 50.05", "whole steps of 1e-1 %"),
+        ("set light_power 50.05", "whole steps of 0.1 %"),
         ("set sampling_interval 7us", "codes are us_6_25 (8)"),
         ("set distance_1 1", "read-only"),
         ("--model ccf set exposure_time 1", "--channel"),
@@ -478,6 +478,84 @@ fn verbose_frames_carry_the_local_time_and_the_reply_delay() {
     // `14:23:54.830 +01:00 <- 01 03 02 00 00 B8 44 (0.074 ms)`
     assert_eq!(&reply[12..14], " +", "{reply}");
     assert!(reply.ends_with(" ms)"), "{reply}");
+}
+
+#[test]
+fn point_7_a_failed_dump_names_the_failing_requests_registers_only() {
+    let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0", "--faults", "drop=1"]);
+    let (code, _, stderr) = outcome(&[
+        "--model",
+        "p-series",
+        "dump",
+        "--tcp",
+        &served.at,
+        "--timeout",
+        "100ms",
+    ]);
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    // The first request reads the holding registers; the input registers come later.
+    assert!(
+        stderr.contains("no reply within 100 ms for `laser_enabled, "),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("distance_1"), "{stderr}");
+}
+
+#[test]
+fn point_9_watch_reports_a_lasting_failure_once_then_its_recovery() {
+    use std::io::{BufRead, BufReader, Read};
+    let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
+    let at = served.at.clone();
+    let mut watch = common::optobus()
+        .args([
+            "--model",
+            "p-series",
+            "watch",
+            "distance_1",
+            "--interval",
+            "50ms",
+            "--count",
+            "60",
+        ])
+        .args(["--tcp", &at, "--timeout", "200ms"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start optobus watch");
+    let mut stdout = BufReader::new(watch.stdout.take().expect("stdout"));
+    let mut first = String::new();
+    stdout.read_line(&mut first).expect("a first reading");
+    // The device goes away for a while (several refreshes), then comes back at its address.
+    drop(served);
+    std::thread::sleep(std::time::Duration::from_millis(600));
+    let _back = Served::start(&["p-series", "--tcp", &at]);
+    let mut rest = String::new();
+    stdout
+        .read_to_string(&mut rest)
+        .expect("the other readings");
+    let mut stderr = String::new();
+    let mut pipe = watch.stderr.take().expect("stderr");
+    pipe.read_to_string(&mut stderr).expect("stderr");
+    assert!(watch.wait().expect("watch ends").success(), "{stderr}");
+    let lines = |sign: &str| stderr.lines().filter(|l| l.contains(sign)).count();
+    // Each attempt's count differs (`(1 attempts)`, `(2 attempts)`…); the refusal is said once.
+    assert_eq!(lines("Connection refused"), 1, "{stderr}");
+    assert_eq!(lines("recovered after"), 1, "{stderr}");
+    // A failure is said again only when its kind changes (a closed connection, then refused
+    // ones, then perhaps a connection that timed out while the device came back).
+    let failures: Vec<String> = stderr
+        .lines()
+        .filter_map(|line| line.split_once("  ! ").map(|(_, failure)| failure))
+        .map(|failure| failure.chars().filter(|c| !c.is_ascii_digit()).collect())
+        .collect();
+    assert!(failures.windows(2).all(|w| w[0] != w[1]), "{stderr}");
+    assert!(!failures.is_empty() && failures.len() <= 4, "{stderr}");
+    assert!(
+        rest.lines()
+            .last()
+            .is_some_and(|l| l.starts_with("distance_1")),
+        "{rest}"
+    );
 }
 
 /// Reads a simulator saw: first address, words, whether answered with words.

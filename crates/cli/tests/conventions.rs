@@ -94,6 +94,27 @@ fn device_options_show_only_on_commands_that_reach_a_device() {
 }
 
 #[test]
+fn point_8_an_option_of_other_commands_names_them() {
+    let stderr = refused(
+        &words("read distance_1 --interval 100ms"),
+        USAGE,
+        "unexpected argument '--interval': it belongs to `watch` and `record`",
+    );
+    assert!(!stderr.contains("similar argument"), "{stderr}");
+    refused(
+        &words("dump --chart"),
+        USAGE,
+        "unexpected argument '--chart': it belongs to `watch`",
+    );
+    // A subcommand's own option is named with its path; `=value` is the same option.
+    refused(
+        &words("read distance_1 --count=3"),
+        USAGE,
+        "it belongs to `watch`, `record`, `buffer` and `raw read`",
+    );
+}
+
+#[test]
 fn frame_names_its_model_once() {
     for command in ["frame encode", "frame decode"] {
         let text = help(command);
@@ -326,4 +347,34 @@ fn exit_codes_tell_failure_usage_and_refusal_apart() {
     ));
     assert_eq!(code, Some(FAILED), "{stderr}");
     assert!(stderr.contains("no reply within 50 ms"), "{stderr}");
+}
+
+#[test]
+fn point_10_files_and_ports_the_system_cannot_give_exit_1() {
+    // A listen port another server holds.
+    let busy = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
+    let at = busy.local_addr().expect("its address").to_string();
+    let (code, _, stderr) = outcome(&["simulate", "--tcp", &at, "--duration", "1s"]);
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    assert!(
+        stderr.contains(&format!("cannot listen on {at}")),
+        "{stderr}"
+    );
+    // A --spec file that is not there.
+    let (code, _, stderr) = outcome(&["--spec", "/nonexistent/spec.yaml", "registers"]);
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    assert!(
+        stderr.contains("cannot read /nonexistent/spec.yaml"),
+        "{stderr}"
+    );
+    // A recording that is not there.
+    let missing = std::env::temp_dir().join("optobus-no-such-recording.csv");
+    let missing = missing.display().to_string();
+    let out = std::env::temp_dir().join("optobus-never-drawn.svg");
+    let (code, _, stderr) = outcome(&["plot", &missing, "--out", &out.display().to_string()]);
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    assert!(
+        stderr.contains(&format!("cannot read {missing}")),
+        "{stderr}"
+    );
 }

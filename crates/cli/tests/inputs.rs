@@ -8,9 +8,18 @@ mod common;
 
 use common::{ok, outcome, refused, words, Served, FAILED, REFUSED, USAGE};
 
-/// `read distance_1 --timeout text`: a refused timeout stops it before anything is opened.
-fn read_with_timeout(text: &str) -> [&str; 4] {
-    ["read", "distance_1", "--timeout", text]
+/// `read distance_1 --sim-speed full --timeout text`: a refused timeout stops it before
+/// anything is opened.
+fn read_with_timeout(text: &str) -> [&str; 6] {
+    // At memory speed: a 1 ms timeout is shorter than the simulated line's exchange.
+    [
+        "read",
+        "distance_1",
+        "--sim-speed",
+        "full",
+        "--timeout",
+        text,
+    ]
 }
 
 #[test]

@@ -147,3 +147,66 @@ fn a_device_or_an_oversized_recording_is_refused_with_the_limit() {
         "{stderr}"
     );
 }
+
+/// The y pixel coordinates of every line point in an SVG chart.
+fn line_ys(chart: &str) -> Vec<f64> {
+    chart
+        .split("<polyline")
+        .skip(1)
+        .filter_map(|line| line.split("points=\"").nth(1)?.split('"').next())
+        .flat_map(|points| points.split_whitespace())
+        .filter_map(|point| point.split(',').nth(1)?.parse().ok())
+        .collect()
+}
+
+/// A recording of `values`, one row per value (a millisecond apart).
+fn recording(path: &str, values: impl Iterator<Item = f64>) {
+    let mut text = String::from("time,elapsed [s],distance_1 [mm]\n");
+    for (i, value) in values.enumerate() {
+        text.push_str(&format!(",{},{value}\n", i as f64 / 1000.0));
+    }
+    std::fs::write(path, text).expect("write the recording");
+}
+
+#[test]
+fn point_2_a_million_rows_plot_as_a_bounded_chart_that_keeps_the_extremes() {
+    const ROWS: usize = 1_000_000;
+    let (big, big_svg) = (scratch("million.csv"), scratch("million.svg"));
+    // A slow wave with one spike and one dip, each a single sample wide.
+    recording(
+        &big,
+        (0..ROWS).map(|i| match i {
+            400_000 => 987.5,
+            700_001 => -654.25,
+            i => (i % 1000) as f64 / 100.0,
+        }),
+    );
+    ok(&["plot", &big, "--out", &big_svg]);
+    let _ = std::fs::remove_file(&big);
+    let chart = svg(&big_svg);
+    assert!(chart.len() < 200_000, "{} bytes", chart.len());
+    // The same extremes drawn from three rows over the same time: the same axis, so the
+    // thinned line must reach the same top and bottom pixels.
+    let (small, small_svg) = (scratch("three.csv"), scratch("three.svg"));
+    let mut text = String::from("time,elapsed [s],distance_1 [mm]\n");
+    for (x, y) in [
+        (0.0, 0.0),
+        (400.0, 987.5),
+        (700.001, -654.25),
+        (999.999, 9.99),
+    ] {
+        text.push_str(&format!(",{x},{y}\n"));
+    }
+    std::fs::write(&small, text).expect("write");
+    ok(&["plot", &small, "--out", &small_svg]);
+    let _ = std::fs::remove_file(&small);
+    let reference = line_ys(&svg(&small_svg));
+    let ys = line_ys(&chart);
+    let extremes = |ys: &[f64]| {
+        ys.iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &y| {
+                (lo.min(y), hi.max(y))
+            })
+    };
+    assert_eq!(extremes(&ys), extremes(&reference));
+}

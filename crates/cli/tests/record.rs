@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{ok, refused, USAGE};
+use common::{ok, outcome, refused, REFUSED, USAGE};
 
 /// A file in the temporary directory, unique to this test process.
 fn scratch(name: &str) -> String {
@@ -137,4 +137,33 @@ fn ctrl_c_ends_the_recording_with_a_complete_file() {
         after = sample(row, 3, after);
     }
     assert!(after < 20.0);
+}
+
+#[test]
+fn point_2_the_built_in_simulator_runs_at_line_speed_or_full_speed_on_request() {
+    // Both speeds give the device's values; only the built-in simulator takes the option.
+    for speed in ["line", "full"] {
+        let out = ok(&["read", "laser_enabled", "--sim-speed", speed]);
+        assert!(out.starts_with("laser_enabled"), "{out}");
+    }
+    let (code, _, stderr) = outcome(&[
+        "read",
+        "distance_1",
+        "--sim-speed",
+        "full",
+        "--tcp",
+        "127.0.0.1:1",
+    ]);
+    assert_eq!(code, Some(USAGE), "{stderr}");
+    let stderr = refused(
+        &["simulate", "--sim-speed", "full", "--duration", "0"],
+        REFUSED,
+        "--sim-speed",
+    );
+    assert!(stderr.contains("--line-timing"), "{stderr}");
+    let help = ok(&["read", "--help"]);
+    assert!(
+        help.contains("--sim-speed") && help.contains("serial line"),
+        "{help}"
+    );
 }

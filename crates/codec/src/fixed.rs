@@ -41,6 +41,12 @@ impl Scale {
         }
     }
 
+    /// The step as people read it: a decimal step as the number it is (`0.1`, `1000`), a
+    /// ratio as `1/1048576`. (`Display` prints the spec's notation, `1e-1`.)
+    pub const fn step(self) -> Step {
+        Step(self)
+    }
+
     /// The step as `(numerator, denominator)`, or `None` if it overflows 128 bits.
     fn as_fraction(self) -> Option<(i128, i128)> {
         match self {
@@ -64,6 +70,19 @@ impl fmt::Display for Scale {
                 numerator,
                 denominator,
             } => write!(f, "{numerator}/{denominator}"),
+        }
+    }
+}
+
+/// A [`Scale`] printed as the number one step is; see [`Scale::step`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Step(Scale);
+
+impl fmt::Display for Step {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0 {
+            decimal @ Scale::Decimal { .. } => Fixed::new(1, decimal).fmt(f),
+            ratio @ Scale::Ratio { .. } => ratio.fmt(f),
         }
     }
 }
@@ -122,7 +141,11 @@ impl fmt::Display for ParseFixedError {
             Self::Malformed => f.write_str("not a decimal number"),
             Self::TooManyDigits => f.write_str("too many digits"),
             Self::NotRepresentable { scale } => {
-                write!(f, "not a whole multiple of the register's step {scale}")
+                write!(
+                    f,
+                    "not a whole multiple of the register's step {}",
+                    scale.step()
+                )
             }
             Self::OutOfRange => f.write_str("value out of range"),
         }
@@ -424,6 +447,17 @@ mod tests {
 
     const MICRO: Scale = Scale::Decimal { exponent: -6 };
     const TENTH: Scale = Scale::Decimal { exponent: -1 };
+
+    #[test]
+    fn a_step_prints_as_the_number_it_is() {
+        assert_eq!(TENTH.step().to_string(), "0.1");
+        assert_eq!(MICRO.step().to_string(), "0.000001");
+        assert_eq!(Scale::Decimal { exponent: 3 }.step().to_string(), "1000");
+        let slope = Scale::ratio(1, 1_048_576).unwrap();
+        assert_eq!(slope.step().to_string(), "1/1048576");
+        // The spec's notation stays what Display prints.
+        assert_eq!(TENTH.to_string(), "1e-1");
+    }
 
     #[cfg(feature = "serde")]
     #[test]

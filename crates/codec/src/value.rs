@@ -2,7 +2,7 @@
 //! sentinels and the order of split writes; exact fixed-point numbers ([`Fixed`], [`Scale`])
 //! live in their own file and are re-exported here.
 
-pub use crate::fixed::{Fixed, ParseFixedError, Scale};
+pub use crate::fixed::{Fixed, ParseFixedError, Scale, Step};
 
 /// Which 16-bit word of a 32-bit value sits at the lower register address.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]

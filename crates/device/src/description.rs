@@ -608,7 +608,28 @@ pub struct DeviceInfo {
     pub buffer: Option<&'static BufferInfo>,
 }
 
+/// A family id as people type the model's name: `-` for `_` (`p_series` is `p-series`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ModelName<'a>(pub &'a str);
+
+impl core::fmt::Display for ModelName<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        for part in self.0.split('_').enumerate() {
+            match part {
+                (0, first) => f.write_str(first)?,
+                (_, next) => write!(f, "-{next}")?,
+            }
+        }
+        Ok(())
+    }
+}
+
 impl DeviceInfo {
+    /// The model's name as people type it (`p-series`); see [`ModelName`].
+    pub fn model_name(&self) -> ModelName<'static> {
+        ModelName(self.family)
+    }
+
     /// The register called `name`.
     pub fn register(&self, name: &str) -> Option<&'static RegisterInfo> {
         self.registers.iter().find(|r| r.name == name)

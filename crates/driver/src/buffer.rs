@@ -152,6 +152,7 @@ impl Parts {
                 min: 0,
                 max: i64::from(self.info.most),
                 scale: None,
+                unit: None,
             });
         }
         Ok(())
@@ -201,6 +202,7 @@ impl<T: Transport> Core<T> {
                             min: 1,
                             max: i64::from(u32::MAX),
                             scale: None,
+                            unit: register.unit,
                         })
                     }
                     ratio => ratio,

@@ -39,7 +39,8 @@ pub fn tcp_config(device: &DeviceInfo) -> TcpConfig {
 }
 
 /// The serial port `path` with `device`'s factory line format; change `line` for a device
-/// configured otherwise.
+/// configured otherwise. Opening it (`SerialSettings::open`) needs the `serial` feature
+/// (`features = ["serial"]` on the driver crate).
 pub fn serial_settings(device: &DeviceInfo, path: impl Into<String>) -> SerialSettings {
     SerialSettings {
         path: path.into(),

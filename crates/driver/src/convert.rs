@@ -202,6 +202,7 @@ impl Encode for Fixed {
             register: register.name,
             value: *self,
             scale,
+            unit: register.unit,
         })?;
         encode_integer(register, steps.raw())
     }

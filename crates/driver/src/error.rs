@@ -24,6 +24,8 @@ pub enum Error {
         max: i64,
         /// One raw step, for showing the values in units.
         scale: Option<Scale>,
+        /// The register's unit, if it has one.
+        unit: Option<&'static str>,
     },
     /// The value lies within the range but is not one of the values the manual lists for the
     /// register (LC-RS baud rates).
@@ -36,6 +38,8 @@ pub enum Error {
         allowed: &'static [i64],
         /// One raw step, for showing the values in units.
         scale: Option<Scale>,
+        /// The register's unit, if it has one.
+        unit: Option<&'static str>,
     },
     /// The value is not a whole number of the register's steps, or has too many of them.
     NotRepresentable {
@@ -45,6 +49,8 @@ pub enum Error {
         value: Fixed,
         /// The register's step.
         scale: Scale,
+        /// The register's unit, if it has one.
+        unit: Option<&'static str>,
     },
     /// The code is not one the manual defines for the register or field.
     UndefinedCode {
@@ -95,10 +101,20 @@ pub enum Error {
     },
 }
 
-fn show(raw: i64, scale: Option<Scale>) -> String {
-    match scale {
+/// `raw` steps of `scale` in `unit`: `5000.1 us`.
+fn show(raw: i64, scale: Option<Scale>, unit: Option<&str>) -> String {
+    let number = match scale {
         Some(scale) => Fixed::new(raw, scale).to_string(),
         None => raw.to_string(),
+    };
+    with_unit(number, unit)
+}
+
+/// `number unit`, or the number alone.
+fn with_unit(number: impl fmt::Display, unit: Option<&str>) -> String {
+    match unit {
+        Some(unit) => format!("{number} {unit}"),
+        None => number.to_string(),
     }
 }
 
@@ -112,24 +128,27 @@ impl fmt::Display for Error {
                 min,
                 max,
                 scale,
+                unit,
             } => write!(
                 f,
                 "{} is out of range for `{register}` ({} ..= {})",
-                show(*raw, *scale),
-                show(*min, *scale),
-                show(*max, *scale)
+                show(*raw, *scale, *unit),
+                show(*min, *scale, *unit),
+                show(*max, *scale, *unit)
             ),
             Self::NotListed {
                 register,
                 raw,
                 allowed,
                 scale,
+                unit,
             } => {
-                let allowed: Vec<String> = allowed.iter().map(|v| show(*v, *scale)).collect();
+                let allowed: Vec<String> =
+                    allowed.iter().map(|v| show(*v, *scale, *unit)).collect();
                 write!(
                     f,
                     "{} is not a value `{register}` accepts (only {})",
-                    show(*raw, *scale),
+                    show(*raw, *scale, *unit),
                     allowed.join(", ")
                 )
             }
@@ -137,9 +156,12 @@ impl fmt::Display for Error {
                 register,
                 value,
                 scale,
+                unit,
             } => write!(
                 f,
-                "{value} cannot be written to `{register}` exactly: it holds whole steps of {scale} within its width"
+                "{} cannot be written to `{register}` exactly: it holds whole steps of {} within its width",
+                with_unit(value, *unit),
+                with_unit(scale.step(), *unit)
             ),
             Self::UndefinedCode {
                 register,
@@ -202,6 +224,7 @@ impl Error {
                 min,
                 max,
                 scale: field.map_or(register.scale, |field| field.scale),
+                unit: field.map_or(register.unit, |field| field.unit),
             },
             Invalid::UndefinedCode { field, code } => Self::UndefinedCode {
                 register: register.name,
@@ -213,6 +236,7 @@ impl Error {
                 raw: value,
                 allowed,
                 scale: register.scale,
+                unit: register.unit,
             },
             Invalid::StrayBits { .. } => Self::FieldTooWide {
                 register: register.name,
@@ -239,5 +263,91 @@ impl Error {
             Self::Transport(optobus_transport::Error::Exception { code, .. }) => Some(*code),
             _ => None,
         }
+    }
+}
+
+/// The kind of a failure ([`Error::kind`]): two failures of one kind compare equal whatever
+/// their counts, durations and messages, so `cannot connect (1 attempts)` and `(2 attempts)`
+/// are one kind, while a refused connection and an unreachable host, or exceptions 02 and 04,
+/// are two.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ErrorKind {
+    variant: std::mem::Discriminant<Error>,
+    wire: Option<std::mem::Discriminant<optobus_transport::Error>>,
+    detail: Detail,
+}
+
+/// What tells failures of one variant apart.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Detail {
+    None,
+    Exception(optobus_transport::ExceptionCode),
+    Io(std::io::ErrorKind),
+}
+
+impl Error {
+    /// The kind of this failure: a tool that reports a lasting failure once says it again only
+    /// when its kind changes (or it recovers).
+    pub fn kind(&self) -> ErrorKind {
+        use optobus_transport::Error as Wire;
+        let wire = match self {
+            Self::Transport(wire) => Some(wire),
+            Self::NotReady { last, .. } => Some(last.as_ref()),
+            _ => None,
+        };
+        let detail = match wire {
+            Some(Wire::Exception { code, .. }) => Detail::Exception(*code),
+            Some(Wire::Connect { source, .. } | Wire::Io(source)) => Detail::Io(source.kind()),
+            _ => Detail::None,
+        };
+        ErrorKind {
+            variant: std::mem::discriminant(self),
+            wire: wire.map(std::mem::discriminant),
+            detail,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Error;
+    use optobus_transport::{Error as Wire, ExceptionCode};
+    use std::io;
+
+    fn cannot_connect(attempts: u32, kind: io::ErrorKind) -> Error {
+        Error::Transport(Wire::Connect {
+            attempts,
+            source: io::Error::new(kind, format!("attempt {attempts}")),
+        })
+    }
+
+    fn exception(code: u16) -> Error {
+        Error::Transport(Wire::Exception {
+            function: 3,
+            code: ExceptionCode(code),
+        })
+    }
+
+    #[test]
+    fn point_9_failures_of_one_kind_compare_equal_whatever_their_text() {
+        let refused = io::ErrorKind::ConnectionRefused;
+        let first = cannot_connect(1, refused);
+        let second = cannot_connect(2, refused);
+        assert_ne!(first.to_string(), second.to_string());
+        assert_eq!(first.kind(), second.kind());
+        // Another cause, another wire failure, another exception: another kind.
+        assert_ne!(
+            first.kind(),
+            cannot_connect(3, io::ErrorKind::TimedOut).kind()
+        );
+        let timeout = |ms| {
+            Error::Transport(Wire::Timeout {
+                after: std::time::Duration::from_millis(ms),
+            })
+        };
+        assert_eq!(timeout(100).kind(), timeout(200).kind());
+        assert_ne!(first.kind(), timeout(100).kind());
+        assert_eq!(exception(2).kind(), exception(2).kind());
+        assert_ne!(exception(2).kind(), exception(4).kind());
     }
 }

@@ -22,6 +22,7 @@
 //!
 //! Nothing here knows about sockets: the bytes go through an [`optobus_transport::Transport`].
 #![forbid(unsafe_code)]
+#![cfg_attr(docsrs, feature(doc_cfg))]
 
 #[cfg(feature = "serde")]
 pub mod array_serde;
@@ -41,6 +42,7 @@ pub mod units;
 
 pub use crate::buffer::{BufferTiming, DownloadProgress};
 #[cfg(feature = "tcp")]
+#[cfg_attr(docsrs, doc(cfg(feature = "tcp")))]
 pub use crate::connect::tcp_config;
 pub use crate::connect::{line_format, rtu_config, serial_settings};
 pub use crate::core::{Core, PartialRead, Readings, TRACE_TARGET};
@@ -48,7 +50,7 @@ pub use convert::{
     encode_code, encode_integer, encode_packed, raw_bits, word_array, CodeEnum, Decode, Encode,
     RawValue,
 };
-pub use error::Error;
+pub use error::{Error, ErrorKind};
 pub use memory::DeviceMemory;
 pub use optobus_codec::value::{Fixed, ParseFixedError, Scale};
 pub use optobus_device::{BufferInfo, CommandInfo, DeviceInfo, GroupInfo, RegisterInfo};

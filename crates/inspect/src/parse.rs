@@ -137,7 +137,8 @@ pub fn parse_value(register: &'static RegisterInfo, text: &str) -> Result<Vec<u1
                 range_text(register).unwrap_or_else(|| "values that fit the register".into())
             ),
             optobus_driver::Error::NotRepresentable { scale, .. } => format!(
-                "it holds whole steps of {scale}{}",
+                "it holds whole steps of {}{}",
+                scale.step(),
                 register.unit.map(|u| format!(" {u}")).unwrap_or_default()
             ),
             optobus_driver::Error::UndefinedCode {

@@ -3,7 +3,7 @@
 
 use std::fmt;
 
-use optobus_device::{DeviceInfo, RegisterInfo};
+use optobus_device::{DeviceInfo, ModelName, RegisterInfo};
 
 use crate::error::Error;
 
@@ -16,7 +16,8 @@ pub enum ResolveError {
         name: String,
         /// The device's family.
         family: &'static str,
-        /// Up to five register, member or group names that contain it or that it contains.
+        /// Up to five register, member or group names near it, nearest first: a few edits
+        /// away (`distanse_1`: `distance_1`), or containing it or contained in it.
         near: Vec<&'static str>,
     },
     /// A repeat member has no copy of that number.
@@ -36,7 +37,11 @@ impl fmt::Display for ResolveError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Self::Unknown { name, family, .. } => {
-                write!(f, "`{name}` is no register or group of {family}")
+                write!(
+                    f,
+                    "`{name}` is no register or group of {}",
+                    ModelName(family)
+                )
             }
             Self::NoCopy {
                 name,
@@ -126,7 +131,7 @@ impl From<ResolveError> for Error {
     fn from(error: ResolveError) -> Self {
         let hint = match &error {
             ResolveError::Unknown { family, near, .. } if near.is_empty() => {
-                Some(format!("see `optobus registers {family}`"))
+                Some(format!("see `optobus registers {}`", ModelName(family)))
             }
             ResolveError::Unknown { near, .. } => {
                 Some(format!("did you mean {}?", near.join(", ")))
@@ -165,19 +170,29 @@ fn members(
     }
 }
 
+/// Most names a "did you mean" lists.
+const MOST_NEAR: usize = 5;
+
 fn unknown(device: &DeviceInfo, name: &str) -> ResolveError {
-    let mut near: Vec<&'static str> = device
+    // A typo of up to a third of the name's letters (at least one) is near.
+    let most_edits = (name.chars().count() / 3).max(1);
+    let mut near: Vec<(usize, &'static str)> = device
         .registers
         .iter()
         .map(|r| r.member_name().unwrap_or(r.name))
         .chain(device.groups.iter().map(|g| g.name))
-        .filter(|n| n.contains(name) || name.contains(n))
+        .filter_map(|n| {
+            let edits = strsim::damerau_levenshtein(name, n);
+            let near = edits <= most_edits || n.contains(name) || name.contains(n);
+            near.then_some((edits, n))
+        })
         .collect();
+    near.sort_unstable();
     near.dedup();
-    near.truncate(5);
+    near.truncate(MOST_NEAR);
     ResolveError::Unknown {
         name: name.to_owned(),
         family: device.family,
-        near,
+        near: near.into_iter().map(|(_, n)| n).collect(),
     }
 }

@@ -2,7 +2,7 @@
 
 use optobus_device::{DeviceInfo, RegisterInfo};
 use optobus_inspect::{
-    decode_value, parse_hex, parse_value, resolve, HexError, ParseError, ResolveError,
+    decode_value, parse_hex, parse_value, resolve, Error, HexError, ParseError, ResolveError,
 };
 
 const P: &DeviceInfo = &optobus_p_series::DEVICE;
@@ -100,7 +100,7 @@ fn bad_values_are_refused_in_one_line() {
         (
             "light_power",
             "50.05",
-            "`light_power` does not take `50.05`: it holds whole steps of 1e-1 %",
+            "`light_power` does not take `50.05`: it holds whole steps of 0.1 %",
         ),
         (
             "light_power",
@@ -171,7 +171,7 @@ fn unknown_names_and_copies_are_refused_with_near_names() {
     assert!(near.contains(&"distance_1") && near.len() <= 5, "{near:?}");
     assert_eq!(
         error.map(|e| e.to_string()).unwrap_or_default(),
-        "`distance` is no register or group of p_series"
+        "`distance` is no register or group of p-series"
     );
     let error = resolve(CCF, "exposure_time", Some(5)).err();
     assert_eq!(
@@ -180,6 +180,34 @@ fn unknown_names_and_copies_are_refused_with_near_names() {
     );
     let nothing_near = resolve(P, "zzz", None).err();
     assert!(matches!(nothing_near, Some(ResolveError::Unknown { near, .. }) if near.is_empty()));
+}
+
+#[test]
+fn point_7_a_misspelt_name_suggests_the_nearest_names() {
+    let error = resolve(P, "distanse_1", None).err();
+    let Some(ResolveError::Unknown { near, .. }) = &error else {
+        panic!("{error:?}");
+    };
+    // One edit away first, then two.
+    assert_eq!(near, &["distance_1", "distance_2"]);
+    let error = Error::from(error.expect("refused"));
+    assert_eq!(
+        error.to_string(),
+        "`distanse_1` is no register or group of p-series (did you mean distance_1, distance_2?)"
+    );
+    // A repeat member by its name, of the model as users type it.
+    let error = resolve(CCF, "exposure_tme", None).err();
+    let Some(ResolveError::Unknown { near, .. }) = &error else {
+        panic!("{error:?}");
+    };
+    assert_eq!(near.first(), Some(&"exposure_time"), "{near:?}");
+    let error = Error::from(resolve(P, "zzzzzzzz", None).expect_err("refused"));
+    assert!(
+        error
+            .to_string()
+            .ends_with("(see `optobus registers p-series`)"),
+        "{error}"
+    );
 }
 
 #[test]
@@ -194,7 +222,7 @@ fn other_si_prefixes_of_the_registers_unit_convert_exactly() {
     assert_eq!(exposure("0.0002s"), Ok(vec![2000]));
     // 0.00001 ms is 10 ns: not a whole 0.1 µs step, refused rather than rounded.
     let error = exposure("0.00001ms").unwrap_err();
-    assert!(error.contains("whole steps of 1e-1 us"), "{error}");
+    assert!(error.contains("whole steps of 0.1 us"), "{error}");
     // P-series position_1_offset: steps of 1 nm in mm.
     let offset = |text: &str| parsed(P, "position_1_offset", text);
     assert_eq!(offset("1.5 mm"), offset("1500um"));

@@ -25,6 +25,7 @@
 //! Every frame sent and received is a `tracing` event at TRACE, target `optobus_transport`
 //! (see [`frames`]): install a subscriber (`RUST_LOG=optobus_transport=trace`) to see them.
 #![forbid(unsafe_code)]
+#![cfg_attr(docsrs, feature(doc_cfg))]
 
 pub use optobus_codec::{
     DecodeError, EncodeError, ExceptionCode, ExceptionShape, LineFormat, LineFormatError, Parity,
@@ -47,13 +48,16 @@ mod transport;
 
 pub use error::Error;
 #[cfg(feature = "tokio-modbus")]
+#[cfg_attr(docsrs, doc(cfg(feature = "tokio-modbus")))]
 pub use modbus::ModbusContext;
 pub use rtu::{RtuClient, RtuConfig};
 pub use serial::SerialSettings;
 #[cfg(feature = "serial")]
+#[cfg_attr(docsrs, doc(cfg(feature = "serial")))]
 pub use serial::SerialStream;
 pub use shared::Shared;
 pub use tap::{Flow, Observe, Tap};
 #[cfg(feature = "tcp")]
+#[cfg_attr(docsrs, doc(cfg(feature = "tcp")))]
 pub use tcp::{resolve, Connect, TcpClient, TcpConfig};
 pub use transport::{ReadRequest, Transport, DEFAULT_TIMEOUT};

@@ -30,9 +30,13 @@ impl SerialSettings {
         }
     }
 
-    /// Opens the port; a format no line can have is refused before the port is touched
-    /// (feature `serial`).
+    /// Opens the port; a format no line can have is refused before the port is touched.
+    ///
+    /// Needs the `serial` feature (of this crate, of `optobus-driver` or of a driver crate:
+    /// `features = ["serial"]`); without it there is no `open` (``no method named `open` ``),
+    /// so that TCP and in-memory users build no serial stack.
     #[cfg(feature = "serial")]
+    #[cfg_attr(docsrs, doc(cfg(feature = "serial")))]
     pub fn open(&self) -> Result<SerialStream, Error> {
         self.line.check().map_err(Error::Line)?;
         let data_bits = match self.line.data_bits {

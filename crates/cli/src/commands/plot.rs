@@ -34,14 +34,18 @@ fn series(args: &PlotArgs) -> Result<(String, Vec<Series>), CliError> {
             size_text(RECORDING_LIMIT)
         ))
     };
+    // A file that cannot be read is the system's failure; one too large, or text that is no
+    // CSV, input refused.
     let unreadable = |e: csv::Error| match e.kind() {
         csv::ErrorKind::Io(io) if io.kind() == std::io::ErrorKind::FileTooLarge => {
             too_large(io.to_string())
         }
+        csv::ErrorKind::Io(_) => CliError::failed(format!("cannot read {shown}: {e}")),
         _ => CliError::new(format!("cannot read {shown}: {e}")),
     };
     let file = open_limited(&args.file, RECORDING_LIMIT).map_err(|e| match e {
         ReadError::TooLarge { .. } => too_large(e.to_string()),
+        ReadError::Io(_) => CliError::failed(format!("cannot read {shown}: {e}")),
         _ => CliError::new(format!("cannot read {shown}: {e}")),
     })?;
     let mut reader = csv::Reader::from_reader(file);

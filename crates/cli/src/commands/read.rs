@@ -5,7 +5,9 @@ use clap::Args;
 use optobus_device::RegisterInfo;
 use serde_json::json;
 
-use crate::connect::{decode_values, read_readings, read_values, DeviceArgs, Global, Names};
+use crate::connect::{
+    decode_values, read_each_request, read_values, DeviceArgs, FailedRead, Global, Names,
+};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{pretty, print, values_json, values_text};
@@ -35,9 +37,11 @@ pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
     let registers: Vec<&'static RegisterInfo> = device.dump_registers().collect();
     let slave = global.answering_slave(device, "dump")?;
     let mut core = global.connect(device, slave).await?;
-    let readings = read_readings(&mut core, &registers).await?;
+    let readings = read_each_request(&mut core, &registers)
+        .await
+        .map_err(FailedRead::explained)?;
     // The requests answered: a device refusing a read over reserved rows is read around them.
-    let requests = readings.requests().count();
+    let requests: usize = readings.iter().map(|r| r.requests().count()).sum();
     let values = decode_values(&registers, &readings);
     let skipped = device.readable_registers().count() - registers.len();
     if skipped > 0 {

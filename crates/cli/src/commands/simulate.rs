@@ -73,6 +73,12 @@ fn line(device: &DeviceInfo, global: &Global, args: &SimulateArgs) -> Result<Lin
 /// thread of its own ([`Log`]), so a slow or closed stderr never holds up a reply.
 pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliError> {
     let device = global.device_or(args.model.as_deref())?;
+    if global.target.sim_speed.is_some() {
+        return Err(CliError::new(
+            "--sim-speed sets how fast a device command's own simulator answers (no --serial or --tcp)",
+        )
+        .hint("time a served RTU line with --line-timing"));
+    }
     global.check_line(device)?;
     let slave = global.slave.unwrap_or(device.default_slave);
     if slave == 0 {
@@ -157,7 +163,7 @@ async fn serve(
             Some(line) => sim.serve_pty_line(line),
             None => sim.serve_pty(),
         }
-        .map_err(|e| CliError::new(format!("cannot open a pty: {e}")))?;
+        .map_err(|e| CliError::failed(format!("cannot open a pty: {e}")))?;
         let path = pty.path().display().to_string();
         print(&path);
         (Box::new(pty), format!("RTU at {path}"))
@@ -166,7 +172,7 @@ async fn serve(
         settings.line = global.target.line_format(device);
         let port = settings
             .open()
-            .map_err(|e| CliError::new(format!("cannot open {path}: {e}")))?;
+            .map_err(|e| CliError::failed(format!("cannot open {path}: {e}")))?;
         print(path);
         let sim = sim.clone();
         let task = tokio::spawn(async move {
@@ -180,7 +186,7 @@ async fn serve(
         let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
         let address = link::resolve_tcp(address, 5020).await?;
         let server = sim.serve_tcp(address).await.map_err(|e| {
-            CliError::new(format!("cannot listen on {address}: {e}"))
+            CliError::failed(format!("cannot listen on {address}: {e}"))
                 .hint("is another server using the port? try --tcp 127.0.0.1:0")
         })?;
         let address = server.local_addr();

@@ -9,12 +9,13 @@ use clap::Args;
 use crossterm::{cursor, terminal, QueueableCommand};
 use serde_json::json;
 
-use crate::connect::{read_values, DeviceArgs, Global, Names};
+use crate::connect::{decode_values, read_each_request, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{time_of_day, timestamp, values_json, values_text};
 use crate::{inputs, models};
 use optobus_device::RegisterInfo;
+use optobus_driver::ErrorKind;
 use optobus_inspect::Value;
 
 #[derive(Debug, Args)]
@@ -49,23 +50,43 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
     let mut last: Option<String> = None;
     let mut refresh = 0u64;
     let mut history = vec![VecDeque::new(); registers.len()];
-    // The failure last reported on stderr, while the device keeps failing so.
-    let mut failing: Option<String> = None;
+    // The kind of failure last reported on stderr and the reads failed since, while the
+    // device keeps failing.
+    let mut failing: Option<(ErrorKind, u64)> = None;
     let ctrl_c = tokio::signal::ctrl_c();
     tokio::pin!(ctrl_c);
     loop {
         let started = tokio::time::Instant::now();
         let outcome = tokio::select! {
-            outcome = read_values(&mut core, &registers) => outcome,
+            outcome = read_each_request(&mut core, &registers) => outcome,
             _ = &mut ctrl_c => break,
         };
         refresh += 1;
+        // Piped: a failure on stderr once, again when its kind changes, and the recovery.
+        let piped = !terminal && !global.json;
+        let outcome = match outcome {
+            Ok(readings) => {
+                if let Some((_, failed)) = failing.take().filter(|_| piped) {
+                    note!("{}  recovered after {failed} failed reads", time_of_day());
+                }
+                Ok(decode_values(&registers, &readings))
+            }
+            Err(failed) => {
+                let kind = failed.error.kind();
+                let error = failed.explained();
+                let (known, failed) = failing.map_or((None, 0), |(k, n)| (Some(k), n));
+                if piped && known != Some(kind) {
+                    note!("{}  ! {error} — retrying", time_of_day());
+                }
+                failing = Some((kind, failed + 1));
+                Err(error)
+            }
+        };
         let block = match &outcome {
             Ok(values) if global.json => {
                 json!({"time": timestamp(), "values": values_json(values)}).to_string() + "\n"
             }
             Ok(values) => {
-                failing = None;
                 let text = if args.chart {
                     chart_text(values, &mut history)
                 } else {
@@ -83,15 +104,8 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
             Err(error) if global.json => {
                 json!({"time": timestamp(), "error": error.to_string()}).to_string() + "\n"
             }
-            // Piped: the failure on stderr, once until it changes; stdout keeps the values.
-            Err(error) if !terminal => {
-                let text = error.to_string();
-                if failing.as_deref() != Some(text.as_str()) {
-                    note!("{}  ! {text} — retrying", time_of_day());
-                    failing = Some(text);
-                }
-                String::new()
-            }
+            // Piped: the failure went to stderr above; stdout keeps the values.
+            Err(_) if !terminal => String::new(),
             // Keep the last values on screen, marked, and try again.
             Err(error) => format!(
                 "{}  ! {error} — retrying\n{}",
@@ -101,8 +115,7 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
         };
         let mut out = std::io::stdout().lock();
         if terminal {
-            let size = terminal::size().unwrap_or((u16::MAX, u16::MAX));
-            drawn_lines = redraw(&mut out, drawn_lines, &block, size);
+            drawn_lines = redraw(&mut out, drawn_lines, &block, screen(terminal::size().ok()));
         } else {
             let _ = out.write_all(block.as_bytes());
         }
@@ -116,6 +129,15 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
         }
     }
     Ok(())
+}
+
+/// The terminal's `(columns, rows)`; where it reports none, or a zero (a serial console, some
+/// CI terminals), the classic 80 × 24, so a drawing is cut to something that shows.
+fn screen(reported: Option<(u16, u16)>) -> (u16, u16) {
+    match reported {
+        Some((columns, rows)) if columns > 0 && rows > 0 => (columns, rows),
+        _ => (80, 24),
+    }
 }
 
 /// Readings a sparkline shows.
@@ -187,7 +209,23 @@ fn redraw(out: &mut impl Write, drawn: u16, block: &str, (columns, rows): (u16, 
 
 #[cfg(test)]
 mod tests {
-    use super::{redraw, sparkline};
+    use super::{redraw, screen, sparkline};
+
+    #[test]
+    fn point_10_a_terminal_reporting_0x0_draws_at_a_sane_size() {
+        assert_eq!(screen(Some((0, 0))), (80, 24));
+        assert_eq!(screen(Some((120, 0))), (80, 24));
+        assert_eq!(screen(None), (80, 24));
+        assert_eq!(screen(Some((100, 30))), (100, 30));
+        let block = "13:05:01.250  p-series · slave 1\ndistance_1  3.584190 mm\n";
+        let mut out = Vec::new();
+        assert_eq!(redraw(&mut out, 0, block, screen(Some((0, 0)))), 2);
+        let clear = "\u{1b}[2K";
+        assert_eq!(
+            String::from_utf8_lossy(&out),
+            format!("{clear}13:05:01.250  p-series · slave 1\n{clear}distance_1  3.584190 mm\n")
+        );
+    }
 
     #[test]
     fn a_sparkline_spans_its_readings_lowest_to_highest_with_gaps() {
