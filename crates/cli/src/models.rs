@@ -79,6 +79,11 @@ pub(crate) fn find(name: &str) -> Result<&'static DeviceInfo, CliError> {
         })
 }
 
+/// The built-in models as a bus file names them.
+pub(crate) fn catalogue() -> optobus_bus::Catalogue {
+    optobus_bus::Catalogue::new(all().iter().copied())
+}
+
 /// The model's name as users type it (`p-series`).
 pub(crate) fn name(device: &DeviceInfo) -> String {
     device.model_name().to_string()
