@@ -1,6 +1,6 @@
 //! A bus of optobus sensors: several devices on shared Modbus lines, polled on schedule.
 //!
-//! A [bus file](file) names the lines (a serial port, Modbus TCP, RTU over TCP, or a simulated
+//! A [bus file](mod@file) names the lines (a serial port, Modbus TCP, RTU over TCP, or a simulated
 //! line), the devices on them (a built-in model or a spec file, a slave address, timeouts and
 //! silences) and what to poll, and is checked as a whole with located diagnostics before
 //! anything is opened. [`Bus::start`] then runs one task per line; each line takes its due
