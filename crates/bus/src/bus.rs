@@ -278,6 +278,13 @@ impl Running {
         self.handle.clone()
     }
 
+    /// Each line's gateway and where it listens.
+    pub fn gateways(&self) -> impl Iterator<Item = (&str, SocketAddr)> {
+        self.gateways
+            .iter()
+            .map(|(line, address)| (line.as_str(), *address))
+    }
+
     /// Where the gateway of line `line` listens (its port, when the file asked for port 0).
     pub fn gateway_address(&self, line: &str) -> Option<SocketAddr> {
         self.gateways

@@ -87,7 +87,12 @@ pub(crate) fn screen(reported: Option<(u16, u16)>) -> (u16, u16) {
 /// wraps, would scroll and smear the scrollback); gives the lines drawn. Each line is cleared as it is rewritten and only
 /// what is left below the block is cleared after it: a clear of the whole screen from its
 /// top corner is copied into the scrollback by some terminals (tmux's `scroll-on-clear`).
-pub(crate) fn redraw(out: &mut impl Write, drawn: u16, block: &str, (columns, rows): (u16, u16)) -> u16 {
+pub(crate) fn redraw(
+    out: &mut impl Write,
+    drawn: u16,
+    block: &str,
+    (columns, rows): (u16, u16),
+) -> u16 {
     let lines: Vec<&str> = block.lines().take(usize::from(rows.max(2) - 1)).collect();
     if drawn > 0 {
         let _ = out.queue(cursor::MoveToPreviousLine(drawn));
@@ -102,7 +107,6 @@ pub(crate) fn redraw(out: &mut impl Write, drawn: u16, block: &str, (columns, ro
     }
     u16::try_from(lines.len()).unwrap_or(u16::MAX)
 }
-
 
 /// One column's header: the register's name and, in brackets, its unit (`distance_1 [mm]`).
 pub(crate) fn csv_header(register: &RegisterInfo) -> String {
@@ -124,4 +128,3 @@ pub(crate) fn csv_cell(value: &Value) -> String {
         other => format!("\"{}\"", other.to_string().replace('"', "\"\"")),
     }
 }
-

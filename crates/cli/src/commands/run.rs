@@ -7,7 +7,6 @@ use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
 use clap::Args;
@@ -169,7 +168,11 @@ impl Recorder {
         let Some(csv) = self.files.get_mut(&*sample.source.device) else {
             return Ok(());
         };
-        if csv.row.as_ref().is_some_and(|(at, _)| *at != sample.requested) {
+        if csv
+            .row
+            .as_ref()
+            .is_some_and(|(at, _)| *at != sample.requested)
+        {
             csv.flush_row(self.started)?;
         }
         let columns = csv.columns.len();
@@ -185,9 +188,9 @@ impl Recorder {
     fn finish(mut self) -> Result<(), CliError> {
         for csv in self.files.values_mut() {
             csv.flush_row(self.started)?;
-            csv.out
-                .flush()
-                .map_err(|e| CliError::failed(format!("cannot write {}: {e}", csv.path.display())))?;
+            csv.out.flush().map_err(|e| {
+                CliError::failed(format!("cannot write {}: {e}", csv.path.display()))
+            })?;
         }
         Ok(())
     }
@@ -199,8 +202,13 @@ impl DeviceCsv {
             return Ok(());
         };
         let elapsed = at.duration_since(started).unwrap_or_default().as_secs_f64();
-        writeln!(self.out, "{},{elapsed:.6},{}", local_time(at), cells.join(","))
-            .map_err(|e| CliError::failed(format!("cannot write {}: {e}", self.path.display())))
+        writeln!(
+            self.out,
+            "{},{elapsed:.6},{}",
+            local_time(at),
+            cells.join(",")
+        )
+        .map_err(|e| CliError::failed(format!("cannot write {}: {e}", self.path.display())))
     }
 }
 
@@ -208,7 +216,7 @@ impl DeviceCsv {
 fn local_time(at: SystemTime) -> String {
     jiff::Timestamp::try_from(at)
         .map(|t| {
-            t.to_zoned(jiff::tz::TimeZone::system())
+            t.to_zoned_datetime(jiff::tz::TimeZone::system())
                 .strftime("%Y-%m-%dT%H:%M:%S%.6f%:z")
                 .to_string()
         })
@@ -299,8 +307,14 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
                     ));
                 }
                 if let Some(shown) = board.device(&sample.source.device) {
-                    let key = (sample.register.table as u8, sample.register.address, sample.register.name);
-                    shown.values.insert(key, (sample.register, sample.value.clone()));
+                    let key = (
+                        sample.register.table as u8,
+                        sample.register.address,
+                        sample.register.name,
+                    );
+                    shown
+                        .values
+                        .insert(key, (sample.register, sample.value.clone()));
                 }
             }
             Event::Health(health) => {
@@ -308,7 +322,11 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
                     shown.health = health.health;
                 }
                 if !terminal {
-                    let reason = health.reason.as_deref().map(|r| format!(": {r}")).unwrap_or_default();
+                    let reason = health
+                        .reason
+                        .as_deref()
+                        .map(|r| format!(": {r}"))
+                        .unwrap_or_default();
                     note!(
                         "{}  {} is {}{reason}",
                         time_of_day(),
@@ -337,6 +355,5 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     if dropped > 0 {
         note!("optobus: the display fell behind and skipped {dropped} events");
     }
-    let _ = Arc::<str>::from("");
     Ok(())
 }
