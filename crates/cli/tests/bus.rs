@@ -160,6 +160,7 @@ fn the_demo_gateway_serves_mbpoll_while_the_bus_polls() {
         .output()
         .expect("run mbpoll");
     let _ = bus.kill();
+    let _ = bus.wait();
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(output.status.success(), "mbpoll: {stdout}");
     let value: i64 = stdout
