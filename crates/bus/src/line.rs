@@ -167,14 +167,17 @@ async fn next_request(gateway: &mut Option<GatewayQueue>) -> Option<GatewayReque
 impl LineTask {
     /// Runs the line until the task is aborted.
     ///
-    /// The gateway's requests and the schedule's polls take turns when both wait, so a
-    /// request waits for at most one poll and the polls keep at least half the line.
+    /// After each poll the line serves the gateway's requests that waited through it (one
+    /// round: at most one per client), then the next poll: a request waits for at most one
+    /// poll besides the requests of other clients queued before it, and the polls keep at
+    /// least one turn in every `clients + 1`.
     pub(crate) async fn run(mut self) {
         let clock = Clock::now();
         let mut next_stats = clock.instant + STATS_EVERY;
         let mut reopen_at = clock.instant;
         let mut reopen_wait = FIRST_BACKOFF;
-        let mut gateway_turn = true;
+        // Gateway requests still to serve before the next poll.
+        let mut gateway_round = 0usize;
         let mut was_open = true;
         loop {
             let now = Instant::now();
@@ -207,21 +210,22 @@ impl LineTask {
                 self.do_job(job).await;
                 continue;
             }
-            if gateway_turn || !matches!(next, Next::Run(_)) {
+            if gateway_round > 0 || !matches!(next, Next::Run(_)) {
                 if let Some(request) = self
                     .gateway
                     .as_mut()
                     .and_then(|g| g.requests.try_recv().ok())
                 {
                     self.serve(request).await;
-                    gateway_turn = false;
+                    gateway_round = gateway_round.saturating_sub(1);
                     continue;
                 }
+                gateway_round = 0;
             }
-            gateway_turn = true;
             let until = match next {
                 Next::Run(poll) => {
                     self.run_poll(poll, &clock).await;
+                    gateway_round = self.gateway.as_ref().map_or(0, |g| g.requests.len());
                     continue;
                 }
                 Next::Wait(until) => until.min(next_stats),
@@ -230,10 +234,7 @@ impl LineTask {
             tokio::select! {
                 () = tokio::time::sleep_until(until) => {}
                 Some(job) = self.jobs.recv() => self.do_job(job).await,
-                Some(request) = next_request(&mut self.gateway) => {
-                    self.serve(request).await;
-                    gateway_turn = false;
-                }
+                Some(request) = next_request(&mut self.gateway) => self.serve(request).await,
             }
         }
     }

@@ -117,6 +117,22 @@ impl Schedule {
         device.not_before = device.not_before.max(until);
     }
 
+    /// Spreads the first deadlines of the periodic polls over their periods (the k-th of n
+    /// polls starts k/n of its period late), so polls of equal or multiple periods do not all
+    /// fall due at the same instants and wait behind each other every time.
+    pub(crate) fn stagger(&mut self) {
+        let periodic: Vec<usize> = (0..self.polls.len())
+            .filter(|&i| self.polls[i].every.is_some())
+            .collect();
+        let n = u32::try_from(periodic.len()).unwrap_or(u32::MAX).max(1);
+        for (k, &index) in periodic.iter().enumerate() {
+            let poll = &mut self.polls[index];
+            let every = poll.every.unwrap_or_default();
+            let k = u32::try_from(k).unwrap_or(u32::MAX);
+            poll.due += every / n * k;
+        }
+    }
+
     /// The device a poll belongs to.
     pub(crate) fn device_of(&self, poll: usize) -> usize {
         self.polls[poll].device
@@ -367,6 +383,25 @@ mod tests {
         let poll = schedule.add_poll(device, None, 0);
         assert_eq!(schedule.next(start), Next::Wait(start + ms(500)));
         assert_eq!(schedule.next(start + ms(500)), Next::Run(poll));
+    }
+
+    #[test]
+    fn periodic_polls_start_spread_over_their_period() {
+        let start = Instant::now();
+        let mut schedule = Schedule::default();
+        let device = schedule.add_device(start);
+        let polls: Vec<usize> = (0..4)
+            .map(|_| schedule.add_poll(device, Some(ms(100)), 0))
+            .collect();
+        schedule.stagger();
+        for (k, at) in [0, 25, 50, 75].into_iter().enumerate() {
+            let due = start + ms(at);
+            if at > 0 {
+                assert_eq!(schedule.next(due - ms(1)), Next::Wait(due));
+            }
+            assert_eq!(schedule.next(due), Next::Run(polls[k]));
+            schedule.done(polls[k], due, Outcome::Answered);
+        }
     }
 
     #[test]
