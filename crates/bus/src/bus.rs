@@ -129,7 +129,7 @@ impl Bus {
                     settings,
                     id: Arc::new(DeviceId {
                         device: Arc::from(config.name.as_str()),
-                        model: Arc::from(config.device.family.replace('_', "-")),
+                        model: Arc::from(config.device.model_name().to_string()),
                         line: Arc::clone(&name),
                         slave: config.slave,
                     }),

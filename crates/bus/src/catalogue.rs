@@ -14,14 +14,6 @@ pub struct Catalogue {
     loaded: Mutex<HashMap<PathBuf, Result<&'static DeviceInfo, String>>>,
 }
 
-/// Lower case without `-`, `_` and spaces, so `P-Series`, `p_series` and `pseries` agree.
-fn normalise(name: &str) -> String {
-    name.chars()
-        .filter(char::is_ascii_alphanumeric)
-        .map(|c| c.to_ascii_lowercase())
-        .collect()
-}
-
 impl Catalogue {
     /// A catalogue of `models` (e.g. `[&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]`).
     pub fn new(models: impl IntoIterator<Item = &'static DeviceInfo>) -> Self {
@@ -34,18 +26,17 @@ impl Catalogue {
     /// The built-in model called `name` (its family id or an alias, in any case, with or
     /// without `-` and `_`).
     pub fn find(&self, name: &str) -> Option<&'static DeviceInfo> {
-        let wanted = normalise(name);
-        self.built_in.iter().copied().find(|device| {
-            normalise(device.family) == wanted
-                || device.aliases.iter().any(|a| normalise(a) == wanted)
-        })
+        self.built_in
+            .iter()
+            .copied()
+            .find(|device| device.is_called(name))
     }
 
     /// The built-in models' names as users type them (`p-series`).
     pub fn names(&self) -> Vec<String> {
         self.built_in
             .iter()
-            .map(|d| d.family.replace('_', "-"))
+            .map(|d| d.model_name().to_string())
             .collect()
     }
 

@@ -231,7 +231,7 @@ fn character_format(format: LineFormat) -> String {
 
 /// The model's name as users type it.
 fn name(device: &DeviceInfo) -> String {
-    device.family.replace('_', "-")
+    device.model_name().to_string()
 }
 
 /// A diagnostic at a span, for the checks here.

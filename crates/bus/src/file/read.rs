@@ -802,7 +802,7 @@ impl<'a> Reader<'a> {
                         why,
                         format!(
                             "`optobus registers {}` lists them",
-                            device.family.replace('_', "-")
+                            device.model_name().to_string()
                         ),
                     );
                     ok = false;
@@ -839,7 +839,7 @@ pub fn resolve(
     device: &'static DeviceInfo,
     name: &str,
 ) -> Result<Vec<&'static RegisterInfo>, String> {
-    let model = device.family.replace('_', "-");
+    let model = device.model_name().to_string();
     let registers: Vec<&'static RegisterInfo> = match device.groups.iter().find(|g| g.name == name)
     {
         Some(group) => group
