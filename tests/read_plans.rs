@@ -188,3 +188,71 @@ fn ccf_channel_groups_are_read_per_channel() {
     assert_eq!(plan[0].address, members[0].address);
     assert_eq!(plan[0].count, 6);
 }
+
+/// Answers each read with its addresses as words, until the `fail_at`-th request (0-based),
+/// which times out.
+struct FailingAt {
+    fail_at: usize,
+    made: usize,
+}
+
+impl optobus_driver::Transport for FailingAt {
+    async fn read_words(
+        &mut self,
+        _: u8,
+        read: optobus_driver::transport::ReadRequest,
+    ) -> Result<Vec<u16>, optobus_driver::transport::Error> {
+        self.made += 1;
+        if self.made - 1 == self.fail_at {
+            return Err(optobus_driver::transport::Error::Timeout {
+                after: std::time::Duration::from_millis(1),
+            });
+        }
+        Ok((0..read.count).map(|i| read.address + i).collect())
+    }
+
+    async fn write(
+        &mut self,
+        _: u8,
+        _: u16,
+        _: optobus_driver::transport::WriteValue,
+    ) -> Result<(), optobus_driver::transport::Error> {
+        Ok(())
+    }
+}
+
+#[tokio::test]
+async fn a_group_read_that_fails_halfway_keeps_what_was_read_and_names_the_failed_request() {
+    // A holding and an input register: two requests, the second of which times out.
+    let holding = p_series::DEVICE
+        .registers
+        .iter()
+        .find(|r| r.table == Table::Holding && r.readable() && r.read_is_repeatable())
+        .unwrap();
+    let input = p_series::DEVICE.register("distance_1").unwrap();
+    let plan = plan_reads(&p_series::DEVICE, &[holding, input]);
+    assert_eq!(plan.len(), 2);
+    let transport = FailingAt {
+        fail_at: 1,
+        made: 0,
+    };
+    let mut core = optobus_driver::Core::new(transport, 1, &p_series::DEVICE).unwrap();
+    let partial = core
+        .read_group_partly(&[holding, input])
+        .await
+        .expect_err("the second request fails");
+    assert!(partial.has(holding));
+    assert!(!partial.has(input));
+    assert_eq!(partial.failed, Some(plan[1]));
+    assert!(matches!(
+        partial.error,
+        optobus_driver::Error::Transport(optobus_driver::transport::Error::Timeout { .. })
+    ));
+    // The holding register's words are those its request brought.
+    let first: Vec<u16> = (0..holding.words).map(|i| plan[0].address + i).collect();
+    let offset = usize::from(holding.address - plan[0].address);
+    assert_eq!(
+        partial.readings.words(holding),
+        &first[offset..offset + usize::from(holding.words)]
+    );
+}

@@ -30,7 +30,8 @@ pub use diagnostic::{render_all, Diagnostic};
 pub use model::Model;
 pub use source::SourceFile;
 
-/// A spec that did not pass: its source and every problem found.
+/// A spec (or another file read through [`SourceFile`], such as a bus file) that did not
+/// pass: its source and every problem found.
 #[derive(Debug)]
 pub struct Rejected {
     /// The spec text (for rendering).
@@ -45,6 +46,14 @@ impl Rejected {
         render_all(&self.diagnostics, &self.source)
     }
 }
+
+impl std::fmt::Display for Rejected {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.render().trim_end())
+    }
+}
+
+impl std::error::Error for Rejected {}
 
 /// Parses, lowers and checks a spec given as text; `name` is shown in diagnostics.
 pub fn check_source(name: &str, text: &str) -> Result<Model, Box<Rejected>> {

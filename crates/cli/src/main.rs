@@ -36,7 +36,7 @@ struct Cli {
 
 /// Commands that take no model (`frame` names its model with each subcommand): their help does
 /// not show `--model`.
-const WITHOUT_MODEL: [&str; 3] = ["models", "plot", "frame"];
+const WITHOUT_MODEL: [&str; 5] = ["models", "plot", "frame", "run", "bus"];
 
 /// Every argument that takes a model lists the models the tool has in its help; `--model`
 /// says its default: `OPTOBUS_MODEL`, else the first model for the built-in simulator only.

@@ -11,14 +11,6 @@ use crate::error::CliError;
 
 include!(concat!(env!("OUT_DIR"), "/specs.rs"));
 
-/// Lower case without `-`, `_` and spaces, so `P-Series`, `p_series` and `pseries` agree.
-fn normalise(name: &str) -> String {
-    name.chars()
-        .filter(|c| c.is_ascii_alphanumeric())
-        .map(|c| c.to_ascii_lowercase())
-        .collect()
-}
-
 /// The runtime description of a spec's text; a spec that does not pass gives the checker's
 /// located diagnostics, rendered like rustc.
 pub(crate) fn describe(name: &str, text: &str) -> Result<&'static DeviceInfo, CliError> {
@@ -66,17 +58,21 @@ pub(crate) fn all() -> &'static [&'static DeviceInfo] {
 
 /// The family called `name` (its id or one of its aliases).
 pub(crate) fn find(name: &str) -> Result<&'static DeviceInfo, CliError> {
-    let wanted = normalise(name);
     all()
         .iter()
         .copied()
-        .find(|d| normalise(d.family) == wanted || d.aliases.iter().any(|a| normalise(a) == wanted))
+        .find(|d| d.is_called(name))
         .ok_or_else(|| {
             CliError::new(format!("unknown model `{name}`")).hint(format!(
                 "known models: {}; or give a spec file with --spec; see `optobus models`",
                 names().join(", ")
             ))
         })
+}
+
+/// The built-in models as a bus file names them.
+pub(crate) fn catalogue() -> optobus_bus::Catalogue {
+    optobus_bus::Catalogue::new(all().iter().copied())
 }
 
 /// The model's name as users type it (`p-series`).

@@ -1,8 +1,9 @@
-//! Output on stdout: text that ignores a closed pipe, pretty JSON, and register values as
-//! aligned lines or a JSON object.
+//! Output on stdout: text that ignores a closed pipe, pretty JSON, register values as aligned
+//! lines, a JSON object or CSV cells, and blocks redrawn in place on a terminal.
 
 use std::io::Write;
 
+use crossterm::{cursor, terminal, QueueableCommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use optobus_device::RegisterInfo;
 use serde_json::{Map, Value as Json};
@@ -70,4 +71,60 @@ pub(crate) fn progress_bar(length: u64, template: &str) -> ProgressBar {
         .unwrap_or_else(|_| ProgressStyle::default_bar())
         .progress_chars("#-");
     ProgressBar::new(length).with_style(style)
+}
+
+/// The terminal's `(columns, rows)`; where it reports none, or a zero (a serial console, some
+/// CI terminals), the classic 80 × 24, so a drawing is cut to something that shows.
+pub(crate) fn screen(reported: Option<(u16, u16)>) -> (u16, u16) {
+    match reported {
+        Some((columns, rows)) if columns > 0 && rows > 0 => (columns, rows),
+        _ => (80, 24),
+    }
+}
+
+/// Replaces the last drawing (`drawn` lines) with `block`, cut to a terminal of `(columns,
+/// rows)` so that the cursor can always climb back over it (a taller block, or a line that
+/// wraps, would scroll and smear the scrollback); gives the lines drawn. Each line is cleared as it is rewritten and only
+/// what is left below the block is cleared after it: a clear of the whole screen from its
+/// top corner is copied into the scrollback by some terminals (tmux's `scroll-on-clear`).
+pub(crate) fn redraw(
+    out: &mut impl Write,
+    drawn: u16,
+    block: &str,
+    (columns, rows): (u16, u16),
+) -> u16 {
+    let lines: Vec<&str> = block.lines().take(usize::from(rows.max(2) - 1)).collect();
+    if drawn > 0 {
+        let _ = out.queue(cursor::MoveToPreviousLine(drawn));
+    }
+    for line in &lines {
+        let _ = out.queue(terminal::Clear(terminal::ClearType::CurrentLine));
+        let cut: String = line.chars().take(usize::from(columns.max(2) - 1)).collect();
+        let _ = writeln!(out, "{cut}");
+    }
+    if usize::from(drawn) > lines.len() {
+        let _ = out.queue(terminal::Clear(terminal::ClearType::FromCursorDown));
+    }
+    u16::try_from(lines.len()).unwrap_or(u16::MAX)
+}
+
+/// One column's header: the register's name and, in brackets, its unit (`distance_1 [mm]`).
+pub(crate) fn csv_header(register: &RegisterInfo) -> String {
+    match register.unit {
+        Some(unit) => format!("{} [{unit}]", register.name),
+        None => register.name.to_owned(),
+    }
+}
+
+/// One cell: a quantity's exact number in the header's unit, a code's number, a flag as 0 or
+/// 1; empty for an invalid reading; text (quoted) for anything else.
+pub(crate) fn csv_cell(value: &Value) -> String {
+    match value {
+        Value::Invalid => String::new(),
+        Value::Bool(flag) => u8::from(*flag).to_string(),
+        Value::Integer(number) => number.to_string(),
+        Value::Quantity(number, _) => number.to_string(),
+        Value::Code(code, _) => code.to_string(),
+        other => format!("\"{}\"", other.to_string().replace('"', "\"\"")),
+    }
 }

@@ -13,6 +13,7 @@ pub mod crc;
 mod fixed;
 mod hex;
 mod line;
+pub mod passthrough;
 mod pdu;
 pub mod rtu;
 pub mod tcp;

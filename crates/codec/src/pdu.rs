@@ -742,6 +742,17 @@ pub enum EncodeError {
         /// The address.
         slave: u8,
     },
+    /// A PDU passed on unread that is empty or longer than a frame carries (253 bytes).
+    PduLength {
+        /// Its length.
+        len: usize,
+    },
+    /// A PDU passed on unread whose function's reply cannot be framed on an RTU line (its
+    /// length does not follow from its first bytes), or an exception function code.
+    UnframedFunction {
+        /// The function code.
+        function: u8,
+    },
 }
 
 impl fmt::Display for EncodeError {
@@ -765,6 +776,13 @@ impl fmt::Display for EncodeError {
             Self::ReservedSlave { slave } => write!(
                 f,
                 "slave address {slave} is reserved: slaves are 1 to {MAX_SLAVE}, 0 broadcasts"
+            ),
+            Self::PduLength { len } => {
+                write!(f, "a PDU of {len} bytes: a frame carries 1 to 253")
+            }
+            Self::UnframedFunction { function } => write!(
+                f,
+                "function {function:#04X} cannot be passed to an RTU line: its reply's length is unknown"
             ),
         }
     }

@@ -335,3 +335,59 @@ proptest! {
         prop_assert!(found_at_offset);
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2_000))]
+
+    /// A typed request passed through unread frames to the same bytes, and the device's typed
+    /// reply (or exception) comes back as its PDU, byte for byte, in either exception shape.
+    #[test]
+    fn passed_through_exchanges_match_the_typed_codec(
+        slave in 1u8..=247,
+        (request, words) in exchange(),
+        shape in exception_shape(),
+        code in 1u16..=0xFF,
+        exception in any::<bool>(),
+    ) {
+        use optobus_codec::passthrough::{self, PassPdu};
+        let mut typed = [0u8; rtu::MAX_FRAME_LEN];
+        let len = rtu::encode_request(&mut typed, slave, &request).unwrap();
+        let pdu = PassPdu::new(&typed[1..len - 2]).unwrap();
+        let mut passed = [0u8; rtu::MAX_FRAME_LEN];
+        let passed_len = passthrough::encode_rtu(&mut passed, slave, &pdu).unwrap();
+        prop_assert_eq!(&passed[..passed_len], &typed[..len]);
+        let wide = wide_addresses(&request);
+        let frame_shape = FrameShape { exception: shape, four_byte_writes: &wide };
+        let reply = if exception {
+            let mut out = [0u8; rtu::MAX_FRAME_LEN];
+            let n = rtu::encode_exception(&mut out, slave, request.function_code(), ExceptionCode(code), shape).unwrap();
+            out[..n].to_vec()
+        } else {
+            rtu_reply(slave, &request, &words)
+        };
+        for cut in 0..reply.len() {
+            let outcome = passthrough::decode_rtu_reply(&reply[..cut], slave, &pdu, &frame_shape);
+            prop_assert!(matches!(outcome, Ok(Decoded::NeedMore { .. })), "cut {}: {:?}", cut, outcome);
+        }
+        let decoded = passthrough::decode_rtu_reply(&reply, slave, &pdu, &frame_shape).unwrap();
+        prop_assert_eq!(decoded, Decoded::Frame { frame: &reply[1..reply.len() - 2], consumed: reply.len() });
+    }
+
+    /// Whatever bytes arrive, decoding a passed-through reply never panics, and anything it
+    /// takes as a frame has a valid CRC.
+    #[test]
+    fn passed_through_replies_never_panic(
+        request in prop::collection::vec(any::<u8>(), 1..20),
+        reply in prop::collection::vec(any::<u8>(), 0..300),
+        slave in any::<u8>(),
+        shape in exception_shape(),
+    ) {
+        use optobus_codec::passthrough::{self, PassPdu};
+        if let Ok(pdu) = PassPdu::new(&request) {
+            let frame_shape = FrameShape { exception: shape, four_byte_writes: &[] };
+            if let Ok(Decoded::Frame { consumed, .. }) = passthrough::decode_rtu_reply(&reply, slave, &pdu, &frame_shape) {
+                prop_assert!(is_valid_frame(&reply[..consumed]));
+            }
+        }
+    }
+}

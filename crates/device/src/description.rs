@@ -630,6 +630,18 @@ impl DeviceInfo {
         ModelName(self.family)
     }
 
+    /// Whether people mean this model by `name`: its family id or one of its aliases, in any
+    /// case, with or without `-`, `_` and spaces (`P-Series`, `p_series`, `pseries`).
+    pub fn is_called(&self, name: &str) -> bool {
+        fn letters(text: &str) -> impl Iterator<Item = char> + '_ {
+            text.chars()
+                .filter(char::is_ascii_alphanumeric)
+                .map(|c| c.to_ascii_lowercase())
+        }
+        let same = |known: &str| letters(known).eq(letters(name));
+        same(self.family) || self.aliases.iter().any(|alias| same(alias))
+    }
+
     /// The register called `name`.
     pub fn register(&self, name: &str) -> Option<&'static RegisterInfo> {
         self.registers.iter().find(|r| r.name == name)

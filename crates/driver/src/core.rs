@@ -112,6 +112,35 @@ impl Readings {
     }
 }
 
+/// A group read of which one request failed: what the requests before it read, which request
+/// failed, and why.
+#[derive(Debug)]
+pub struct PartialRead {
+    /// The words of the requests that were answered.
+    pub readings: Readings,
+    /// The request that failed (`None` when none was made: a register cannot be read).
+    pub failed: Option<ReadSpan>,
+    /// Why it failed.
+    pub error: Error,
+}
+
+impl PartialRead {
+    fn boxed(readings: Readings, failed: Option<ReadSpan>, error: Error) -> Box<Self> {
+        Box::new(Self {
+            readings,
+            failed,
+            error,
+        })
+    }
+
+    /// Whether `register` was read.
+    pub fn has(&self, register: &RegisterInfo) -> bool {
+        self.readings
+            .requests()
+            .any(|span| span.offset_of(register, self.readings.addressing).is_some())
+    }
+}
+
 /// Refuses the reserved slave addresses 248 to 255.
 fn check_slave(slave: u8) -> Result<u8, Error> {
     if slave > MAX_SLAVE {
@@ -324,6 +353,17 @@ impl<T: Transport> Core<T> {
         registers: &[&'static RegisterInfo],
         plan: &[PlannedRead],
     ) -> Result<Readings, Error> {
+        self.read_plan_partly(registers, plan)
+            .await
+            .map_err(|partial| partial.error)
+    }
+
+    /// Makes the requests of `plan` in order until one fails; what was read stays.
+    async fn read_plan_partly(
+        &mut self,
+        registers: &[&'static RegisterInfo],
+        plan: &[PlannedRead],
+    ) -> Result<Readings, Box<PartialRead>> {
         let mut readings = Readings {
             first: None,
             rest: Vec::new(),
@@ -339,7 +379,7 @@ impl<T: Transport> Core<T> {
                     let mut memory = self.memory;
                     let Some(instead) = memory.fallback(self.device, registers, &span, &error)
                     else {
-                        return Err(error);
+                        return Err(PartialRead::boxed(readings, Some(span), error));
                     };
                     tracing::debug!(
                         target: TRACE_TARGET,
@@ -350,15 +390,43 @@ impl<T: Transport> Core<T> {
                     );
                     self.forget(memory);
                     for &(span, repeatable) in planned(self.device, instead).iter() {
-                        let words = self
+                        match self
                             .read_span(span.table, span.address, span.count, repeatable)
-                            .await?;
-                        readings.push(span, words);
+                            .await
+                        {
+                            Ok(words) => readings.push(span, words),
+                            Err(error) => {
+                                return Err(PartialRead::boxed(readings, Some(span), error))
+                            }
+                        }
                     }
                 }
             }
         }
         Ok(readings)
+    }
+
+    /// Like [`Core::read_group`], but when a request fails the words of the requests made
+    /// before it are kept: [`PartialRead`] holds them, the failed request and the error, so a
+    /// caller can use what was read and name the registers that were not.
+    pub async fn read_group_partly(
+        &mut self,
+        registers: &[&'static RegisterInfo],
+    ) -> Result<Readings, Box<PartialRead>> {
+        if let Some(unreadable) = registers.iter().find(|r| !r.readable()) {
+            let readings = Readings {
+                first: None,
+                rest: Vec::new(),
+                addressing: self.device.addressing,
+            };
+            return Err(PartialRead::boxed(
+                readings,
+                None,
+                Error::unreadable(unreadable),
+            ));
+        }
+        let plan = planned(self.device, self.memory.plan_reads(self.device, registers));
+        self.read_plan_partly(registers, &plan).await
     }
 
     /// Validates `value` and writes it: nothing is sent if it is invalid.

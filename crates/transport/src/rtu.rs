@@ -5,7 +5,10 @@ use std::pin::Pin;
 use std::task::Poll;
 use std::time::Duration;
 
-use optobus_codec::{rtu, DecodeError, Decoded, ExceptionShape, LineFormat, Request, BROADCAST};
+use optobus_codec::passthrough::{self, PassPdu};
+use optobus_codec::{
+    rtu, DecodeError, Decoded, ExceptionShape, FrameShape, LineFormat, Request, BROADCAST,
+};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};
 use tokio::time::{timeout_at, Instant};
 
@@ -206,19 +209,52 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
     async fn transact(&mut self, slave: u8, request: Request) -> Result<Option<Reply>, Error> {
         let mut frame = [0u8; rtu::MAX_FRAME_LEN];
         let len = rtu::encode_request(&mut frame, slave, &request).map_err(Error::Request)?;
+        let exception = self.config.exception;
+        self.exchange(slave, &frame[..len], |buf| {
+            rtu::decode_response(buf, slave, &request, exception).map(|d| d.map(Reply::from))
+        })
+        .await
+    }
+
+    /// Passes a request PDU on unread and gives the reply's PDU as it came, an exception reply
+    /// included (what a gateway does); `Ok(None)` for a broadcast. `shape` frames the reply
+    /// (the device's four-byte writes and exception shape). The line is kept and recovered as
+    /// for every other request, so a late or garbled reply never answers another one.
+    pub async fn transact_pdu(
+        &mut self,
+        slave: u8,
+        pdu: &PassPdu<'_>,
+        shape: &FrameShape<'_>,
+    ) -> Result<Option<Vec<u8>>, Error> {
+        let mut frame = [0u8; rtu::MAX_FRAME_LEN];
+        let len = passthrough::encode_rtu(&mut frame, slave, pdu).map_err(Error::Request)?;
+        self.exchange(slave, &frame[..len], |buf| {
+            passthrough::decode_rtu_reply(buf, slave, pdu, shape).map(|d| d.map(<[u8]>::to_vec))
+        })
+        .await
+    }
+
+    /// Sends `frame` to `slave` and reads until `decode` takes a reply from the bytes received
+    /// (or fails, or the timeout passes); `Ok(None)` for a broadcast.
+    async fn exchange<R>(
+        &mut self,
+        slave: u8,
+        frame: &[u8],
+        mut decode: impl FnMut(&[u8]) -> Result<Decoded<R>, DecodeError>,
+    ) -> Result<Option<R>, Error> {
         self.prepare().await?;
         // From here until the reply is complete the line state is unknown, also if this
         // future is dropped: the next transaction then recovers first.
-        let sent = Instant::now() + self.config.transmit_time(len);
+        let sent = Instant::now() + self.config.transmit_time(frame.len());
         let deadline = deadline_from(sent, self.config.timeout);
         self.unsettled = Some(deadline_from(
             sent,
             self.config.timeout.min(MAX_DEFAULT_RECOVERY),
         ));
-        self.stream.write_all(&frame[..len]).await?;
+        self.stream.write_all(frame).await?;
         self.stream.flush().await?;
         let written = Instant::now();
-        frames::sent(slave, &frame[..len]);
+        frames::sent(slave, frame);
         self.last_activity = Some(sent.max(written));
         if slave == BROADCAST {
             self.unsettled = None;
@@ -226,18 +262,13 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         }
         let mut filled = 0;
         loop {
-            match rtu::decode_response(
-                &self.buffer[..filled],
-                slave,
-                &request,
-                self.config.exception,
-            ) {
+            match decode(&self.buffer[..filled]) {
                 Ok(Decoded::Frame { frame, consumed }) => {
                     frames::received(slave, &self.buffer[..filled], written.elapsed(), None);
                     // Bytes behind a good reply mean something else is talking: recover
                     // before the next request.
                     self.unsettled = (consumed < filled).then(Instant::now);
-                    return Ok(Some(Reply::from(frame)));
+                    return Ok(Some(frame));
                 }
                 Ok(Decoded::NeedMore { .. }) => {}
                 Err(DecodeError::Exception { function, code }) => {

@@ -437,3 +437,92 @@ async fn tokio_modbus_backend_reads_writes_and_maps_exceptions() {
         Err(Error::Unsupported(_))
     ));
 }
+
+/// The PDU of a frame: what lies between the slave address and the CRC.
+fn pdu_of(frame: &[u8]) -> &[u8] {
+    &frame[1..frame.len() - 2]
+}
+
+#[tokio::test]
+async fn a_pdu_passed_through_gets_the_reply_pdu_as_it_came() {
+    use optobus_codec::passthrough::PassPdu;
+    let (a, b) = tokio::io::duplex(1024);
+    let mut seen = device(
+        b,
+        vec![Act::Answer, Act::Exception(ExceptionShape::Standard, 2)],
+        vec![],
+    );
+    let mut client = client(a, quick());
+    let read = [0x03, 0x00, 0x10, 0x00, 0x02];
+    let reply = client
+        .transact_pdu(7, &PassPdu::new(&read).unwrap(), &FrameShape::STANDARD)
+        .await
+        .unwrap()
+        .expect("a reply");
+    assert_eq!(reply, [0x03, 0x04, 0x00, 0x10, 0x00, 0x11]);
+    // An exception is a reply like any other: passed back, not an error.
+    let reply = client
+        .transact_pdu(7, &PassPdu::new(&read).unwrap(), &FrameShape::STANDARD)
+        .await
+        .unwrap()
+        .expect("a reply");
+    assert_eq!(reply, [0x83, 0x02]);
+    assert_eq!(
+        seen.recv().await.unwrap(),
+        (
+            7,
+            Request::Read {
+                function: ReadFunction::Holding,
+                address: 0x10,
+                count: 2
+            }
+        )
+    );
+    // A broadcast gets no reply, and none is awaited.
+    let write = [0x06, 0x00, 0x01, 0x00, 0x05];
+    assert_eq!(
+        client
+            .transact_pdu(0, &PassPdu::new(&write).unwrap(), &FrameShape::STANDARD)
+            .await
+            .unwrap(),
+        None
+    );
+}
+
+#[tokio::test]
+async fn a_garbled_reply_to_a_passed_pdu_is_an_error_and_the_next_one_works() {
+    use optobus_codec::passthrough::PassPdu;
+    let (a, b) = tokio::io::duplex(1024);
+    let mut good = [0u8; rtu::MAX_FRAME_LEN];
+    let words = [0x00, 0x10];
+    let len = rtu::encode_response(
+        &mut good,
+        7,
+        &Response::Read {
+            function: ReadFunction::Holding,
+            words: Words::from_bytes(&words).unwrap(),
+        },
+    )
+    .unwrap();
+    let mut garbled = good[..len].to_vec();
+    garbled[3] ^= 0x40;
+    let _seen = device(b, vec![Act::Raw(garbled), Act::Silent, Act::Answer], vec![]);
+    let mut client = client(a, quick());
+    let read = PassPdu::new(&[0x03, 0x00, 0x10, 0x00, 0x01]).unwrap();
+    let error = client
+        .transact_pdu(7, &read, &FrameShape::STANDARD)
+        .await
+        .unwrap_err();
+    assert!(matches!(error, Error::Frame(_)), "{error:?}");
+    let error = client
+        .transact_pdu(7, &read, &FrameShape::STANDARD)
+        .await
+        .unwrap_err();
+    assert!(matches!(error, Error::Timeout { .. }), "{error:?}");
+    let reply = client
+        .transact_pdu(7, &read, &FrameShape::STANDARD)
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(reply, pdu_of(&good[..len]));
+}

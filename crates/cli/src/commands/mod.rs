@@ -3,6 +3,7 @@
 //! another command.
 
 mod buffer;
+mod bus;
 mod do_command;
 mod frame;
 mod identify;
@@ -12,6 +13,7 @@ mod raw;
 mod read;
 mod record;
 mod registers;
+mod run;
 mod scan;
 mod set;
 mod simulate;
@@ -53,6 +55,12 @@ pub(crate) enum Command {
     /// Serve a virtual device for other Modbus tools: Modbus TCP on --tcp (default
     /// 127.0.0.1:5020), RTU on a new pty (--pty) or on an existing port (--serial).
     Simulate(simulate::SimulateArgs),
+    /// Poll a bus of sensors (several devices on shared lines) from a bus file and show them
+    /// live; --json prints a line per sample, --record writes a CSV per device.
+    Run(run::RunArgs),
+    /// Bus files: `optobus bus check FILE`.
+    #[command(subcommand)]
+    Bus(bus::BusCommand),
     /// Read or write registers by address, for those a spec lacks (addresses 0-based).
     #[command(subcommand)]
     Raw(raw::RawCommand),
@@ -78,6 +86,8 @@ pub(crate) async fn run(options: Options, command: Command) -> Result<(), CliErr
         Command::Identify(device) => identify::run(&options.with(&device)).await,
         Command::Scan(args) => scan::run(&options.with(&args.device), &args).await,
         Command::Simulate(args) => simulate::run(&options.with(&args.device), &args).await,
+        Command::Run(args) => run::run(options.json, &args).await,
+        Command::Bus(command) => bus::run(&command),
         Command::Raw(command) => raw::run(&options, &command).await,
         Command::Frame(command) => frame::run(&options, &command),
     }

@@ -7,16 +7,14 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
-use optobus_device::RegisterInfo;
 use optobus_driver::transport::timing::deadline_from;
-use optobus_inspect::Value;
 use tokio::time::Instant;
 
 use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::inputs;
 use crate::log::note;
-use crate::render::{progress_bar, timestamp};
+use crate::render::{csv_cell, csv_header, progress_bar, timestamp};
 
 #[derive(Debug, Args)]
 pub(crate) struct RecordArgs {
@@ -38,27 +36,6 @@ pub(crate) struct RecordArgs {
     out: PathBuf,
 }
 
-/// One column's header: the register's name and, in brackets, its unit (`distance_1 [mm]`).
-fn header(register: &RegisterInfo) -> String {
-    match register.unit {
-        Some(unit) => format!("{} [{unit}]", register.name),
-        None => register.name.to_owned(),
-    }
-}
-
-/// One cell: a quantity's exact number in the header's unit, a code's number, a flag as 0 or
-/// 1; empty for an invalid reading; text (quoted) for anything else.
-fn cell(value: &Value) -> String {
-    match value {
-        Value::Invalid => String::new(),
-        Value::Bool(flag) => u8::from(*flag).to_string(),
-        Value::Integer(number) => number.to_string(),
-        Value::Quantity(number, _) => number.to_string(),
-        Value::Code(code, _) => code.to_string(),
-        other => format!("\"{}\"", other.to_string().replace('"', "\"\"")),
-    }
-}
-
 /// Samples until `--duration` has passed, `--count` samples are written, or Ctrl-C; a failed
 /// read leaves its row's values empty and is counted.
 pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliError> {
@@ -66,7 +43,7 @@ pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliErr
     let file = File::create(&args.out)
         .map_err(|e| CliError::failed(format!("cannot write {}: {e}", args.out.display())))?;
     let mut csv = BufWriter::new(file);
-    let columns: Vec<String> = registers.iter().map(|r| header(r)).collect();
+    let columns: Vec<String> = registers.iter().map(|r| csv_header(r)).collect();
     let write_failed =
         |e: std::io::Error| CliError::failed(format!("cannot write {}: {e}", args.out.display()));
     writeln!(csv, "time,elapsed [s],{}", columns.join(",")).map_err(write_failed)?;
@@ -93,7 +70,7 @@ pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliErr
         let time = timestamp();
         let elapsed = sample_started.duration_since(started).as_secs_f64();
         let cells: Vec<String> = match &outcome {
-            Ok(values) => values.iter().map(|(_, value)| cell(value)).collect(),
+            Ok(values) => values.iter().map(|(_, value)| csv_cell(value)).collect(),
             Err(_) => vec![String::new(); registers.len()],
         };
         failed += u64::from(outcome.is_err());

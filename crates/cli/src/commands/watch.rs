@@ -6,13 +6,13 @@ use std::io::{IsTerminal, Write};
 use std::time::Duration;
 
 use clap::Args;
-use crossterm::{cursor, terminal, QueueableCommand};
+use crossterm::terminal;
 use serde_json::json;
 
 use crate::connect::{decode_values, read_each_request, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
-use crate::render::{time_of_day, timestamp, values_json, values_text};
+use crate::render::{redraw, screen, time_of_day, timestamp, values_json, values_text};
 use crate::{inputs, models};
 use optobus_device::RegisterInfo;
 use optobus_driver::ErrorKind;
@@ -131,15 +131,6 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
     Ok(())
 }
 
-/// The terminal's `(columns, rows)`; where it reports none, or a zero (a serial console, some
-/// CI terminals), the classic 80 × 24, so a drawing is cut to something that shows.
-fn screen(reported: Option<(u16, u16)>) -> (u16, u16) {
-    match reported {
-        Some((columns, rows)) if columns > 0 && rows > 0 => (columns, rows),
-        _ => (80, 24),
-    }
-}
-
 /// Readings a sparkline shows.
 const CHART_WIDTH: usize = 40;
 
@@ -186,30 +177,10 @@ fn sparkline(readings: &VecDeque<Option<f64>>) -> String {
         .collect()
 }
 
-/// Replaces the last drawing (`drawn` lines) with `block`, cut to a terminal of `(columns,
-/// rows)` so that the cursor can always climb back over it (a taller block, or a line that
-/// wraps, would scroll and smear the scrollback); gives the lines drawn. Each line is cleared as it is rewritten and only
-/// what is left below the block is cleared after it: a clear of the whole screen from its
-/// top corner is copied into the scrollback by some terminals (tmux's `scroll-on-clear`).
-fn redraw(out: &mut impl Write, drawn: u16, block: &str, (columns, rows): (u16, u16)) -> u16 {
-    let lines: Vec<&str> = block.lines().take(usize::from(rows.max(2) - 1)).collect();
-    if drawn > 0 {
-        let _ = out.queue(cursor::MoveToPreviousLine(drawn));
-    }
-    for line in &lines {
-        let _ = out.queue(terminal::Clear(terminal::ClearType::CurrentLine));
-        let cut: String = line.chars().take(usize::from(columns.max(2) - 1)).collect();
-        let _ = writeln!(out, "{cut}");
-    }
-    if usize::from(drawn) > lines.len() {
-        let _ = out.queue(terminal::Clear(terminal::ClearType::FromCursorDown));
-    }
-    u16::try_from(lines.len()).unwrap_or(u16::MAX)
-}
-
 #[cfg(test)]
 mod tests {
-    use super::{redraw, screen, sparkline};
+    use super::sparkline;
+    use crate::render::{redraw, screen};
 
     #[test]
     fn point_10_a_terminal_reporting_0x0_draws_at_a_sane_size() {

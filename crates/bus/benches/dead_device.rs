@@ -1,0 +1,218 @@
+//! One dead device among 8 (each device's timeout 100 ms), on the byte-timed RS-485 emulator
+//! at 115200 baud 8N1, every device polling its measurements as fast as the line allows.
+//!
+//! 1. The other seven's rates: trials alternate a bus file of the seven alone (the anchor)
+//!    and the file of all eight with the eighth silent from the start; each trial counts the
+//!    seven's polls over its whole run, the dead device's first timeouts and probes included.
+//!    Prints each device's rate with the dead one over its rate without it (target ≥ 0.9).
+//! 2. Its return: the eighth is silent until some time after it went offline, then answers
+//!    again. Prints the time from its return to its `Online` health event against the backoff
+//!    period in effect then, the wait between its last failed probe and the probe that found
+//!    it (target: within one backoff period). Probes are seen by the simulated device.
+//!
+//! Run with `cargo bench -p optobus-bus --bench dead_device`.
+
+mod common;
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use common::{bus_file, emulated_line, model_name, models, simulators};
+use optobus_bus::{Bus, Event, Health};
+use optobus_codec::LineFormat;
+
+const BAUD: u32 = 115_200;
+const TRIALS: usize = 3;
+const RUN: Duration = Duration::from_secs(8);
+const GROUP: &str = "measurements";
+/// How long after going offline the dead device returns, one trial each.
+const RETURNS: [Duration; 3] = [
+    Duration::from_millis(1_500),
+    Duration::from_millis(4_000),
+    Duration::from_millis(9_000),
+];
+
+fn devices(count: usize) -> Vec<String> {
+    models()[..count]
+        .iter()
+        .enumerate()
+        .map(|(i, model)| {
+            format!(
+                "{{ name: d{}, model: {}, slave: {}, timeout: 100ms, poll: [{{ read: {GROUP} }}] }}",
+                i + 1,
+                model_name(model),
+                i + 1
+            )
+        })
+        .collect()
+}
+
+fn first_registers() -> Vec<&'static str> {
+    models()
+        .iter()
+        .map(|m| optobus_bus::file::resolve(m, GROUP).unwrap()[0].name)
+        .collect()
+}
+
+fn device_index(name: &str) -> usize {
+    name[1..].parse::<usize>().unwrap() - 1
+}
+
+/// Polls per second of d1 to d7, with the eighth device dead (`with_dead`) or not in the file,
+/// and the requests the dead one was sent.
+async fn rates(with_dead: bool) -> (Vec<f64>, u64) {
+    let count = if with_dead { 8 } else { 7 };
+    let mut simulators = simulators(&models()[..count]);
+    let asked = Arc::new(AtomicU64::new(0));
+    if with_dead {
+        let counter = Arc::clone(&asked);
+        simulators[7] = simulators[7].clone().observe(move |exchange| {
+            if exchange.slave == Some(8) {
+                counter.fetch_add(1, Ordering::Relaxed);
+            }
+        });
+        simulators[7].set_silent(true);
+    }
+    let (stream, _line) = emulated_line(simulators, LineFormat::new(BAUD));
+    let bus = Bus::new(bus_file(
+        &format!("serial: bench, baud: {BAUD}"),
+        &devices(count),
+    ))
+    .with_stream("bench", stream);
+    let mut events = bus.subscribe();
+    let first = first_registers();
+    let started = Instant::now();
+    let running = bus.start().expect("starts");
+    let mut polls = [0u64; 7];
+    while started.elapsed() < RUN {
+        if let Ok(Ok(Event::Sample(sample))) =
+            tokio::time::timeout(Duration::from_millis(100), events.recv()).await
+        {
+            let index = device_index(&sample.source.device);
+            if index < 7 && sample.register.name == first[index] {
+                polls[index] += 1;
+            }
+        }
+    }
+    let elapsed = started.elapsed().as_secs_f64();
+    drop(running);
+    (
+        polls.iter().map(|&p| p as f64 / elapsed).collect(),
+        asked.load(Ordering::Relaxed),
+    )
+}
+
+/// The dead device's return `after` it went offline: (time to its Online event, the backoff
+/// period in effect, probes seen).
+async fn recovery(after: Duration) -> (Duration, Duration, usize) {
+    let probes = Arc::new(Mutex::new(Vec::new()));
+    let seen = Arc::clone(&probes);
+    let mut simulators = simulators(&models());
+    simulators[7] = simulators[7].clone().observe(move |exchange| {
+        if exchange.slave == Some(8) {
+            seen.lock().unwrap().push(Instant::now());
+        }
+    });
+    let dead = simulators[7].clone();
+    dead.set_silent(true);
+    let (stream, _line) = emulated_line(simulators, LineFormat::new(BAUD));
+    let bus = Bus::new(bus_file(
+        &format!("serial: bench, baud: {BAUD}"),
+        &devices(8),
+    ))
+    .with_stream("bench", stream);
+    let mut events = bus.subscribe();
+    let _running = bus.start().expect("starts");
+    let mut returned: Option<Instant> = None;
+    let mut offline_at: Option<Instant> = None;
+    loop {
+        let wait = match (offline_at, returned) {
+            (Some(at), None) => (at + after).saturating_duration_since(Instant::now()),
+            _ => Duration::from_secs(1),
+        };
+        match tokio::time::timeout(wait, events.recv()).await {
+            Ok(Ok(Event::Health(health))) if &*health.source.device == "d8" => {
+                match health.health {
+                    Health::Offline => offline_at = Some(Instant::now()),
+                    Health::Online => {
+                        let online = Instant::now();
+                        let returned = returned.expect("online only after it returned");
+                        let probes = probes.lock().unwrap().clone();
+                        // The probe that found it, and the last one that did not.
+                        let found = probes.iter().rev().find(|&&p| p >= returned).copied();
+                        let before = probes.iter().rev().find(|&&p| p < returned).copied();
+                        let backoff = match (found, before) {
+                            (Some(found), Some(before)) => found - before,
+                            _ => Duration::ZERO,
+                        };
+                        return (online - returned, backoff, probes.len());
+                    }
+                }
+            }
+            Err(_) if offline_at.is_some() && returned.is_none() => {
+                dead.set_silent(false);
+                returned = Some(Instant::now());
+            }
+            _ => {}
+        }
+    }
+}
+
+async fn run() {
+    let mut without = Vec::new();
+    let mut with = Vec::new();
+    let mut asked = 0;
+    for _ in 0..TRIALS {
+        without.push(rates(false).await.0);
+        let (rates, dead_asked) = rates(true).await;
+        with.push(rates);
+        asked += dead_asked;
+    }
+    println!(
+        "{BAUD} baud 8N1, d8 dead (timeout 100 ms), {TRIALS} trials of {:.0} s each way, interleaved  (load {})",
+        RUN.as_secs_f64(),
+        common::load()
+    );
+    let mut worst: f64 = f64::INFINITY;
+    for device in 0..7 {
+        let mean =
+            |runs: &[Vec<f64>]| runs.iter().map(|r| r[device]).sum::<f64>() / runs.len() as f64;
+        let (alone, beside) = (mean(&without), mean(&with));
+        let ratio = beside / alone;
+        worst = worst.min(ratio);
+        println!(
+            "  d{} {:<12} {:>6.1} polls/s without d8, {:>6.1} with d8 dead: ratio {ratio:.3}",
+            device + 1,
+            model_name(models()[device]),
+            alone,
+            beside
+        );
+    }
+    println!(
+        "worst ratio {worst:.3} (target ≥ 0.9): {}",
+        if worst >= 0.9 { "met" } else { "NOT met" }
+    );
+    // What each request to the dead device cost the others: their lost share of the run.
+    let asked_per_trial = asked as f64 / TRIALS as f64;
+    println!(
+        "  d8 was asked {asked_per_trial:.1} times a trial; the seven lost {:.3} s a trial, {:.3} s per request to d8 (its timeout: 0.100 s)",
+        (1.0 - worst) * RUN.as_secs_f64(),
+        (1.0 - worst) * RUN.as_secs_f64() / asked_per_trial
+    );
+    for after in RETURNS {
+        let (took, backoff, probes) = recovery(after).await;
+        println!(
+            "  d8 returns {:.1} s after going offline: online {:.3} s later, backoff in effect {:.3} s ({probes} requests seen): {:.2} of a backoff period  (load {})",
+            after.as_secs_f64(),
+            took.as_secs_f64(),
+            backoff.as_secs_f64(),
+            took.as_secs_f64() / backoff.as_secs_f64(),
+            common::load()
+        );
+    }
+}
+
+fn main() {
+    common::runtime().block_on(run());
+}

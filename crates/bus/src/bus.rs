@@ -1,0 +1,307 @@
+//! Starting a bus: a task per line, the devices' driver cores, and the event stream.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use optobus_driver::{rtu_config, Core};
+use optobus_simulator::Simulator;
+use std::net::SocketAddr;
+
+use tokio::net::TcpListener;
+use tokio::sync::{broadcast, mpsc, Mutex};
+use tokio::task::JoinHandle;
+use tokio::time::Instant;
+
+use crate::event::{DeviceId, ErrorCounts, Event};
+use crate::file::{BusFile, Port};
+use crate::gateway::{self, GatewayCounters};
+use crate::handle::{Entry, Handle, JOB_QUEUE};
+use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun};
+use crate::link::{DeviceLink, DeviceSettings, LineState, Stream};
+use crate::schedule::Schedule;
+
+/// Events a bus keeps for a slow receiver before it drops the oldest (the receiver learns how
+/// many it missed).
+pub const DEFAULT_EVENT_CAPACITY: usize = 4096;
+
+/// A bus file made ready to run.
+pub struct Bus {
+    file: BusFile,
+    streams: HashMap<String, Box<dyn Stream>>,
+    events: broadcast::Sender<Event>,
+}
+
+impl std::fmt::Debug for Bus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bus")
+            .field("file", &self.file)
+            .finish_non_exhaustive()
+    }
+}
+
+/// A running bus; dropping it stops every line.
+#[derive(Debug)]
+pub struct Running {
+    events: broadcast::Sender<Event>,
+    handle: Handle,
+    gateways: Vec<(String, SocketAddr)>,
+    tasks: Vec<JoinHandle<()>>,
+    simulators: Vec<(String, Simulator)>,
+}
+
+impl Bus {
+    /// A bus for `file`, keeping [`DEFAULT_EVENT_CAPACITY`] events for slow receivers.
+    pub fn new(file: BusFile) -> Self {
+        Self {
+            file,
+            streams: HashMap::new(),
+            events: broadcast::channel(DEFAULT_EVENT_CAPACITY).0,
+        }
+    }
+
+    /// Keeps `capacity` events (at least 1) for slow receivers.
+    pub fn event_capacity(mut self, capacity: usize) -> Self {
+        self.events = broadcast::channel(capacity.max(1)).0;
+        self
+    }
+
+    /// Runs line `line` over `stream` instead of its port (an in-memory line in tests).
+    pub fn with_stream(mut self, line: &str, stream: impl Stream) -> Self {
+        self.streams.insert(line.to_owned(), Box::new(stream));
+        self
+    }
+
+    /// A receiver of the bus's events; subscribe before [`Bus::start`] to miss none.
+    pub fn subscribe(&self) -> broadcast::Receiver<Event> {
+        self.events.subscribe()
+    }
+
+    /// Starts a task per line (within a tokio runtime), and each line's gateway. Ports are
+    /// opened by their line's task, which retries with backoff: a missing port never stops the
+    /// other lines. Fails only when a gateway cannot listen on its address.
+    pub fn start(mut self) -> Result<Running, StartError> {
+        let mut tasks = Vec::new();
+        let mut simulators = Vec::new();
+        let mut gateways = Vec::new();
+        let mut job_queues = Vec::new();
+        let mut entries = Vec::new();
+        let start = Instant::now();
+        for (index, line) in self.file.lines.iter().enumerate() {
+            let name: Arc<str> = Arc::from(line.name.as_str());
+            let state = Arc::new(Mutex::new(LineState::new(
+                line.format
+                    .map_or(std::time::Duration::ZERO, |f| f.frame_gap()),
+            )));
+            let mut schedule = Schedule::default();
+            let mut devices = Vec::new();
+            let mut polls = Vec::new();
+            let mut line_simulators = Vec::new();
+            for (_, config) in self.file.devices_on(index) {
+                entries.push(Entry {
+                    name: config.name.clone(),
+                    line: index,
+                    index: devices.len(),
+                    device: config.device,
+                });
+                let errors = Arc::new(std::sync::Mutex::new(ErrorCounts::default()));
+                let settings = DeviceSettings {
+                    timeout: config.timeout,
+                    retries: config.retries,
+                    exception: rtu_config(config.device).exception,
+                    silence_before: config.silence_before,
+                    silence_after: config.silence_after,
+                };
+                let link = DeviceLink {
+                    line: Arc::clone(&state),
+                    settings,
+                    errors: Arc::clone(&errors),
+                };
+                let core = Core::new(link, config.slave, config.device)
+                    .expect("bus files hold slaves 1 to 247");
+                let device = schedule.add_device(start + config.power_up);
+                for poll in &config.polls {
+                    schedule.add_poll(device, poll.every, poll.priority);
+                    polls.push(PollRun {
+                        registers: poll.registers.clone(),
+                    });
+                }
+                devices.push(DeviceRun {
+                    settings,
+                    id: Arc::new(DeviceId {
+                        device: Arc::from(config.name.as_str()),
+                        model: Arc::from(config.device.model_name().to_string()),
+                        line: Arc::clone(&name),
+                        slave: config.slave,
+                    }),
+                    core,
+                    errors,
+                });
+                if line.port == Port::Simulated {
+                    let mut simulator = Simulator::new(config.device).slave(config.slave);
+                    if let Some(faults) = config.faults.clone() {
+                        simulator = simulator.faults(faults.client_timeout(config.timeout));
+                    }
+                    line_simulators.push(simulator.clone());
+                    simulators.push((config.name.clone(), simulator));
+                }
+            }
+            schedule.stagger();
+            let opener = match self.streams.remove(&line.name) {
+                Some(stream) => Opener::Stream(Some(stream)),
+                None => port_opener(&line.port, line.format, line_simulators),
+            };
+            let gateway = match &line.gateway {
+                Some(config) => {
+                    let listener = bind(config.listen).map_err(|source| StartError {
+                        line: line.name.clone(),
+                        address: config.listen,
+                        source,
+                    })?;
+                    if let Ok(address) = listener.local_addr() {
+                        gateways.push((line.name.clone(), address));
+                    }
+                    let (queue, requests) = mpsc::channel(config.clients);
+                    let counters = Arc::new(GatewayCounters::default());
+                    tasks.push(tokio::spawn(gateway::serve(
+                        listener,
+                        config.clone(),
+                        queue,
+                        counters,
+                    )));
+                    Some(GatewayQueue {
+                        requests,
+                        writes: config.writes,
+                    })
+                }
+                None => None,
+            };
+            let (jobs_in, jobs) = mpsc::channel(JOB_QUEUE);
+            job_queues.push(jobs_in);
+            let task = LineTask {
+                jobs,
+                gateway,
+                broadcast_turnaround: line.broadcast_turnaround,
+                name,
+                format: line.format,
+                opener,
+                state,
+                devices,
+                polls,
+                schedule,
+                events: self.events.clone(),
+            };
+            tasks.push(tokio::spawn(task.run()));
+        }
+        Ok(Running {
+            handle: Handle {
+                lines: job_queues.into(),
+                devices: entries.into(),
+            },
+            events: self.events,
+            gateways,
+            tasks,
+            simulators,
+        })
+    }
+}
+
+/// A gateway that cannot listen.
+#[derive(Debug)]
+pub struct StartError {
+    /// The line it serves.
+    pub line: String,
+    /// Its address.
+    pub address: SocketAddr,
+    /// Why.
+    pub source: std::io::Error,
+}
+
+impl std::fmt::Display for StartError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the gateway of line `{}` cannot listen on {}: {}",
+            self.line, self.address, self.source
+        )
+    }
+}
+
+impl std::error::Error for StartError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        Some(&self.source)
+    }
+}
+
+/// A listening socket, made without waiting (`start` is not async).
+fn bind(address: SocketAddr) -> std::io::Result<TcpListener> {
+    let listener = std::net::TcpListener::bind(address)?;
+    listener.set_nonblocking(true)?;
+    TcpListener::from_std(listener)
+}
+
+fn port_opener(
+    port: &Port,
+    format: Option<optobus_codec::LineFormat>,
+    simulators: Vec<Simulator>,
+) -> Opener {
+    match port {
+        Port::Simulated => Opener::Simulated(optobus_simulator::Bus::new(simulators), format),
+        #[cfg(feature = "serial")]
+        Port::Serial(path) => Opener::Serial(optobus_transport::SerialSettings {
+            path: path.clone(),
+            line: format.unwrap_or(optobus_codec::LineFormat::new(115_200)),
+        }),
+        #[cfg(feature = "tcp")]
+        Port::RtuOverTcp(address) => Opener::RtuOverTcp(address.clone()),
+        #[cfg(feature = "tcp")]
+        Port::Tcp(address) => Opener::Tcp(address.clone()),
+        #[allow(unreachable_patterns)]
+        _ => Opener::Stream(None),
+    }
+}
+
+impl Running {
+    /// Another receiver of the bus's events (from now on).
+    pub fn subscribe(&self) -> broadcast::Receiver<Event> {
+        self.events.subscribe()
+    }
+
+    /// The simulator of device `name`, on a `simulated: true` line.
+    pub fn simulator(&self, name: &str) -> Option<&Simulator> {
+        self.simulators
+            .iter()
+            .find(|(device, _)| device == name)
+            .map(|(_, simulator)| simulator)
+    }
+
+    /// A handle to write, run commands and read through the bus's lines.
+    pub fn handle(&self) -> Handle {
+        self.handle.clone()
+    }
+
+    /// Each line's gateway and where it listens.
+    pub fn gateways(&self) -> impl Iterator<Item = (&str, SocketAddr)> {
+        self.gateways
+            .iter()
+            .map(|(line, address)| (line.as_str(), *address))
+    }
+
+    /// Where the gateway of line `line` listens (its port, when the file asked for port 0).
+    pub fn gateway_address(&self, line: &str) -> Option<SocketAddr> {
+        self.gateways
+            .iter()
+            .find(|(name, _)| name == line)
+            .map(|(_, address)| *address)
+    }
+
+    /// Stops every line.
+    pub fn stop(self) {}
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        for task in &self.tasks {
+            task.abort();
+        }
+    }
+}

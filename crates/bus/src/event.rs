@@ -1,0 +1,133 @@
+//! What a running bus tells: samples, device health, line statistics.
+
+use std::sync::Arc;
+use std::time::{Duration, SystemTime};
+
+use optobus_device::RegisterInfo;
+use optobus_inspect::Value;
+use serde::ser::{SerializeStruct, Serializer};
+use serde::Serialize;
+
+use crate::schedule::Health;
+
+/// One event of a running bus.
+#[derive(Clone, Debug)]
+pub enum Event {
+    /// A register's value, read by a poll.
+    Sample(Arc<Sample>),
+    /// A device went online or offline.
+    Health(Arc<HealthEvent>),
+    /// A line's statistics, sent once a second while it runs.
+    Line(Arc<LineStats>),
+}
+
+/// Which device a sample or health event is about.
+#[derive(Clone, Debug, Serialize)]
+pub struct DeviceId {
+    /// Its name in the bus file.
+    pub device: Arc<str>,
+    /// Its model as users type it (`p-series`).
+    pub model: Arc<str>,
+    /// Its line's name.
+    pub line: Arc<str>,
+    /// Its slave address.
+    pub slave: u8,
+}
+
+/// A register's value as one reply carried it.
+#[derive(Clone, Debug)]
+pub struct Sample {
+    /// Whose value it is.
+    pub source: Arc<DeviceId>,
+    /// The register.
+    pub register: &'static RegisterInfo,
+    /// The value, decoded from the spec (quantities exact, with their unit).
+    pub value: Value,
+    /// When the poll's first request left.
+    pub requested: SystemTime,
+    /// When its last reply arrived.
+    pub replied: SystemTime,
+}
+
+/// For scripts: `device`, `model`, `line`, `slave`, `register`, the value in the tool's JSON
+/// shape, and `time` (the reply's) in RFC 3339 with microseconds.
+impl Serialize for Sample {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut fields = serializer.serialize_struct("Sample", 7)?;
+        fields.serialize_field("device", &*self.source.device)?;
+        fields.serialize_field("model", &*self.source.model)?;
+        fields.serialize_field("line", &*self.source.line)?;
+        fields.serialize_field("slave", &self.source.slave)?;
+        fields.serialize_field("register", self.register.name)?;
+        fields.serialize_field("value", &self.value)?;
+        fields.serialize_field("time", &rfc3339(self.replied))?;
+        fields.end()
+    }
+}
+
+/// A time in RFC 3339, UTC, with microseconds.
+pub fn rfc3339(time: SystemTime) -> String {
+    jiff::Timestamp::try_from(time)
+        .map(|t| format!("{:.6}", t))
+        .unwrap_or_else(|_| "out of range".to_owned())
+}
+
+/// Failed transactions of a device or line, by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct ErrorCounts {
+    /// No reply in time.
+    pub timeouts: u64,
+    /// Garbled, foreign or malformed replies.
+    pub frames: u64,
+    /// Exception replies.
+    pub exceptions: u64,
+    /// The port closed, could not be opened, or failed otherwise.
+    pub line: u64,
+}
+
+impl ErrorCounts {
+    /// All of them.
+    pub fn total(&self) -> u64 {
+        self.timeouts + self.frames + self.exceptions + self.line
+    }
+}
+
+/// A device's health changed.
+#[derive(Clone, Debug, Serialize)]
+pub struct HealthEvent {
+    /// Which device.
+    pub source: Arc<DeviceId>,
+    /// Its new health.
+    pub health: Health,
+    /// Its errors since the bus started.
+    pub errors: ErrorCounts,
+    /// The last failure, when it went offline.
+    pub reason: Option<String>,
+}
+
+/// How busy a line has been since the bus started.
+#[derive(Clone, Debug, Serialize)]
+pub struct LineStats {
+    /// The line's name.
+    pub line: Arc<str>,
+    /// Requests sent.
+    pub transactions: u64,
+    /// Failed ones, by kind.
+    pub errors: ErrorCounts,
+    /// Time spent in transactions (request out to reply in, or the timeout).
+    pub busy: Duration,
+    /// Time since the line started.
+    pub elapsed: Duration,
+    /// Whether the port is open.
+    pub open: bool,
+}
+
+impl LineStats {
+    /// The share of time the line spent in transactions, 0 to 1.
+    pub fn utilisation(&self) -> f64 {
+        if self.elapsed.is_zero() {
+            return 0.0;
+        }
+        (self.busy.as_secs_f64() / self.elapsed.as_secs_f64()).min(1.0)
+    }
+}

@@ -1,0 +1,255 @@
+//! Checks across a bus file's items: unique names, ports and slaves, and line formats the
+//! devices' manuals list. Run once the items are read; each problem points at its place.
+
+use std::collections::HashMap;
+
+use optobus_codec::LineFormat;
+use optobus_codegen::diagnostic::{Label, Location};
+use optobus_codegen::source::Span;
+use optobus_codegen::Diagnostic;
+use optobus_device::DeviceInfo;
+
+use super::read::{Parsed, Places};
+use super::{BusFile, Port};
+
+/// Every cross-item problem of `parsed`; fills in each serial line's format from its devices'
+/// factory format where the file gives none.
+pub(super) fn check(parsed: &mut Parsed) -> Vec<Diagnostic> {
+    let mut problems = Vec::new();
+    let Parsed { file, places } = parsed;
+    unique(
+        file.lines.iter().map(|l| l.name.as_str()),
+        places.lines.iter().map(|p| p.name),
+        "duplicate-line",
+        |name| format!("two lines are called `{name}`"),
+        &mut problems,
+    );
+    unique(
+        file.lines
+            .iter()
+            .filter(|l| l.port != Port::Simulated)
+            .map(|l| l.port.address()),
+        places
+            .lines
+            .iter()
+            .zip(&file.lines)
+            .filter(|(_, l)| l.port != Port::Simulated)
+            .map(|(p, _)| p.port),
+        "duplicate-port",
+        |port| format!("two lines use the port `{port}`"),
+        &mut problems,
+    );
+    let gateways: Vec<String> = file
+        .lines
+        .iter()
+        .filter_map(|l| l.gateway.as_ref().map(|g| g.listen.to_string()))
+        .collect();
+    unique(
+        gateways.iter().map(String::as_str),
+        places.lines.iter().filter_map(|p| p.gateway),
+        "duplicate-gateway",
+        |address| format!("two gateways listen on {address}"),
+        &mut problems,
+    );
+    unique(
+        file.devices.iter().map(|d| d.name.as_str()),
+        places.devices.iter().map(|p| p.name),
+        "duplicate-device",
+        |name| format!("two devices are called `{name}`"),
+        &mut problems,
+    );
+    let slaves: Vec<String> = file
+        .devices
+        .iter()
+        .map(|d| format!("{}\u{0}{}", d.line, d.slave))
+        .collect();
+    unique(
+        slaves.iter().map(String::as_str),
+        places.devices.iter().map(|p| p.slave),
+        "duplicate-slave",
+        |key| {
+            let (line, slave) = key.split_once('\u{0}').unwrap_or((key, ""));
+            let line = line
+                .parse::<usize>()
+                .ok()
+                .and_then(|i| file.lines.get(i))
+                .map_or("?", |l| l.name.as_str());
+            format!("two devices on line `{line}` are slave {slave}")
+        },
+        &mut problems,
+    );
+    formats(file, places, &mut problems);
+    for (device, place) in file.devices.iter().zip(&places.devices) {
+        let line = &file.lines[device.line];
+        if let (Some(span), false) = (place.faults, line.port == Port::Simulated) {
+            problems.push(Diagnostic::at_span(
+                "faults-off-simulation",
+                span,
+                format!(
+                    "`faults` are injected by a simulator: line `{}` is real",
+                    line.name
+                ),
+                "give `faults` to devices on a `simulated: true` line",
+            ));
+        }
+    }
+    problems
+}
+
+/// Reports every second (third, …) occurrence of a key, pointing back at the first.
+fn unique<'a>(
+    keys: impl Iterator<Item = &'a str>,
+    spans: impl Iterator<Item = Span>,
+    rule: &'static str,
+    message: impl Fn(&str) -> String,
+    problems: &mut Vec<Diagnostic>,
+) {
+    let mut first: HashMap<&str, Span> = HashMap::new();
+    for (key, span) in keys.zip(spans) {
+        match first.get(key) {
+            Some(&earlier) => problems.push(Diagnostic {
+                rule,
+                message: message(key),
+                primary: Label {
+                    location: Location::Span(span),
+                    text: "again here".into(),
+                },
+                secondary: vec![Label {
+                    location: Location::Span(earlier),
+                    text: "first here".into(),
+                }],
+                help: Some("each must be unique".into()),
+            }),
+            None => {
+                first.insert(key, span);
+            }
+        }
+    }
+}
+
+/// The format `device`'s manual gives at the factory, if it speaks RTU.
+fn factory(device: &DeviceInfo) -> Option<LineFormat> {
+    device.rtu.map(|rtu| LineFormat {
+        baud: rtu.default_baud,
+        parity: rtu.parity,
+        data_bits: rtu.data_bits,
+        stop_bits: rtu.stop_bits,
+    })
+}
+
+/// Whether `device`'s manual lists `format`: one of its baud rates, its character format.
+fn lists(device: &DeviceInfo, format: LineFormat) -> bool {
+    device.rtu.is_some_and(|rtu| {
+        rtu.bauds.contains(&format.baud)
+            && rtu.parity == format.parity
+            && rtu.data_bits == format.data_bits
+            && rtu.stop_bits == format.stop_bits
+    })
+}
+
+fn formats(file: &mut BusFile, places: &Places, problems: &mut Vec<Diagnostic>) {
+    for (index, (line, place)) in file.lines.iter_mut().zip(&places.lines).enumerate() {
+        let Some(format) = line.format else { continue };
+        let devices: Vec<&DeviceInfo> = file
+            .devices
+            .iter()
+            .filter(|d| d.line == index)
+            .map(|d| d.device)
+            .collect();
+        if let Some(device) = devices.iter().find(|d| d.rtu.is_none()) {
+            problems.push(Diagnostic::at_span(
+                "line-format",
+                place.port,
+                format!(
+                    "line `{}` carries RTU frames, which {} does not speak",
+                    line.name,
+                    name(device)
+                ),
+                "put it on a `tcp` line",
+            ));
+            continue;
+        }
+        if !place.format_given {
+            let mut factories: Vec<(LineFormat, &DeviceInfo)> = devices
+                .iter()
+                .filter_map(|d| factory(d).map(|f| (f, *d)))
+                .collect();
+            factories.dedup_by_key(|(f, _)| *f);
+            match factories.as_slice() {
+                [] => {}
+                [(format, _)] => line.format = Some(*format),
+                several => problems.push(Diagnostic::at_span(
+                    "line-format",
+                    place.name,
+                    format!(
+                        "the devices on line `{}` have different factory formats: {}",
+                        line.name,
+                        several
+                            .iter()
+                            .map(|(f, d)| format!("{} {f}", name(d)))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                    "give the line's `baud`, `parity`, `data_bits` and `stop_bits` as the devices are set",
+                )),
+            }
+            continue;
+        }
+        if place.any_format {
+            continue;
+        }
+        for device in devices.iter().filter(|d| !lists(d, format)) {
+            let rtu = device.rtu.expect("devices without RTU were reported above");
+            problems.push(Diagnostic::at_span(
+                "line-format",
+                place.format,
+                format!(
+                    "line `{}` runs {format}, which the {} manual does not list",
+                    line.name,
+                    name(device)
+                ),
+                format!(
+                    "{} takes {} baud, {}; `any_format: true` allows others",
+                    name(device),
+                    rtu.bauds
+                        .iter()
+                        .map(u32::to_string)
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    factory(device).map_or(String::new(), character_format)
+                ),
+            ));
+        }
+    }
+}
+
+/// `8N1` of a format.
+fn character_format(format: LineFormat) -> String {
+    let full = format.to_string();
+    full.rsplit(' ').next().unwrap_or(&full).to_owned()
+}
+
+/// The model's name as users type it.
+fn name(device: &DeviceInfo) -> String {
+    device.model_name().to_string()
+}
+
+/// A diagnostic at a span, for the checks here.
+trait AtSpan {
+    fn at_span(rule: &'static str, span: Span, message: String, help: impl Into<String>) -> Self;
+}
+
+impl AtSpan for Diagnostic {
+    fn at_span(rule: &'static str, span: Span, message: String, help: impl Into<String>) -> Self {
+        Diagnostic {
+            rule,
+            message,
+            primary: Label {
+                location: Location::Span(span),
+                text: String::new(),
+            },
+            secondary: Vec::new(),
+            help: Some(help.into()),
+        }
+    }
+}

@@ -1,0 +1,224 @@
+//! The bus file: which lines there are, which devices sit on them, what to poll.
+//!
+//! [`BusFile::parse`] reads the YAML with the spec compiler's positioned parse and reports
+//! every problem at once, located like rustc ([`Rejected`]); nothing is opened before the
+//! whole file passes. The schema and a tour are in the crate's README.
+
+mod check;
+mod read;
+
+pub use read::resolve;
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use optobus_codec::LineFormat;
+use optobus_codegen::source::{read_yaml, ReadError};
+use optobus_codegen::SourceFile;
+use optobus_device::{DeviceInfo, RegisterInfo};
+
+use crate::catalogue::Catalogue;
+
+/// The longest interval, timeout or wait a bus file may give.
+pub const MAX_DURATION: Duration = Duration::from_secs(24 * 60 * 60);
+
+/// A checked bus file.
+#[derive(Clone, Debug)]
+pub struct BusFile {
+    /// The lines, in file order.
+    pub lines: Vec<LineConfig>,
+    /// The devices, in file order.
+    pub devices: Vec<DeviceConfig>,
+}
+
+/// One line: a port and the character format on it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LineConfig {
+    /// The name devices refer to.
+    pub name: String,
+    /// Where the line is.
+    pub port: Port,
+    /// The serial character format (which sets t3.5); `None` on a Modbus TCP line.
+    pub format: Option<LineFormat>,
+    /// The silence after a broadcast before the next request (the Modbus serial-line
+    /// specification's turnaround delay).
+    pub broadcast_turnaround: Duration,
+    /// A Modbus TCP gateway onto the line for other masters.
+    pub gateway: Option<GatewayConfig>,
+}
+
+/// A Modbus TCP server whose requests go onto an RTU line between the bus's own polls.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GatewayConfig {
+    /// Where it listens (127.0.0.1 unless the file names another address).
+    pub listen: SocketAddr,
+    /// Most clients connected at once; one more is closed at once.
+    pub clients: usize,
+    /// Whether writes pass (Modbus TCP carries no credentials, so they are off by default);
+    /// writes to the bus's devices are checked against their specs first.
+    pub writes: bool,
+}
+
+/// Clients a gateway serves at once unless the file says otherwise.
+pub const DEFAULT_GATEWAY_CLIENTS: usize = 8;
+
+/// Where a line is.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Port {
+    /// A serial port (`/dev/ttyUSB0`, `COM3`).
+    Serial(String),
+    /// A Modbus TCP server (`host:port`); each device is a unit id behind it.
+    Tcp(String),
+    /// RTU frames tunnelled over TCP (a serial-to-Ethernet converter, `host:port`).
+    RtuOverTcp(String),
+    /// Simulators of the line's devices, in memory, timed as the line's format.
+    Simulated,
+}
+
+impl Port {
+    /// The port's address as the file gives it (empty for a simulated line).
+    pub fn address(&self) -> &str {
+        match self {
+            Self::Serial(path) => path,
+            Self::Tcp(address) | Self::RtuOverTcp(address) => address,
+            Self::Simulated => "",
+        }
+    }
+
+    /// Whether requests travel as RTU frames with t3.5 between them.
+    pub fn is_rtu(&self) -> bool {
+        !matches!(self, Self::Tcp(_))
+    }
+}
+
+/// One device on a line.
+#[derive(Clone, Debug)]
+pub struct DeviceConfig {
+    /// The name samples carry.
+    pub name: String,
+    /// The model's description.
+    pub device: &'static DeviceInfo,
+    /// The model as the file names it (`p-series`, or the spec file's path).
+    pub model: String,
+    /// Index of its line in [`BusFile::lines`].
+    pub line: usize,
+    /// Its slave address (1 to 247).
+    pub slave: u8,
+    /// How long to wait for each reply.
+    pub timeout: Duration,
+    /// How many times a failed repeatable read is tried again.
+    pub retries: u8,
+    /// Extra silence before each of its requests, beyond t3.5.
+    pub silence_before: Duration,
+    /// Extra silence after each of its replies, before the next request to anyone.
+    pub silence_after: Duration,
+    /// How long after the bus starts the device is first asked.
+    pub power_up: Duration,
+    /// What to read, and how often.
+    pub polls: Vec<PollConfig>,
+    /// On a simulated line: seeded faults in the simulated device's replies.
+    pub faults: Option<optobus_simulator::Faults>,
+}
+
+/// A set of registers read together, periodically or as fast as the line allows.
+#[derive(Clone, Debug)]
+pub struct PollConfig {
+    /// What the file names (groups and registers), for messages.
+    pub names: Vec<String>,
+    /// The registers, in the device's address order, repeats expanded.
+    pub registers: Vec<&'static RegisterInfo>,
+    /// The period; `None` polls as fast as the line allows (sharing it with the other such polls).
+    pub every: Option<Duration>,
+    /// Among polls due at once, the higher goes first.
+    pub priority: u8,
+}
+
+/// A bus file that did not pass: its source and every problem found, rendered like rustc.
+pub use optobus_codegen::Rejected;
+
+impl BusFile {
+    /// Reads and checks a bus file's text. `name` is shown in diagnostics; spec files the
+    /// devices name are found relative to `base` (the bus file's folder).
+    pub fn parse(
+        name: &str,
+        text: &str,
+        base: &Path,
+        catalogue: &Catalogue,
+    ) -> Result<Self, Box<Rejected>> {
+        let source = SourceFile::new(name, text);
+        let mut diagnostics = Vec::new();
+        let bus = match (&source.syntax_error, &source.root) {
+            (Some(error), _) => {
+                diagnostics.push(read::syntax(error));
+                None
+            }
+            (None, Some(root)) => {
+                let mut reader = read::Reader::new(base, catalogue);
+                let bus = reader.bus(root);
+                diagnostics.append(&mut reader.diagnostics);
+                bus
+            }
+            (None, None) => {
+                diagnostics.push(read::empty());
+                None
+            }
+        };
+        let mut bus = bus;
+        if let Some(bus) = &mut bus {
+            diagnostics.append(&mut check::check(bus));
+        }
+        match bus {
+            Some(bus) if diagnostics.is_empty() => Ok(bus.file),
+            _ => Err(Box::new(Rejected {
+                source,
+                diagnostics,
+            })),
+        }
+    }
+
+    /// Reads and checks the bus file at `path`: a regular file (or a pipe) of at most
+    /// [`YAML_LIMIT`](optobus_codegen::source::YAML_LIMIT) bytes of UTF-8, read as specs are.
+    pub fn load(path: &Path, catalogue: &Catalogue) -> Result<Self, LoadError> {
+        let text = read_yaml(path).map_err(|source| LoadError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        Self::parse(&path.display().to_string(), &text, base, catalogue)
+            .map_err(LoadError::Rejected)
+    }
+
+    /// The devices on line `line`.
+    pub fn devices_on(&self, line: usize) -> impl Iterator<Item = (usize, &DeviceConfig)> {
+        self.devices
+            .iter()
+            .enumerate()
+            .filter(move |(_, device)| device.line == line)
+    }
+}
+
+/// Why a bus file could not be used.
+#[derive(Debug)]
+pub enum LoadError {
+    /// The file could not be read.
+    Read {
+        /// The path given.
+        path: PathBuf,
+        /// Why.
+        source: ReadError,
+    },
+    /// The file did not pass its checks.
+    Rejected(Box<Rejected>),
+}
+
+impl std::fmt::Display for LoadError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Read { path, source } => write!(f, "cannot read {}: {source}", path.display()),
+            Self::Rejected(rejected) => rejected.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for LoadError {}

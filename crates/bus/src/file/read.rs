@@ -1,0 +1,923 @@
+//! Reading a bus file's tree into its structs, every reading error collected with its place.
+
+use std::path::Path;
+use std::time::Duration;
+
+use jiff::SignedDuration;
+use optobus_codec::{LineFormat, Parity};
+use optobus_codegen::diagnostic::{Label, Location};
+use optobus_codegen::source::{Node, Span, SyntaxError, Value};
+use optobus_codegen::Diagnostic;
+use optobus_device::{DeviceInfo, RegisterInfo};
+
+use super::{
+    BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, DEFAULT_GATEWAY_CLIENTS,
+    MAX_DURATION,
+};
+use crate::catalogue::Catalogue;
+
+/// Rule name of reading errors.
+const RULE: &str = "bus-file";
+const HELP: &str = "see crates/bus/README.md for the keys a bus file takes";
+
+/// The Modbus serial-line specification's turnaround delay after a broadcast.
+pub(crate) const DEFAULT_BROADCAST_TURNAROUND: Duration = Duration::from_millis(100);
+
+const LINE_KEYS: &[&str] = &[
+    "name",
+    "serial",
+    "tcp",
+    "rtu_over_tcp",
+    "simulated",
+    "baud",
+    "parity",
+    "data_bits",
+    "stop_bits",
+    "any_format",
+    "broadcast_turnaround",
+    "gateway",
+];
+const GATEWAY_KEYS: &[&str] = &["listen", "clients", "writes"];
+const PORT_KEYS: &[&str] = &["serial", "tcp", "rtu_over_tcp", "simulated"];
+const DEVICE_KEYS: &[&str] = &[
+    "name",
+    "model",
+    "spec",
+    "line",
+    "slave",
+    "timeout",
+    "retries",
+    "silence_before",
+    "silence_after",
+    "power_up",
+    "poll",
+    "faults",
+];
+const POLL_KEYS: &[&str] = &["read", "every", "priority"];
+const TOP_KEYS: &[&str] = &["lines", "devices", "outputs"];
+
+/// A bus file read, with the places the cross-checks point at.
+pub(super) struct Parsed {
+    pub(super) file: BusFile,
+    pub(super) places: Places,
+}
+
+/// Where things were written, by index of line and device.
+#[derive(Default)]
+pub(super) struct Places {
+    pub(super) lines: Vec<LinePlaces>,
+    pub(super) devices: Vec<DevicePlaces>,
+}
+
+pub(super) struct LinePlaces {
+    pub(super) name: Span,
+    pub(super) port: Span,
+    /// The format keys given (baud first), or the line's name when none is.
+    pub(super) format: Span,
+    /// The line allows formats its devices' manuals do not list.
+    pub(super) any_format: bool,
+    /// The file gave a format (else the devices' factory format is taken).
+    pub(super) format_given: bool,
+    /// Where the gateway's address is written.
+    pub(super) gateway: Option<Span>,
+}
+
+pub(super) struct DevicePlaces {
+    pub(super) name: Span,
+    pub(super) slave: Span,
+    pub(super) faults: Option<Span>,
+}
+
+/// Reads the bus file's tree, collecting every problem.
+pub(super) struct Reader<'a> {
+    base: &'a Path,
+    catalogue: &'a Catalogue,
+    pub(super) diagnostics: Vec<Diagnostic>,
+}
+
+/// The diagnostic for text that is not YAML.
+pub(super) fn syntax(error: &SyntaxError) -> Diagnostic {
+    Diagnostic {
+        rule: error.rule,
+        message: error.message.clone(),
+        primary: Label {
+            location: Location::Position {
+                line: error.line,
+                column: error.column,
+            },
+            text: String::new(),
+        },
+        secondary: Vec::new(),
+        help: Some(error.help.into()),
+    }
+}
+
+/// The diagnostic for an empty file.
+pub(super) fn empty() -> Diagnostic {
+    Diagnostic {
+        rule: RULE,
+        message: "the bus file is empty".into(),
+        primary: Label {
+            location: Location::Position { line: 1, column: 1 },
+            text: String::new(),
+        },
+        secondary: Vec::new(),
+        help: Some("a bus file has `lines` and `devices`; see crates/bus/README.md".into()),
+    }
+}
+
+/// The entries of a mapping.
+fn entries(node: &Node) -> Option<&[(Node, Node)]> {
+    match &node.value {
+        Value::Mapping(entries) => Some(entries),
+        _ => None,
+    }
+}
+
+/// A plain or quoted scalar's text.
+fn scalar(node: &Node) -> Option<&str> {
+    match &node.value {
+        Value::Scalar { text, .. } if !node.is_null() => Some(text),
+        _ => None,
+    }
+}
+
+impl<'a> Reader<'a> {
+    pub(super) fn new(base: &'a Path, catalogue: &'a Catalogue) -> Self {
+        Self {
+            base,
+            catalogue,
+            diagnostics: Vec::new(),
+        }
+    }
+
+    fn error(&mut self, span: Span, message: impl Into<String>, help: impl Into<String>) {
+        self.diagnostics.push(Diagnostic {
+            rule: RULE,
+            message: message.into(),
+            primary: Label {
+                location: Location::Span(span),
+                text: String::new(),
+            },
+            secondary: Vec::new(),
+            help: Some(help.into()),
+        });
+    }
+
+    /// The entries of `node`, checked against `allowed` keys (each unknown or repeated key
+    /// reported), or an error saying `what` must be a mapping.
+    fn mapping<'n>(
+        &mut self,
+        node: &'n Node,
+        what: &str,
+        allowed: &[&str],
+    ) -> Option<&'n [(Node, Node)]> {
+        let Some(pairs) = entries(node) else {
+            self.error(
+                node.span,
+                format!("{what} must be a mapping, not {}", node.kind()),
+                HELP,
+            );
+            return None;
+        };
+        let mut seen: Vec<(&str, Span)> = Vec::new();
+        for (key, _) in pairs {
+            let Some(name) = scalar(key) else {
+                self.error(key.span, format!("{what} has a key that is not text"), HELP);
+                continue;
+            };
+            if let Some((_, first)) = seen.iter().find(|(seen, _)| *seen == name) {
+                let first = *first;
+                self.diagnostics.push(Diagnostic {
+                    rule: RULE,
+                    message: format!("{what} has `{name}` twice"),
+                    primary: Label {
+                        location: Location::Span(key.span),
+                        text: "repeated key".into(),
+                    },
+                    secondary: vec![Label {
+                        location: Location::Span(first),
+                        text: "first given here".into(),
+                    }],
+                    help: Some("give each key once".into()),
+                });
+            } else if !allowed.contains(&name) {
+                self.error(
+                    key.span,
+                    format!("{what} has no key `{name}`"),
+                    format!("its keys are {}", quoted(allowed)),
+                );
+            }
+            seen.push((name, key.span));
+        }
+        Some(pairs)
+    }
+
+    /// The items of a list, or an error.
+    fn list<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n [Node]> {
+        match &node.value {
+            Value::Sequence(items) => Some(items),
+            _ => {
+                self.error(
+                    node.span,
+                    format!("{what} must be a list, not {}", node.kind()),
+                    HELP,
+                );
+                None
+            }
+        }
+    }
+
+    fn text<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n str> {
+        let text = scalar(node);
+        if text.is_none() {
+            self.error(
+                node.span,
+                format!("{what} must be text, not {}", node.kind()),
+                HELP,
+            );
+        }
+        text
+    }
+
+    fn number<T: TryFrom<u64>>(&mut self, node: &Node, what: &str, range: (u64, u64)) -> Option<T> {
+        let text = self.text(node, what)?;
+        let value = parse_integer(text).filter(|v| (range.0..=range.1).contains(v));
+        match value.and_then(|v| T::try_from(v).ok()) {
+            Some(value) => Some(value),
+            None => {
+                self.error(
+                    node.span,
+                    format!(
+                        "{what} must be a whole number from {} to {}, not `{text}`",
+                        range.0, range.1
+                    ),
+                    HELP,
+                );
+                None
+            }
+        }
+    }
+
+    fn boolean(&mut self, node: &Node, what: &str) -> Option<bool> {
+        match scalar(node) {
+            Some("true") => Some(true),
+            Some("false") => Some(false),
+            _ => {
+                self.error(node.span, format!("{what} must be true or false"), HELP);
+                None
+            }
+        }
+    }
+
+    /// A duration like `200ms`, `1.5s`, `1s 500ms`, within `min ..= MAX_DURATION`.
+    fn duration(&mut self, node: &Node, what: &str, min: Duration) -> Option<Duration> {
+        let text = self.text(node, what)?;
+        match parse_duration(text) {
+            Ok(duration) if duration < min => {
+                self.error(
+                    node.span,
+                    format!(
+                        "{what} must be more than {}",
+                        show(min.saturating_sub(Duration::from_nanos(1)))
+                    ),
+                    "e.g. 100ms, 1.5s, 2m",
+                );
+                None
+            }
+            Ok(duration) if duration > MAX_DURATION => {
+                self.error(
+                    node.span,
+                    format!("{what} `{text}` is too long: at most 24h"),
+                    "e.g. 100ms, 1.5s, 2m",
+                );
+                None
+            }
+            Ok(duration) => Some(duration),
+            Err(why) => {
+                self.error(
+                    node.span,
+                    format!("{what} `{text}` {why}"),
+                    "e.g. 100ms, 1.5s, 2m",
+                );
+                None
+            }
+        }
+    }
+
+    /// The whole file.
+    pub(super) fn bus(&mut self, root: &Node) -> Option<Parsed> {
+        let top = self.mapping(root, "the bus file", TOP_KEYS)?;
+        let mut lines = Vec::new();
+        let mut line_places = Vec::new();
+        let mut devices = Vec::new();
+        let mut device_places = Vec::new();
+        let lines_node = top.iter().find(|(k, _)| scalar(k) == Some("lines"));
+        match lines_node {
+            Some((_, node)) => {
+                for item in self.list(node, "`lines`").unwrap_or_default() {
+                    if let Some((line, places)) = self.line(item) {
+                        lines.push(line);
+                        line_places.push(places);
+                    }
+                }
+            }
+            None => self.error(root.span, "the bus file has no `lines`", HELP),
+        }
+        let devices_node = top.iter().find(|(k, _)| scalar(k) == Some("devices"));
+        match devices_node {
+            Some((_, node)) => {
+                for item in self.list(node, "`devices`").unwrap_or_default() {
+                    if let Some((device, places)) = self.device(item, &lines) {
+                        devices.push(device);
+                        device_places.push(places);
+                    }
+                }
+            }
+            None => self.error(root.span, "the bus file has no `devices`", HELP),
+        }
+        if let Some((_, outputs)) = top.iter().find(|(k, _)| scalar(k) == Some("outputs")) {
+            if !outputs.is_null() {
+                self.mapping(outputs, "`outputs`", &[]);
+            }
+        }
+        Some(Parsed {
+            file: BusFile { lines, devices },
+            places: Places {
+                lines: line_places,
+                devices: device_places,
+            },
+        })
+    }
+
+    fn line(&mut self, node: &Node) -> Option<(LineConfig, LinePlaces)> {
+        let pairs = self.mapping(node, "a line", LINE_KEYS)?;
+        let get = |key: &str| pairs.iter().find(|(k, _)| scalar(k) == Some(key));
+        let name_node = get("name").map(|(_, v)| v);
+        let name = match name_node {
+            Some(v) => self.text(v, "a line's `name`").map(str::to_owned),
+            None => {
+                self.error(
+                    node.span,
+                    "a line needs a `name`",
+                    "devices name their line",
+                );
+                None
+            }
+        };
+        let ports: Vec<&(Node, Node)> = pairs
+            .iter()
+            .filter(|(k, _)| scalar(k).is_some_and(|k| PORT_KEYS.contains(&k)))
+            .collect();
+        let port = match ports.as_slice() {
+            [(key, value)] => self.port(key, value),
+            [] => {
+                self.error(
+                    name_node.map_or(node.span, |n| n.span),
+                    "a line needs one of `serial`, `tcp`, `rtu_over_tcp` or `simulated`",
+                    "e.g. `serial: /dev/ttyUSB0`, `tcp: 192.168.0.10:502`, `simulated: true`",
+                );
+                None
+            }
+            [_, (second, _), ..] => {
+                self.error(
+                    second.span,
+                    "a line has one port: this is its second",
+                    "give one of `serial`, `tcp`, `rtu_over_tcp`, `simulated`",
+                );
+                None
+            }
+        };
+        let mut format = LineFormat::new(115_200);
+        let mut format_span = None;
+        let mut format_ok = true;
+        if let Some((_, v)) = get("baud") {
+            format_span = format_span.or(Some(v.span));
+            match self.number::<u32>(v, "`baud`", (50, 4_000_000)) {
+                Some(baud) => format.baud = baud,
+                None => format_ok = false,
+            }
+        }
+        if let Some((_, v)) = get("parity") {
+            format_span = format_span.or(Some(v.span));
+            match self
+                .text(v, "`parity`")
+                .map(str::to_ascii_lowercase)
+                .as_deref()
+            {
+                Some("none" | "n") => format.parity = Parity::None,
+                Some("odd" | "o") => format.parity = Parity::Odd,
+                Some("even" | "e") => format.parity = Parity::Even,
+                Some(other) => {
+                    self.error(
+                        v.span,
+                        format!("`parity` must be none, odd or even, not `{other}`"),
+                        HELP,
+                    );
+                    format_ok = false;
+                }
+                None => format_ok = false,
+            }
+        }
+        if let Some((_, v)) = get("data_bits") {
+            format_span = format_span.or(Some(v.span));
+            match self.number::<u8>(v, "`data_bits`", (5, 8)) {
+                Some(bits) => format.data_bits = bits,
+                None => format_ok = false,
+            }
+        }
+        if let Some((_, v)) = get("stop_bits") {
+            format_span = format_span.or(Some(v.span));
+            match self.number::<u8>(v, "`stop_bits`", (1, 2)) {
+                Some(bits) => format.stop_bits = bits,
+                None => format_ok = false,
+            }
+        }
+        let any_format = match get("any_format") {
+            Some((_, v)) => self.boolean(v, "`any_format`")?,
+            None => false,
+        };
+        let broadcast_turnaround = match get("broadcast_turnaround") {
+            Some((_, v)) => self.duration(v, "`broadcast_turnaround`", Duration::ZERO)?,
+            None => DEFAULT_BROADCAST_TURNAROUND,
+        };
+        let gateway = match get("gateway") {
+            Some((_, v)) => Some(self.gateway(v)?),
+            None => None,
+        };
+        let (name, (port, port_span)) = (name?, port?);
+        if let (Port::Tcp(_), Some((_, span))) = (&port, &gateway) {
+            self.error(
+                *span,
+                format!("line `{name}` is Modbus TCP already: a gateway serves RTU lines"),
+                "other masters can reach a Modbus TCP device directly",
+            );
+            return None;
+        }
+        if !format_ok {
+            return None;
+        }
+        let format_given = format_span.is_some();
+        if matches!(port, Port::Tcp(_)) && format_given {
+            self.error(
+                format_span.unwrap_or(port_span),
+                format!("line `{name}` is Modbus TCP: it has no serial format"),
+                "for a serial-to-Ethernet converter that passes RTU frames, use `rtu_over_tcp`",
+            );
+            return None;
+        }
+        let name_span = name_node.map_or(node.span, |n| n.span);
+        Some((
+            LineConfig {
+                name,
+                format: port.is_rtu().then_some(format),
+                port,
+                broadcast_turnaround,
+                gateway: gateway.as_ref().map(|(g, _)| g.clone()),
+            },
+            LinePlaces {
+                name: name_span,
+                port: port_span,
+                format: format_span.unwrap_or(name_span),
+                any_format,
+                format_given,
+                gateway: gateway.map(|(_, span)| span),
+            },
+        ))
+    }
+
+    /// `gateway: ADDRESS` or `gateway: { listen: ADDRESS, clients: N, writes: BOOL }`.
+    fn gateway(&mut self, node: &Node) -> Option<(GatewayConfig, Span)> {
+        let (listen_node, pairs) = match &node.value {
+            Value::Mapping(_) => {
+                let pairs = self.mapping(node, "`gateway`", GATEWAY_KEYS)?;
+                let listen = pairs
+                    .iter()
+                    .find(|(k, _)| scalar(k) == Some("listen"))
+                    .map(|(_, v)| v);
+                let Some(listen) = listen else {
+                    self.error(
+                        node.span,
+                        "`gateway` needs `listen`",
+                        "e.g. `listen: 127.0.0.1:5020`",
+                    );
+                    return None;
+                };
+                (listen, pairs)
+            }
+            _ => (node, &[][..]),
+        };
+        let text = self.text(listen_node, "`gateway`")?;
+        let Some(listen) = listen_address(text) else {
+            self.error(
+                listen_node.span,
+                format!("`{text}` is no address to listen on"),
+                "give a port (listens on 127.0.0.1) or IP:PORT, e.g. 127.0.0.1:5020",
+            );
+            return None;
+        };
+        let get = |key: &str| {
+            pairs
+                .iter()
+                .find(|(k, _)| scalar(k) == Some(key))
+                .map(|(_, v)| v)
+        };
+        let clients = match get("clients") {
+            Some(v) => self.number::<usize>(v, "`clients`", (1, 1024))?,
+            None => DEFAULT_GATEWAY_CLIENTS,
+        };
+        let writes = match get("writes") {
+            Some(v) => self.boolean(v, "`writes`")?,
+            None => false,
+        };
+        Some((
+            GatewayConfig {
+                listen,
+                clients,
+                writes,
+            },
+            listen_node.span,
+        ))
+    }
+
+    fn port(&mut self, key: &Node, value: &Node) -> Option<(Port, Span)> {
+        let kind = scalar(key)?;
+        let port = match kind {
+            "simulated" => {
+                if !self.boolean(value, "`simulated`")? {
+                    self.error(
+                        value.span,
+                        "`simulated: false` names no port",
+                        "give `serial`, `tcp` or `rtu_over_tcp` instead",
+                    );
+                    return None;
+                }
+                Port::Simulated
+            }
+            _ => {
+                let address = self.text(value, &format!("`{kind}`"))?.trim().to_owned();
+                if address.is_empty() {
+                    self.error(value.span, format!("`{kind}` is empty"), HELP);
+                    return None;
+                }
+                match kind {
+                    "serial" => Port::Serial(address),
+                    other => {
+                        if !has_port(&address) {
+                            self.error(
+                                value.span,
+                                format!("`{other}` needs host:port, not `{address}`"),
+                                "e.g. 192.168.0.10:502",
+                            );
+                            return None;
+                        }
+                        if other == "tcp" {
+                            Port::Tcp(address)
+                        } else {
+                            Port::RtuOverTcp(address)
+                        }
+                    }
+                }
+            }
+        };
+        Some((port, value.span))
+    }
+
+    fn device(
+        &mut self,
+        node: &Node,
+        lines: &[LineConfig],
+    ) -> Option<(DeviceConfig, DevicePlaces)> {
+        let pairs = self.mapping(node, "a device", DEVICE_KEYS)?;
+        let get = |key: &str| {
+            pairs
+                .iter()
+                .find(|(k, _)| scalar(k) == Some(key))
+                .map(|(_, v)| v)
+        };
+        let name_node = get("name");
+        let name = match name_node {
+            Some(v) => self.text(v, "a device's `name`").map(str::to_owned),
+            None => {
+                self.error(node.span, "a device needs a `name`", "samples carry it");
+                None
+            }
+        };
+        let span = name_node.map_or(node.span, |n| n.span);
+        let model = match (get("model"), get("spec")) {
+            (Some(model), None) => self.model(model),
+            (None, Some(spec)) => self.spec(spec),
+            (Some(_), Some(spec)) => {
+                self.error(
+                    spec.span,
+                    "a device has a `model` or a `spec`, not both",
+                    HELP,
+                );
+                None
+            }
+            (None, None) => {
+                self.error(
+                    span,
+                    "a device needs a `model` (a built-in one) or a `spec` (a spec file)",
+                    format!("built-in models: {}", self.catalogue.names().join(", ")),
+                );
+                None
+            }
+        };
+        let line = match get("line") {
+            Some(v) => self.line_ref(v, lines),
+            None if lines.len() == 1 => Some(0),
+            None => {
+                self.error(
+                    span,
+                    "a device needs a `line` when the file has several",
+                    HELP,
+                );
+                None
+            }
+        };
+        let slave_node = get("slave");
+        let slave = match slave_node {
+            Some(v) => self.number::<u8>(v, "`slave`", (1, 247)),
+            None => model.as_ref().map(|(device, _)| device.default_slave),
+        };
+        let timeout = match get("timeout") {
+            Some(v) => self.duration(v, "`timeout`", Duration::from_millis(1)),
+            None => Some(optobus_transport::DEFAULT_TIMEOUT),
+        };
+        let retries = match get("retries") {
+            Some(v) => self.number::<u8>(v, "`retries`", (0, 10)),
+            None => Some(0),
+        };
+        let mut wait = |key: &str| match get(key) {
+            Some(v) => self.duration(v, &format!("`{key}`"), Duration::ZERO),
+            None => Some(Duration::ZERO),
+        };
+        let silence_before = wait("silence_before");
+        let silence_after = wait("silence_after");
+        let power_up = wait("power_up");
+        let polls = match (get("poll"), model.as_ref()) {
+            (Some(v), Some((device, _))) => self.polls(v, device),
+            (Some(v), None) => {
+                // Read what can be read without the model, so the shape is still checked.
+                self.list(v, "`poll`");
+                None
+            }
+            (None, _) => Some(Vec::new()),
+        };
+        let faults = match get("faults") {
+            Some(v) => {
+                let text = self.text(v, "`faults`")?;
+                match text.parse::<optobus_simulator::Faults>() {
+                    Ok(faults) => Some(faults),
+                    Err(why) => {
+                        self.error(
+                            v.span,
+                            format!("`faults` {why}"),
+                            "e.g. `drop=0.1,corrupt=0.05,seed=7`",
+                        );
+                        return None;
+                    }
+                }
+            }
+            None => None,
+        };
+        let faults_span = get("faults").map(|v| v.span);
+        let (device, model) = model?;
+        Some((
+            DeviceConfig {
+                name: name?,
+                device,
+                model,
+                line: line?,
+                slave: slave?,
+                // A value that did not read is reported already (the file is refused); the
+                // device still takes part in the checks across devices.
+                timeout: timeout.unwrap_or(optobus_transport::DEFAULT_TIMEOUT),
+                retries: retries.unwrap_or(0),
+                silence_before: silence_before.unwrap_or_default(),
+                silence_after: silence_after.unwrap_or_default(),
+                power_up: power_up.unwrap_or_default(),
+                polls: polls.unwrap_or_default(),
+                faults,
+            },
+            DevicePlaces {
+                name: span,
+                slave: slave_node.map_or(span, |n| n.span),
+                faults: faults_span,
+            },
+        ))
+    }
+
+    fn model(&mut self, node: &Node) -> Option<(&'static DeviceInfo, String)> {
+        let name = self.text(node, "`model`")?;
+        match self.catalogue.find(name) {
+            Some(device) => Some((device, name.to_owned())),
+            None => {
+                self.error(
+                    node.span,
+                    format!("there is no built-in model `{name}`"),
+                    format!(
+                        "built-in models: {}; or give a spec file with `spec:`",
+                        self.catalogue.names().join(", ")
+                    ),
+                );
+                None
+            }
+        }
+    }
+
+    fn spec(&mut self, node: &Node) -> Option<(&'static DeviceInfo, String)> {
+        let path = self.text(node, "`spec`")?;
+        match self.catalogue.load(&self.base.join(path)) {
+            Ok(device) => Some((device, path.to_owned())),
+            Err(why) => {
+                self.error(node.span, format!("spec `{path}` cannot be used"), why);
+                None
+            }
+        }
+    }
+
+    fn line_ref(&mut self, node: &Node, lines: &[LineConfig]) -> Option<usize> {
+        let name = self.text(node, "`line`")?;
+        let found = lines.iter().position(|line| line.name == name);
+        if found.is_none() {
+            let known: Vec<&str> = lines.iter().map(|l| l.name.as_str()).collect();
+            self.error(
+                node.span,
+                format!("there is no line `{name}`"),
+                format!("lines: {}", quoted(&known)),
+            );
+        }
+        found
+    }
+
+    fn polls(&mut self, node: &Node, device: &'static DeviceInfo) -> Option<Vec<PollConfig>> {
+        let items = self.list(node, "`poll`")?;
+        let mut polls = Vec::new();
+        let mut ok = true;
+        for item in items {
+            match self.poll(item, device) {
+                Some(poll) => polls.push(poll),
+                None => ok = false,
+            }
+        }
+        ok.then_some(polls)
+    }
+
+    fn poll(&mut self, node: &Node, device: &'static DeviceInfo) -> Option<PollConfig> {
+        let pairs = self.mapping(node, "a poll", POLL_KEYS)?;
+        let get = |key: &str| {
+            pairs
+                .iter()
+                .find(|(k, _)| scalar(k) == Some(key))
+                .map(|(_, v)| v)
+        };
+        let names: Vec<&Node> = match get("read") {
+            Some(v) => match &v.value {
+                Value::Sequence(items) => items.iter().collect(),
+                _ => vec![v],
+            },
+            None => {
+                self.error(node.span, "a poll needs `read`: groups or registers", HELP);
+                return None;
+            }
+        };
+        let mut registers: Vec<&'static RegisterInfo> = Vec::new();
+        let mut written = Vec::new();
+        let mut ok = !names.is_empty();
+        for name_node in names {
+            let Some(name) = self.text(name_node, "a name to read") else {
+                ok = false;
+                continue;
+            };
+            match resolve(device, name) {
+                Ok(found) => {
+                    registers.extend(found);
+                    written.push(name.to_owned());
+                }
+                Err(why) => {
+                    self.error(
+                        name_node.span,
+                        why,
+                        format!(
+                            "`optobus registers {}` lists them",
+                            device.model_name().to_string()
+                        ),
+                    );
+                    ok = false;
+                }
+            }
+        }
+        let every = match get("every") {
+            Some(v) if scalar(v) == Some("fastest") => Some(None),
+            Some(v) => self
+                .duration(v, "`every`", Duration::from_nanos(1))
+                .map(Some),
+            None => Some(None),
+        };
+        let priority = match get("priority") {
+            Some(v) => self.number::<u8>(v, "`priority`", (0, 255)),
+            None => Some(0),
+        };
+        registers.sort_by_key(|r| (r.table, r.address));
+        registers.dedup_by_key(|r| (r.table, r.address, r.name));
+        if !ok {
+            return None;
+        }
+        Some(PollConfig {
+            names: written,
+            registers,
+            every: every?,
+            priority: priority?,
+        })
+    }
+}
+
+/// The registers a group or register name stands for, or why it cannot be polled.
+pub fn resolve(
+    device: &'static DeviceInfo,
+    name: &str,
+) -> Result<Vec<&'static RegisterInfo>, String> {
+    let model = device.model_name().to_string();
+    let registers: Vec<&'static RegisterInfo> = match device.groups.iter().find(|g| g.name == name)
+    {
+        Some(group) => group
+            .registers
+            .iter()
+            .flat_map(|member| device.members(member))
+            .collect(),
+        None => device.members(name).collect(),
+    };
+    if registers.is_empty() {
+        return Err(format!("{model} has no register or group `{name}`"));
+    }
+    if let Some(register) = registers.iter().find(|r| !r.readable()) {
+        return Err(format!("`{}` of {model} cannot be read", register.name));
+    }
+    if let Some(register) = registers.iter().find(|r| !r.read_is_repeatable()) {
+        return Err(format!(
+            "reading `{}` of {model} changes the device, so it is not polled",
+            register.name
+        ));
+    }
+    Ok(registers)
+}
+
+/// `a`, `b` and `c` in backquotes.
+fn quoted(names: &[&str]) -> String {
+    names
+        .iter()
+        .map(|n| format!("`{n}`"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A port alone (on 127.0.0.1), `localhost:PORT`, or `IP:PORT`.
+fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
+    let text = text.trim();
+    if let Ok(port) = text.parse::<u16>() {
+        return Some(std::net::SocketAddr::from(([127, 0, 0, 1], port)));
+    }
+    if let Some(port) = text.strip_prefix("localhost:") {
+        return Some(std::net::SocketAddr::from((
+            [127, 0, 0, 1],
+            port.parse().ok()?,
+        )));
+    }
+    text.parse().ok()
+}
+
+fn has_port(address: &str) -> bool {
+    address
+        .rsplit_once(':')
+        .is_some_and(|(host, port)| !host.is_empty() && port.parse::<u16>().is_ok_and(|p| p > 0))
+}
+
+fn parse_integer(text: &str) -> Option<u64> {
+    let text = text.trim();
+    match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
+        Some(hex) => u64::from_str_radix(hex, 16).ok(),
+        None => text.parse().ok(),
+    }
+}
+
+/// A friendly duration (`200ms`, `1.5s`, `1s 500ms`, `2m`); a bare number is refused, since a
+/// unit cannot be guessed safely.
+pub(crate) fn parse_duration(text: &str) -> Result<Duration, &'static str> {
+    let text = text.trim();
+    if !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit() || b == b'.') {
+        return Err("needs a unit (ms, s, m, h)");
+    }
+    let signed: SignedDuration = text.parse().map_err(|_| "is not a duration")?;
+    if signed.is_negative() {
+        return Err("cannot be negative");
+    }
+    Duration::try_from(signed).map_err(|_| "is too long: at most 24h")
+}
+
+/// A duration as people write it.
+pub(crate) fn show(duration: Duration) -> String {
+    let signed = SignedDuration::try_from(duration).unwrap_or(SignedDuration::MAX);
+    format!("{signed:#}")
+}

@@ -1,0 +1,440 @@
+//! One task per line: opens its port (and reopens it after a failure), runs the schedule's
+//! polls through each device's driver core, and tells what happened as events.
+
+use std::sync::Arc;
+use std::time::{Duration, SystemTime};
+
+use optobus_codec::passthrough::PassPdu;
+use optobus_codec::LineFormat;
+use optobus_codec::{FrameShape, BROADCAST};
+use optobus_device::RegisterInfo;
+use optobus_driver::{Core, Error as DriverError};
+use optobus_inspect::decode_value;
+use optobus_transport::{Error, RtuClient, RtuConfig};
+use tokio::sync::{broadcast, mpsc, Mutex};
+use tokio::time::Instant;
+
+use crate::event::{DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
+use crate::gateway::{self, GatewayRequest};
+use crate::handle::{self, Checked, Job};
+use crate::link::{Client, DeviceLink, DeviceSettings, LineState, Stream};
+use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
+
+/// The gateway's exception for a request the line could not carry out.
+fn path_or_target(error: &Error) -> u8 {
+    match error {
+        Error::Timeout { .. } | Error::Frame(_) | Error::WordCount { .. } => gateway::TARGET_FAILED,
+        _ => gateway::PATH_UNAVAILABLE,
+    }
+}
+
+/// How often a line sends its statistics.
+const STATS_EVERY: Duration = Duration::from_secs(1);
+
+/// How a line's port is opened.
+pub(crate) enum Opener {
+    /// A stream handed over once (a test's in-memory line); afterwards the line stays closed.
+    Stream(Option<Box<dyn Stream>>),
+    /// Simulated devices behind an emulated line, a new connection each time.
+    Simulated(optobus_simulator::Bus, Option<LineFormat>),
+    /// A serial port.
+    #[cfg(feature = "serial")]
+    Serial(optobus_transport::SerialSettings),
+    /// RTU over a TCP socket (a serial-to-Ethernet converter).
+    #[cfg(feature = "tcp")]
+    RtuOverTcp(String),
+    /// Modbus TCP.
+    #[cfg(feature = "tcp")]
+    Tcp(String),
+}
+
+impl Opener {
+    async fn open(&mut self, format: Option<LineFormat>) -> Result<Client, Error> {
+        let rtu = |stream: Box<dyn Stream>| {
+            Client::Rtu(RtuClient::with_config(
+                stream,
+                RtuConfig {
+                    line: format,
+                    ..RtuConfig::default()
+                },
+            ))
+        };
+        match self {
+            Self::Stream(stream) => stream.take().map(rtu).ok_or(Error::Closed),
+            Self::Simulated(bus, line) => {
+                let (stream, _server) = match line {
+                    Some(format) => bus.duplex_line(optobus_simulator::Line::new(*format)),
+                    None => bus.duplex(),
+                };
+                Ok(rtu(Box::new(stream)))
+            }
+            #[cfg(feature = "serial")]
+            Self::Serial(settings) => Ok(rtu(Box::new(settings.open()?))),
+            #[cfg(feature = "tcp")]
+            Self::RtuOverTcp(address) => {
+                let stream = tokio::net::TcpStream::connect(address.as_str())
+                    .await
+                    .map_err(|source| Error::Connect {
+                        attempts: 1,
+                        source,
+                    })?;
+                let _ = stream.set_nodelay(true);
+                Ok(rtu(Box::new(stream)))
+            }
+            #[cfg(feature = "tcp")]
+            Self::Tcp(address) => {
+                let address = optobus_transport::resolve(address, 502)
+                    .await
+                    .map_err(|source| Error::Connect {
+                        attempts: 1,
+                        source,
+                    })?;
+                Ok(Client::Tcp(optobus_transport::TcpClient::new(
+                    address,
+                    optobus_transport::TcpConfig::default(),
+                )))
+            }
+        }
+    }
+}
+
+/// A device as its line runs it.
+pub(crate) struct DeviceRun {
+    pub(crate) id: Arc<DeviceId>,
+    pub(crate) core: Core<DeviceLink>,
+    pub(crate) errors: Arc<std::sync::Mutex<ErrorCounts>>,
+    /// How its requests are made (the gateway's requests to it too).
+    pub(crate) settings: DeviceSettings,
+}
+
+/// The gateway's side of a line.
+pub(crate) struct GatewayQueue {
+    pub(crate) requests: mpsc::Receiver<GatewayRequest>,
+    /// Whether writes pass.
+    pub(crate) writes: bool,
+}
+
+/// The registers of one poll.
+pub(crate) struct PollRun {
+    pub(crate) registers: Vec<&'static RegisterInfo>,
+}
+
+/// Maps the line's monotonic clock to wall-clock times for samples.
+#[derive(Clone, Copy)]
+struct Clock {
+    instant: Instant,
+    system: SystemTime,
+}
+
+impl Clock {
+    fn now() -> Self {
+        Self {
+            instant: Instant::now(),
+            system: SystemTime::now(),
+        }
+    }
+
+    fn system(&self, at: Instant) -> SystemTime {
+        self.system + at.saturating_duration_since(self.instant)
+    }
+}
+
+/// Everything one line's task owns.
+pub(crate) struct LineTask {
+    pub(crate) name: Arc<str>,
+    pub(crate) format: Option<LineFormat>,
+    pub(crate) opener: Opener,
+    pub(crate) state: Arc<Mutex<LineState>>,
+    pub(crate) devices: Vec<DeviceRun>,
+    pub(crate) polls: Vec<PollRun>,
+    pub(crate) schedule: Schedule,
+    pub(crate) events: broadcast::Sender<Event>,
+    pub(crate) gateway: Option<GatewayQueue>,
+    /// Writes, commands and reads asked for through a [`crate::Handle`].
+    pub(crate) jobs: mpsc::Receiver<Job>,
+    /// The silence owed after a broadcast.
+    pub(crate) broadcast_turnaround: Duration,
+}
+
+/// The next request of the gateway, or never when the line has none.
+async fn next_request(gateway: &mut Option<GatewayQueue>) -> Option<GatewayRequest> {
+    match gateway {
+        Some(gateway) => gateway.requests.recv().await,
+        None => std::future::pending().await,
+    }
+}
+
+impl LineTask {
+    /// Runs the line until the task is aborted.
+    ///
+    /// After each poll the line serves the gateway's requests that waited through it (one
+    /// round: at most one per client), then the next poll: a request waits for at most one
+    /// poll besides the requests of other clients queued before it, and the polls keep at
+    /// least one turn in every `clients + 1`.
+    pub(crate) async fn run(mut self) {
+        let clock = Clock::now();
+        let mut next_stats = clock.instant + STATS_EVERY;
+        let mut reopen_at = clock.instant;
+        let mut reopen_wait = FIRST_BACKOFF;
+        // Gateway requests still to serve before the next poll.
+        let mut gateway_round = 0usize;
+        let mut was_open = true;
+        loop {
+            let now = Instant::now();
+            if now >= next_stats {
+                self.send_stats(&clock).await;
+                next_stats = now + STATS_EVERY;
+            }
+            let mut open = self.is_open().await;
+            if !open && now >= reopen_at {
+                open = self.ensure_open().await;
+                if open {
+                    reopen_wait = FIRST_BACKOFF;
+                } else {
+                    reopen_at = now + reopen_wait;
+                    reopen_wait = (reopen_wait * 2).min(MAX_BACKOFF);
+                }
+            }
+            if open != was_open {
+                // Whoever watches the line hears at once that it closed or opened again.
+                self.send_stats(&clock).await;
+                was_open = open;
+            }
+            let next = if open {
+                self.schedule.next(now)
+            } else {
+                Next::Wait(reopen_at)
+            };
+            // API jobs go ahead of everything (the gateway's clients and the polls).
+            if let Ok(job) = self.jobs.try_recv() {
+                self.do_job(job).await;
+                continue;
+            }
+            if gateway_round > 0 || !matches!(next, Next::Run(_)) {
+                if let Some(request) = self
+                    .gateway
+                    .as_mut()
+                    .and_then(|g| g.requests.try_recv().ok())
+                {
+                    self.serve(request).await;
+                    gateway_round = gateway_round.saturating_sub(1);
+                    continue;
+                }
+                gateway_round = 0;
+            }
+            let until = match next {
+                Next::Run(poll) => {
+                    self.run_poll(poll, &clock).await;
+                    gateway_round = self.gateway.as_ref().map_or(0, |g| g.requests.len());
+                    continue;
+                }
+                Next::Wait(until) => until.min(next_stats),
+                Next::Idle => next_stats,
+            };
+            tokio::select! {
+                () = tokio::time::sleep_until(until) => {}
+                Some(job) = self.jobs.recv() => self.do_job(job).await,
+                Some(request) = next_request(&mut self.gateway) => self.serve(request).await,
+            }
+        }
+    }
+
+    /// Carries out an API job; its caller gets the outcome (if it still waits).
+    async fn do_job(&mut self, job: Job) {
+        match job {
+            Job::Write {
+                device,
+                register,
+                words,
+                broadcast,
+                done,
+            } => {
+                let core = &mut self.devices[device].core;
+                let result = if broadcast {
+                    let slave = core.slave();
+                    // Slave 0 is always accepted; the device's own address was checked.
+                    let _ = core.set_slave(BROADCAST);
+                    let result = core.write(register, &Checked(words)).await;
+                    let _ = core.set_slave(slave);
+                    let mut state = self.state.lock().await;
+                    state.owed = state.owed.max(self.broadcast_turnaround);
+                    result
+                } else {
+                    core.write(register, &Checked(words)).await
+                };
+                let _ = done.send(result);
+            }
+            Job::Run {
+                device,
+                command,
+                register,
+                done,
+            } => {
+                let core = &mut self.devices[device].core;
+                let result =
+                    match optobus_driver::encode_integer(register, i64::from(command.value)) {
+                        Ok(words) => core.write(register, &Checked(words)).await,
+                        Err(error) => Err(error),
+                    };
+                if result.is_err() || command.busy_ms == 0 {
+                    let _ = done.send(result);
+                    return;
+                }
+                // The device is busy: the line serves the others meanwhile, and the caller
+                // hears back when the busy time is over.
+                let busy = Duration::from_millis(u64::from(command.busy_ms));
+                self.schedule.hold(device, Instant::now() + busy);
+                tokio::spawn(async move {
+                    tokio::time::sleep(busy).await;
+                    let _ = done.send(Ok(()));
+                });
+            }
+            Job::Read {
+                device,
+                registers,
+                done,
+            } => {
+                let result = self.devices[device].core.read_group(&registers).await;
+                let _ = done.send(result.map(|readings| handle::values(&registers, &readings)));
+            }
+        }
+    }
+
+    async fn is_open(&mut self) -> bool {
+        let state = self.state.lock().await;
+        state.client.is_some() && !state.broken
+    }
+
+    /// Passes a gateway request to the line and sends its reply back.
+    async fn serve(&mut self, request: GatewayRequest) {
+        let reply = self.pass(request.unit, &request.pdu).await;
+        // The client may have gone meanwhile: nothing to do then.
+        let _ = request.reply.send(reply);
+    }
+
+    /// The reply PDU to a gateway request (an exception where it cannot be passed), or `None`
+    /// for a broadcast.
+    async fn pass(&mut self, unit: u8, pdu: &[u8]) -> Option<Vec<u8>> {
+        let function = pdu[0];
+        let refused = |code| Some(gateway::exception(function, code));
+        let writes = self.gateway.as_ref().is_some_and(|g| g.writes);
+        let (settings, shape, refusal) = {
+            let device = self.devices.iter().find(|d| d.id.slave == unit);
+            let refusal = match (gateway::is_write(function), device) {
+                (true, _) if !writes => Some(gateway::ILLEGAL_FUNCTION),
+                (true, Some(device)) => gateway::refuse_write(device.core.device(), pdu),
+                _ => None,
+            };
+            match device {
+                Some(device) => (device.settings, device.core.device().frame_shape, refusal),
+                None => (DeviceSettings::standard(), FrameShape::STANDARD, refusal),
+            }
+        };
+        if let Some(code) = refusal {
+            return refused(code);
+        }
+        let Ok(pass) = PassPdu::new(pdu) else {
+            return refused(gateway::ILLEGAL_FUNCTION);
+        };
+        let mut state = self.state.lock().await;
+        let started = Instant::now();
+        let result = match state.client_for(&settings) {
+            Ok(Client::Rtu(rtu)) => rtu.transact_pdu(unit, &pass, &shape).await,
+            #[cfg(feature = "tcp")]
+            Ok(Client::Tcp(_)) => Err(Error::Unsupported("a gateway serves RTU lines")),
+            Err(error) => return refused(path_or_target(&error)),
+        };
+        state.record(&settings, started, &result);
+        match result {
+            Ok(Some(reply)) => Some(reply),
+            Ok(None) => {
+                state.owed = state.owed.max(self.broadcast_turnaround);
+                None
+            }
+            Err(error) => refused(path_or_target(&error)),
+        }
+    }
+
+    /// Opens the port if it is closed or broke; false if it cannot be opened now.
+    async fn ensure_open(&mut self) -> bool {
+        let mut state = self.state.lock().await;
+        if state.client.is_some() && !state.broken {
+            return true;
+        }
+        state.client = None;
+        state.broken = false;
+        match self.opener.open(self.format).await {
+            Ok(client) => {
+                state.client = Some(client);
+                true
+            }
+            Err(error) => {
+                tracing::warn!(target: "optobus_bus", line = &*self.name, "cannot open the line: {error}");
+                state.errors.line += 1;
+                false
+            }
+        }
+    }
+
+    /// Runs one poll: a sample for every register read (those of the requests answered
+    /// before a failed one too), and the device's health from how it went.
+    async fn run_poll(&mut self, poll: usize, clock: &Clock) {
+        let device_index = self.schedule.device_of(poll);
+        let registers = &self.polls[poll].registers;
+        let device = &mut self.devices[device_index];
+        let requested = Instant::now();
+        let result = device.core.read_group_partly(registers).await;
+        let replied = Instant::now();
+        let (readings, error) = match &result {
+            Ok(readings) => (readings, None),
+            Err(partial) => (&partial.readings, Some(&partial.error)),
+        };
+        let read = |register: &RegisterInfo| match &result {
+            Ok(_) => true,
+            Err(partial) => partial.has(register),
+        };
+        for &register in registers.iter().filter(|r| read(r)) {
+            let sample = Sample {
+                source: Arc::clone(&device.id),
+                register,
+                value: decode_value(register, readings.words(register)),
+                requested: clock.system(requested),
+                replied: clock.system(replied),
+            };
+            // No receiver is no error: the bus runs whether anyone listens or not.
+            let _ = self.events.send(Event::Sample(Arc::new(sample)));
+        }
+        let outcome = match error {
+            None | Some(DriverError::Transport(Error::Exception { .. })) => Outcome::Answered,
+            Some(_) => Outcome::Failed,
+        };
+        if let Some(health) = self.schedule.done(poll, replied, outcome) {
+            let errors = *device.errors.lock().unwrap_or_else(|e| e.into_inner());
+            let reason = match (error, health) {
+                (Some(error), Health::Offline) => Some(error.to_string()),
+                _ => None,
+            };
+            let event = HealthEvent {
+                source: Arc::clone(&device.id),
+                health,
+                errors,
+                reason,
+            };
+            tracing::info!(target: "optobus_bus", device = &*device.id.device, ?health, "device health");
+            let _ = self.events.send(Event::Health(Arc::new(event)));
+        }
+    }
+
+    async fn send_stats(&mut self, clock: &Clock) {
+        let state = self.state.lock().await;
+        let stats = LineStats {
+            line: Arc::clone(&self.name),
+            transactions: state.transactions,
+            errors: state.errors,
+            busy: state.busy,
+            elapsed: clock.instant.elapsed(),
+            open: state.client.is_some() && !state.broken,
+        };
+        let _ = self.events.send(Event::Line(Arc::new(stats)));
+    }
+}

@@ -1,0 +1,198 @@
+//! One line's client, and each device's view of it: the device's own timeout, retries,
+//! exception framing and silences applied to every request it makes.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use optobus_codec::{ExceptionShape, WriteValue};
+use optobus_transport::{Error, ReadRequest, RtuClient, Transport};
+use tokio::io::{AsyncRead, AsyncWrite};
+use tokio::sync::Mutex;
+use tokio::time::Instant;
+
+use crate::event::ErrorCounts;
+
+/// A byte stream a line's RTU frames travel on.
+pub trait Stream: AsyncRead + AsyncWrite + Unpin + Send + 'static {}
+impl<S: AsyncRead + AsyncWrite + Unpin + Send + 'static> Stream for S {}
+
+/// The client of a line.
+pub(crate) enum Client {
+    /// RTU frames on a stream (a serial port, a converter's TCP socket, a simulated line).
+    Rtu(RtuClient<Box<dyn Stream>>),
+    /// Modbus TCP.
+    #[cfg(feature = "tcp")]
+    Tcp(optobus_transport::TcpClient),
+}
+
+impl std::fmt::Debug for Client {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Rtu(client) => f.debug_tuple("Rtu").field(client.config()).finish(),
+            #[cfg(feature = "tcp")]
+            Self::Tcp(client) => f.debug_tuple("Tcp").field(client.config()).finish(),
+        }
+    }
+}
+
+/// How a device's requests are made.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct DeviceSettings {
+    pub(crate) timeout: Duration,
+    pub(crate) retries: u8,
+    pub(crate) exception: ExceptionShape,
+    pub(crate) silence_before: Duration,
+    pub(crate) silence_after: Duration,
+}
+
+impl DeviceSettings {
+    /// For a slave the bus file does not describe: the default timeout, no retries, standard
+    /// framing, no extra silence.
+    pub(crate) fn standard() -> Self {
+        Self {
+            timeout: optobus_transport::DEFAULT_TIMEOUT,
+            retries: 0,
+            exception: ExceptionShape::Standard,
+            silence_before: Duration::ZERO,
+            silence_after: Duration::ZERO,
+        }
+    }
+}
+
+/// A line's client and what it has done.
+#[derive(Debug)]
+pub(crate) struct LineState {
+    /// `None` while the port is closed.
+    pub(crate) client: Option<Client>,
+    /// t3.5 of the line's format (zero on Modbus TCP).
+    pub(crate) frame_gap: Duration,
+    /// Silence owed before the next request, set by the last device's `silence_after` or a
+    /// broadcast's turnaround.
+    pub(crate) owed: Duration,
+    pub(crate) transactions: u64,
+    pub(crate) errors: ErrorCounts,
+    pub(crate) busy: Duration,
+    /// The port failed in a way that needs it reopened.
+    pub(crate) broken: bool,
+}
+
+impl LineState {
+    pub(crate) fn new(frame_gap: Duration) -> Self {
+        Self {
+            client: None,
+            frame_gap,
+            owed: Duration::ZERO,
+            transactions: 0,
+            errors: ErrorCounts::default(),
+            busy: Duration::ZERO,
+            broken: false,
+        }
+    }
+}
+
+/// Counts `error` in `counts`.
+pub(crate) fn count(counts: &mut ErrorCounts, error: &Error) {
+    match error {
+        Error::Timeout { .. } => counts.timeouts += 1,
+        Error::Exception { .. } => counts.exceptions += 1,
+        Error::Frame(_) | Error::WordCount { .. } | Error::Desynchronised(_) => counts.frames += 1,
+        _ => counts.line += 1,
+    }
+}
+
+/// Whether `error` means the port itself must be reopened.
+fn breaks_the_port(error: &Error) -> bool {
+    matches!(error, Error::Closed | Error::Io(_))
+}
+
+/// A device's handle on its line: what its driver core talks through.
+#[derive(Clone, Debug)]
+pub(crate) struct DeviceLink {
+    pub(crate) line: Arc<Mutex<LineState>>,
+    pub(crate) settings: DeviceSettings,
+    /// This device's errors.
+    pub(crate) errors: Arc<std::sync::Mutex<ErrorCounts>>,
+}
+
+impl LineState {
+    /// The client, set up for a request with `settings`; `Closed` while the port is.
+    pub(crate) fn client_for(&mut self, settings: &DeviceSettings) -> Result<&mut Client, Error> {
+        let gap = self.owed.max(self.frame_gap + settings.silence_before);
+        let client = self.client.as_mut().ok_or(Error::Closed)?;
+        match client {
+            Client::Rtu(rtu) => {
+                let config = rtu.config_mut();
+                config.timeout = settings.timeout;
+                config.read_retries = settings.retries;
+                config.exception = settings.exception;
+                config.frame_gap = Some(gap);
+            }
+            #[cfg(feature = "tcp")]
+            Client::Tcp(tcp) => {
+                let config = tcp.config_mut();
+                config.timeout = settings.timeout;
+                config.read_retries = settings.retries;
+                config.exception = settings.exception;
+            }
+        }
+        Ok(client)
+    }
+
+    /// Counts a finished request made with `settings`: its time, its error, the silence it
+    /// leaves owed.
+    pub(crate) fn record<R>(
+        &mut self,
+        settings: &DeviceSettings,
+        started: Instant,
+        result: &Result<R, Error>,
+    ) {
+        self.busy += started.elapsed();
+        self.transactions += 1;
+        self.owed = settings.silence_after;
+        if let Err(error) = result {
+            count(&mut self.errors, error);
+            if breaks_the_port(error) {
+                self.broken = true;
+            }
+        }
+    }
+}
+
+impl DeviceLink {
+    fn count_error<R>(&self, result: &Result<R, Error>) {
+        if let Err(error) = result {
+            count(
+                &mut self.errors.lock().unwrap_or_else(|e| e.into_inner()),
+                error,
+            );
+        }
+    }
+}
+
+impl Transport for DeviceLink {
+    async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, Error> {
+        let mut line = self.line.lock().await;
+        let started = Instant::now();
+        let result = match line.client_for(&self.settings)? {
+            Client::Rtu(rtu) => rtu.read_words(slave, read).await,
+            #[cfg(feature = "tcp")]
+            Client::Tcp(tcp) => tcp.read_words(slave, read).await,
+        };
+        line.record(&self.settings, started, &result);
+        self.count_error(&result);
+        result
+    }
+
+    async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), Error> {
+        let mut line = self.line.lock().await;
+        let started = Instant::now();
+        let result = match line.client_for(&self.settings)? {
+            Client::Rtu(rtu) => rtu.write(slave, address, value).await,
+            #[cfg(feature = "tcp")]
+            Client::Tcp(tcp) => tcp.write(slave, address, value).await,
+        };
+        line.record(&self.settings, started, &result);
+        self.count_error(&result);
+        result
+    }
+}

@@ -1,0 +1,288 @@
+//! Bus files: what a good one reads as, and every problem of a bad one reported at once with
+//! its place.
+
+use std::path::Path;
+use std::time::Duration;
+
+use optobus_bus::{BusFile, Catalogue, Port};
+
+fn catalogue() -> Catalogue {
+    Catalogue::new([
+        &optobus_p_series::DEVICE,
+        &optobus_rangefinder::DEVICE,
+        &optobus_ccs::DEVICE,
+        &optobus_lc_rs::DEVICE,
+        &optobus_ccf::DEVICE,
+    ])
+}
+
+fn parse(text: &str) -> Result<BusFile, String> {
+    BusFile::parse("bus.yaml", text, Path::new("."), &catalogue()).map_err(|e| e.render())
+}
+
+#[test]
+fn a_bus_file_reads_into_lines_devices_and_polls() {
+    let bus = parse(
+        "
+lines:
+  - name: rs485
+    serial: /dev/ttyUSB0
+  - name: plant
+    tcp: 192.168.0.10:502
+devices:
+  - name: left
+    model: p-series
+    line: rs485
+    slave: 1
+    timeout: 200ms
+    retries: 1
+    silence_after: 2ms
+    poll:
+      - read: measurements
+        every: 100ms
+        priority: 2
+      - read: [distance_1, light_power]
+  - name: right
+    model: P_Series
+    line: rs485
+    slave: 2
+  - name: remote
+    model: p-series
+    line: plant
+    slave: 1
+",
+    )
+    .expect("the file passes");
+    assert_eq!(bus.lines.len(), 2);
+    assert_eq!(bus.lines[0].port, Port::Serial("/dev/ttyUSB0".into()));
+    let format = bus.lines[0].format.expect("a serial line has a format");
+    assert_eq!(
+        format.baud,
+        optobus_p_series::DEVICE.rtu.unwrap().default_baud,
+        "the devices' factory format"
+    );
+    assert_eq!(
+        bus.lines[1].format, None,
+        "Modbus TCP has no character format"
+    );
+    assert_eq!(
+        bus.lines[0].broadcast_turnaround,
+        Duration::from_millis(100)
+    );
+    let left = &bus.devices[0];
+    assert_eq!((left.line, left.slave, left.retries), (0, 1, 1));
+    assert_eq!(left.timeout, Duration::from_millis(200));
+    assert_eq!(left.silence_after, Duration::from_millis(2));
+    assert_eq!(left.polls[0].every, Some(Duration::from_millis(100)));
+    assert_eq!(left.polls[0].priority, 2);
+    assert!(left.polls[0]
+        .registers
+        .iter()
+        .any(|r| r.name == "distance_1"));
+    assert_eq!(left.polls[1].every, None, "as fast as the line allows");
+    let names: Vec<&str> = left.polls[1].registers.iter().map(|r| r.name).collect();
+    assert_eq!(names.len(), 2);
+    assert!(names.contains(&"distance_1") && names.contains(&"light_power"));
+    assert_eq!(
+        bus.devices[1].device.family, "p_series",
+        "model names in any spelling"
+    );
+    assert_eq!(bus.devices[2].line, 1);
+}
+
+#[test]
+fn every_problem_is_reported_at_once_with_its_place() {
+    let rendered = parse(
+        "
+lines:
+  - name: a
+    serial: /dev/ttyUSB0
+  - name: a
+    serial: /dev/ttyUSB0
+    baud: 12345
+devices:
+  - name: one
+    model: p-series
+    line: a
+    slave: 1
+    poll: [{ read: distanse_1, every: 0ms }]
+  - name: one
+    model: p-series
+    line: a
+    slave: 1
+  - name: three
+    model: no-such-model
+    line: a
+    slave: 300
+  - name: four
+    model: ccs
+    line: nowhere
+    timeout: 25h
+",
+    )
+    .expect_err("the file has problems");
+    for expected in [
+        "error[duplicate-line]: two lines are called `a`",
+        "error[duplicate-port]: two lines use the port `/dev/ttyUSB0`",
+        "error[duplicate-device]: two devices are called `one`",
+        "error[duplicate-slave]: two devices on line `a` are slave 1",
+        "p-series has no register or group `distanse_1`",
+        "`every` must be more than",
+        "there is no built-in model `no-such-model`",
+        "`slave` must be a whole number from 1 to 247, not `300`",
+        "there is no line `nowhere`",
+        "`timeout` `25h` is too long: at most 24h",
+        "--> bus.yaml:",
+    ] {
+        assert!(
+            rendered.contains(expected),
+            "missing {expected:?} in:\n{rendered}"
+        );
+    }
+    // Located: the second line name points at line 5 of the file, column 11.
+    assert!(rendered.contains("bus.yaml:5:11"), "{rendered}");
+}
+
+#[test]
+fn a_line_format_the_manual_does_not_list_is_refused() {
+    let rendered = parse(
+        "
+lines:
+  - { name: a, serial: /dev/ttyUSB0, baud: 12345 }
+devices:
+  - { name: one, model: p-series, slave: 1 }
+",
+    )
+    .expect_err("12345 baud is no rate of the P series");
+    assert!(
+        rendered.contains("error[line-format]: line `a` runs 12345 baud"),
+        "{rendered}"
+    );
+    assert!(rendered.contains("any_format: true"), "{rendered}");
+    let allowed = parse(
+        "
+lines:
+  - { name: a, serial: /dev/ttyUSB0, baud: 12345, any_format: true }
+devices:
+  - { name: one, model: p-series, slave: 1 }
+",
+    );
+    assert!(allowed.is_ok(), "{allowed:?}");
+}
+
+#[test]
+fn devices_with_different_factory_formats_need_the_line_format() {
+    let formats: Vec<_> = [
+        &optobus_p_series::DEVICE,
+        &optobus_ccs::DEVICE,
+        &optobus_lc_rs::DEVICE,
+        &optobus_rangefinder::DEVICE,
+        &optobus_ccf::DEVICE,
+    ]
+    .iter()
+    .filter_map(|d| {
+        d.rtu
+            .map(|r| (d.family, r.default_baud, r.parity, r.data_bits, r.stop_bits))
+    })
+    .collect();
+    let differing = formats
+        .iter()
+        .find(|f| (f.1, f.2, f.3, f.4) != (formats[0].1, formats[0].2, formats[0].3, formats[0].4))
+        .expect("two models differ at the factory");
+    let text = format!(
+        "
+lines:
+  - {{ name: a, serial: /dev/ttyUSB0 }}
+devices:
+  - {{ name: one, model: {}, slave: 1 }}
+  - {{ name: two, model: {}, slave: 2 }}
+",
+        formats[0].0, differing.0
+    );
+    let rendered = parse(&text).expect_err("no common format");
+    assert!(
+        rendered.contains("have different factory formats"),
+        "{rendered}"
+    );
+}
+
+#[test]
+fn unknown_keys_and_wrong_shapes_are_located() {
+    let rendered = parse(
+        "
+lines:
+  - name: a
+    serial: /dev/ttyUSB0
+    bauds: 9600
+devices: {}
+",
+    )
+    .expect_err("bad keys");
+    assert!(rendered.contains("a line has no key `bauds`"), "{rendered}");
+    assert!(rendered.contains("bus.yaml:5:5"), "{rendered}");
+    assert!(
+        rendered.contains("`devices` must be a list, not a mapping"),
+        "{rendered}"
+    );
+}
+
+#[test]
+fn a_register_whose_read_changes_the_device_is_not_polled() {
+    let side_effect = optobus_p_series::DEVICE
+        .registers
+        .iter()
+        .find(|r| r.readable() && !r.read_is_repeatable())
+        .expect("the P series' buffer page");
+    let rendered = parse(&format!(
+        "
+lines: [{{ name: a, simulated: true }}]
+devices:
+  - {{ name: one, model: p-series, slave: 1, poll: [{{ read: {} }}] }}
+",
+        side_effect.name
+    ))
+    .expect_err("never polled");
+    assert!(
+        rendered.contains("changes the device, so it is not polled"),
+        "{rendered}"
+    );
+}
+
+#[test]
+fn text_that_is_not_yaml_or_empty_is_refused() {
+    assert!(parse("lines: [").unwrap_err().contains("error[yaml]"));
+    assert!(parse("").unwrap_err().contains("the bus file is empty"));
+}
+
+#[test]
+fn a_bus_file_with_anchors_and_aliases_is_refused_at_its_first_anchor() {
+    // Nine aliases a level, twelve levels: expanded, billions of nodes; refused, none.
+    let mut text = String::from("a: &a [x, x, x, x, x, x, x, x, x]\n");
+    let mut previous = 'a';
+    for name in "bcdefghijklm".chars() {
+        text += &format!("{name}: &{name} [*{previous}, *{previous}, *{previous}, *{previous}, *{previous}, *{previous}, *{previous}, *{previous}, *{previous}]\n");
+        previous = name;
+    }
+    text += "lines: *m\n";
+    let rendered = parse(&text).expect_err("aliases are refused");
+    assert!(rendered.contains("error[yaml-alias]"), "{rendered}");
+    assert!(rendered.contains("bus.yaml:1:4"), "{rendered}");
+}
+
+#[test]
+fn devices_and_oversized_files_are_refused_before_they_are_read() {
+    let error = BusFile::load(Path::new("/dev/zero"), &catalogue()).unwrap_err();
+    assert!(error.to_string().contains("not a regular file"), "{error}");
+    let big = std::env::temp_dir().join(format!("optobus-big-bus-{}.yaml", std::process::id()));
+    let file = std::fs::File::create(&big).unwrap();
+    // Sparse: 17 MiB long, nothing written.
+    file.set_len(17 * 1024 * 1024).unwrap();
+    let error = BusFile::load(&big, &catalogue()).unwrap_err();
+    let _ = std::fs::remove_file(&big);
+    assert!(
+        error
+            .to_string()
+            .contains("larger than the limit of 16 MiB"),
+        "{error}"
+    );
+}

@@ -1,0 +1,139 @@
+//! Writes, commands and reads asked for through the bus's handle: checked before they are
+//! queued, carried out ahead of the polls, and a command's busy time held by its device alone.
+
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use optobus_bus::{Bus, BusFile, Catalogue, Event, JobError};
+use optobus_device::Table;
+use optobus_inspect::parse_value;
+use optobus_simulator::Simulator;
+
+fn file(text: &str) -> BusFile {
+    let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
+    BusFile::parse("bus.yaml", text, Path::new("."), &catalogue)
+        .unwrap_or_else(|e| panic!("{}", e.render()))
+}
+
+const TWO: &str = "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms, poll: [{ read: measurements }] }
+  - { name: confocal, model: ccs, slave: 2, timeout: 50ms, poll: [{ read: measurements }] }
+";
+
+#[tokio::test]
+async fn a_write_is_checked_before_it_is_queued_and_then_made() {
+    let running = Bus::new(file(TWO)).start().unwrap();
+    let handle = running.handle();
+    let head = running.simulator("head").unwrap();
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    let words = parse_value(power, "12.5").unwrap();
+    handle.write("head", power, words, false).await.unwrap();
+    assert_eq!(head.peek(Table::Holding, power.address), Some(vec![125]));
+    // Beyond the range: refused by the spec, the device keeps 12.5 %.
+    let error = handle
+        .write("head", power, vec![1001], false)
+        .await
+        .unwrap_err();
+    assert!(
+        matches!(
+            error,
+            JobError::Invalid {
+                register: "light_power",
+                ..
+            }
+        ),
+        "{error}"
+    );
+    assert_eq!(head.peek(Table::Holding, power.address), Some(vec![125]));
+    let distance = optobus_p_series::DEVICE.register("distance_1").unwrap();
+    assert!(matches!(
+        handle.write("head", distance, vec![0, 0], false).await,
+        Err(JobError::NotWritable("distance_1"))
+    ));
+    assert!(matches!(
+        handle.write("tail", power, vec![100], false).await,
+        Err(JobError::UnknownDevice(_))
+    ));
+    let values = handle.read("head", vec![power]).await.unwrap();
+    assert_eq!(values[0].to_string(), "12.5 %");
+}
+
+#[tokio::test]
+async fn a_write_goes_ahead_of_the_polls() {
+    // The line's requests in the order the devices saw them: `R` a read, `W` a write.
+    let seen = Arc::new(Mutex::new(String::new()));
+    let log = Arc::clone(&seen);
+    let head = Simulator::new(&optobus_p_series::DEVICE)
+        .slave(1)
+        .observe(move |exchange| {
+            log.lock()
+                .unwrap()
+                .push(if exchange.function == 6 { 'W' } else { 'R' });
+        });
+    let confocal = Simulator::new(&optobus_ccs::DEVICE).slave(2);
+    let (stream, _server) = optobus_simulator::Bus::new([head.clone(), confocal]).duplex();
+    let text = TWO.replace("simulated: true", "serial: memory");
+    let bus = Bus::new(file(&text)).with_stream("rs485", stream);
+    let running = bus.start().unwrap();
+    let handle = running.handle();
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    // Let the polls run, then ask for a write: at most the poll already on the line comes
+    // before it.
+    while seen.lock().unwrap().len() < 20 {
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    let asked = seen.lock().unwrap().len();
+    handle.write("head", power, vec![333], false).await.unwrap();
+    let order = seen.lock().unwrap().clone();
+    let written = order.find('W').expect("the write reached the device");
+    assert!(
+        written <= asked + 1,
+        "{} requests of the head's before the write: {order}",
+        written - asked
+    );
+    assert_eq!(head.peek(Table::Holding, power.address), Some(vec![333]));
+}
+
+#[tokio::test]
+async fn a_commands_busy_time_holds_its_device_and_not_the_line() {
+    let running = Bus::new(file(TWO)).start().unwrap();
+    let handle = running.handle();
+    let mut events = running.subscribe();
+    let save = optobus_ccs::DEVICE.command("save_parameters").unwrap();
+    let register = optobus_ccs::DEVICE.register(save.register).unwrap();
+    assert!(save.busy_ms > 0);
+    let job = tokio::spawn(async move { handle.run("confocal", save, register).await });
+    // Until the job reports back, only the head is read.
+    let mut head_samples = 0;
+    let mut confocal_samples = 0;
+    tokio::pin!(job);
+    let outcome = loop {
+        tokio::select! {
+            outcome = &mut job => break outcome,
+            event = events.recv() => {
+                if let Ok(Event::Sample(sample)) = event {
+                    match &*sample.source.device {
+                        "head" => head_samples += 1,
+                        _ => confocal_samples += 1,
+                    }
+                }
+            }
+        }
+    };
+    outcome.unwrap().unwrap();
+    assert!(head_samples > 0, "the line went on with the head");
+    // Samples of the confocal's poll that was on the line when the job came may still arrive.
+    assert!(
+        confocal_samples
+            <= optobus_ccs::DEVICE
+                .group("measurements")
+                .unwrap()
+                .registers
+                .len()
+                * 2,
+        "{confocal_samples}"
+    );
+}

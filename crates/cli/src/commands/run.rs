@@ -1,0 +1,359 @@
+//! `optobus run BUS.yaml`: a bus of sensors polled on schedule, shown live (a block per
+//! device), as JSON lines (`--json`), and recorded to a CSV per device (`--record DIR`).
+//! `--demo` runs a built-in bus of simulated sensors with a gateway for other tools.
+
+use std::collections::{BTreeMap, HashMap};
+use std::fs::File;
+use std::io::{BufWriter, IsTerminal, Write};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::{Duration, SystemTime};
+
+use clap::Args;
+use optobus_bus::{Bus, BusFile, Event, Health, Sample};
+use optobus_device::RegisterInfo;
+use optobus_inspect::Value;
+use tokio::sync::broadcast::error::RecvError;
+
+use crate::commands::bus::load;
+use crate::error::CliError;
+use crate::inputs;
+use crate::log::note;
+use crate::models;
+use crate::render::{csv_cell, csv_header, redraw, screen, time_of_day, values_text};
+
+/// The demo bus: a sensor of every built-in model on one simulated line, with a gateway.
+const DEMO: &str = include_str!("../demo.yaml");
+
+/// How often the terminal view is redrawn.
+const REDRAW_EVERY: Duration = Duration::from_millis(250);
+
+#[derive(Debug, Args)]
+pub(crate) struct RunArgs {
+    /// The bus file (YAML; see `optobus bus check` and crates/bus/README.md).
+    #[arg(required_unless_present = "demo", conflicts_with = "demo")]
+    file: Option<PathBuf>,
+    /// Run the built-in demo bus: a simulated sensor of every model on one line, with a Modbus
+    /// TCP gateway on 127.0.0.1:5020.
+    #[arg(long)]
+    demo: bool,
+    /// With --demo: where its gateway listens instead of 127.0.0.1:5020.
+    #[arg(long, requires = "demo", value_name = "ADDRESS")]
+    gateway: Option<SocketAddr>,
+    /// Write a CSV per device into this folder (the `record` format; a row per poll).
+    #[arg(long, value_name = "DIR")]
+    record: Option<PathBuf>,
+    /// Stop after this long (default: until Ctrl-C).
+    #[arg(long, value_parser = inputs::RUN_FOR.parser())]
+    duration: Option<Duration>,
+}
+
+/// The demo's bus file, its gateway moved to `gateway` if given.
+fn demo(gateway: Option<SocketAddr>) -> Result<BusFile, CliError> {
+    let mut bus = BusFile::parse("demo.yaml", DEMO, ".".as_ref(), &models::catalogue())
+        .map_err(|rejected| CliError::new(rejected.render()))?;
+    if let (Some(address), Some(line)) = (gateway, bus.lines.first_mut()) {
+        if let Some(config) = line.gateway.as_mut() {
+            config.listen = address;
+        }
+    }
+    Ok(bus)
+}
+
+/// The latest of everything, for the terminal view.
+#[derive(Default)]
+struct Board {
+    /// Per device, in file order: its header facts, health and latest values.
+    devices: Vec<Shown>,
+}
+
+struct Shown {
+    name: String,
+    facts: String,
+    health: Health,
+    values: BTreeMap<(u8, u16, &'static str), (&'static RegisterInfo, Value)>,
+}
+
+impl Board {
+    fn new(bus: &BusFile) -> Self {
+        let devices = bus
+            .devices
+            .iter()
+            .map(|device| Shown {
+                name: device.name.clone(),
+                facts: format!(
+                    "{} · line {} · slave {}",
+                    device.device.model_name(),
+                    bus.lines[device.line].name,
+                    device.slave
+                ),
+                health: Health::Online,
+                values: BTreeMap::new(),
+            })
+            .collect();
+        Self { devices }
+    }
+
+    fn device(&mut self, name: &str) -> Option<&mut Shown> {
+        self.devices.iter_mut().find(|d| d.name == name)
+    }
+
+    fn text(&self, header: &str) -> String {
+        let mut text = format!("{}  {header}\n", time_of_day());
+        for device in &self.devices {
+            let health = match device.health {
+                Health::Online => "online",
+                Health::Offline => "OFFLINE",
+            };
+            text += &format!("\n{} · {} · {health}\n", device.name, device.facts);
+            let values: Vec<(&'static RegisterInfo, Value)> =
+                device.values.values().cloned().collect();
+            text += &values_text(&values);
+        }
+        text
+    }
+}
+
+/// A CSV per device: a row per poll, columns for every register the device's polls read.
+struct Recorder {
+    started: SystemTime,
+    files: HashMap<String, DeviceCsv>,
+}
+
+struct DeviceCsv {
+    out: BufWriter<File>,
+    path: PathBuf,
+    columns: Vec<&'static str>,
+    /// The poll being gathered: its request time and cells.
+    row: Option<(SystemTime, Vec<String>)>,
+}
+
+impl Recorder {
+    fn create(dir: &std::path::Path, bus: &BusFile) -> Result<Self, CliError> {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| CliError::failed(format!("cannot create {}: {e}", dir.display())))?;
+        let mut files = HashMap::new();
+        for device in &bus.devices {
+            let mut registers: Vec<&'static RegisterInfo> = device
+                .polls
+                .iter()
+                .flat_map(|p| p.registers.iter().copied())
+                .collect();
+            registers.sort_by_key(|r| (r.table, r.address));
+            registers.dedup_by_key(|r| r.name);
+            let path = dir.join(format!("{}.csv", device.name));
+            let file = File::create(&path)
+                .map_err(|e| CliError::failed(format!("cannot write {}: {e}", path.display())))?;
+            let mut out = BufWriter::new(file);
+            let header: Vec<String> = registers.iter().map(|r| csv_header(r)).collect();
+            writeln!(out, "time,elapsed [s],{}", header.join(","))
+                .map_err(|e| CliError::failed(format!("cannot write {}: {e}", path.display())))?;
+            files.insert(
+                device.name.clone(),
+                DeviceCsv {
+                    out,
+                    path,
+                    columns: registers.iter().map(|r| r.name).collect(),
+                    row: None,
+                },
+            );
+        }
+        Ok(Self {
+            started: SystemTime::now(),
+            files,
+        })
+    }
+
+    fn add(&mut self, sample: &Sample) -> Result<(), CliError> {
+        let Some(csv) = self.files.get_mut(&*sample.source.device) else {
+            return Ok(());
+        };
+        if csv
+            .row
+            .as_ref()
+            .is_some_and(|(at, _)| *at != sample.requested)
+        {
+            csv.flush_row(self.started)?;
+        }
+        let columns = csv.columns.len();
+        let (_, cells) = csv
+            .row
+            .get_or_insert_with(|| (sample.requested, vec![String::new(); columns]));
+        if let Some(index) = csv.columns.iter().position(|c| *c == sample.register.name) {
+            cells[index] = csv_cell(&sample.value);
+        }
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<(), CliError> {
+        for csv in self.files.values_mut() {
+            csv.flush_row(self.started)?;
+            csv.out.flush().map_err(|e| {
+                CliError::failed(format!("cannot write {}: {e}", csv.path.display()))
+            })?;
+        }
+        Ok(())
+    }
+}
+
+impl DeviceCsv {
+    fn flush_row(&mut self, started: SystemTime) -> Result<(), CliError> {
+        let Some((at, cells)) = self.row.take() else {
+            return Ok(());
+        };
+        let elapsed = at.duration_since(started).unwrap_or_default().as_secs_f64();
+        writeln!(
+            self.out,
+            "{},{elapsed:.6},{}",
+            local_time(at),
+            cells.join(",")
+        )
+        .map_err(|e| CliError::failed(format!("cannot write {}: {e}", self.path.display())))
+    }
+}
+
+/// A time in the tool's RFC 3339 form, with the local offset.
+fn local_time(at: SystemTime) -> String {
+    jiff::Timestamp::try_from(at)
+        .map(|t| {
+            t.to_zoned_datetime(jiff::tz::TimeZone::system())
+                .strftime("%Y-%m-%dT%H:%M:%S%.6f%:z")
+                .to_string()
+        })
+        .unwrap_or_default()
+}
+
+/// One JSON line for a sample: the bus's fields, its time with the local offset.
+fn sample_json(sample: &Sample) -> String {
+    let mut json = serde_json::to_value(sample).unwrap_or_default();
+    if let Some(object) = json.as_object_mut() {
+        object.insert("time".into(), local_time(sample.replied).into());
+    }
+    json.to_string()
+}
+
+pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
+    let bus_file = match &args.file {
+        Some(path) => load(path)?,
+        None => demo(args.gateway)?,
+    };
+    let mut board = Board::new(&bus_file);
+    let mut recorder = match &args.record {
+        Some(dir) => Some(Recorder::create(dir, &bus_file)?),
+        None => None,
+    };
+    let lines = bus_file.lines.len();
+    let devices = bus_file.devices.len();
+    let bus = Bus::new(bus_file);
+    let mut events = bus.subscribe();
+    let running = bus.start().map_err(|e| CliError::failed(e.to_string()))?;
+    let gateways: Vec<String> = running
+        .gateways()
+        .map(|(line, address)| format!("gateway of {line} on {address}"))
+        .collect();
+    let header = format!(
+        "{lines} line{}, {devices} device{}{}",
+        if lines == 1 { "" } else { "s" },
+        if devices == 1 { "" } else { "s" },
+        gateways
+            .iter()
+            .map(|g| format!(" · {g}"))
+            .collect::<String>()
+    );
+    if !gateways.is_empty() {
+        note!("optobus: {}", gateways.join(", "));
+    }
+    let terminal = std::io::stdout().is_terminal() && !json;
+    let ctrl_c = tokio::signal::ctrl_c();
+    tokio::pin!(ctrl_c);
+    let stop = async {
+        match args.duration {
+            Some(duration) => tokio::time::sleep(duration).await,
+            None => std::future::pending().await,
+        }
+    };
+    tokio::pin!(stop);
+    let mut redraw_at = tokio::time::Instant::now();
+    let mut drawn = 0u16;
+    let mut dropped = 0u64;
+    loop {
+        let event = tokio::select! {
+            event = events.recv() => event,
+            _ = &mut ctrl_c => break,
+            () = &mut stop => break,
+        };
+        let event = match event {
+            Ok(event) => event,
+            Err(RecvError::Lagged(missed)) => {
+                dropped += missed;
+                continue;
+            }
+            Err(RecvError::Closed) => break,
+        };
+        match &event {
+            Event::Sample(sample) => {
+                if let Some(recorder) = recorder.as_mut() {
+                    recorder.add(sample)?;
+                }
+                if json {
+                    crate::render::print(&sample_json(sample));
+                } else if !terminal {
+                    crate::render::print(&format!(
+                        "{}  {}  {}  {}",
+                        time_of_day(),
+                        sample.source.device,
+                        sample.register.name,
+                        sample.value
+                    ));
+                }
+                if let Some(shown) = board.device(&sample.source.device) {
+                    let key = (
+                        sample.register.table as u8,
+                        sample.register.address,
+                        sample.register.name,
+                    );
+                    shown
+                        .values
+                        .insert(key, (sample.register, sample.value.clone()));
+                }
+            }
+            Event::Health(health) => {
+                if let Some(shown) = board.device(&health.source.device) {
+                    shown.health = health.health;
+                }
+                if !terminal {
+                    let reason = health
+                        .reason
+                        .as_deref()
+                        .map(|r| format!(": {r}"))
+                        .unwrap_or_default();
+                    note!(
+                        "{}  {} is {}{reason}",
+                        time_of_day(),
+                        health.source.device,
+                        match health.health {
+                            Health::Online => "online again",
+                            Health::Offline => "offline",
+                        }
+                    );
+                }
+            }
+            Event::Line(_) => {}
+        }
+        if terminal && tokio::time::Instant::now() >= redraw_at {
+            let mut out = std::io::stdout().lock();
+            let size = screen(crossterm::terminal::size().ok());
+            drawn = redraw(&mut out, drawn, &board.text(&header), size);
+            let _ = out.flush();
+            redraw_at = tokio::time::Instant::now() + REDRAW_EVERY;
+        }
+    }
+    drop(running);
+    if let Some(recorder) = recorder {
+        recorder.finish()?;
+    }
+    if dropped > 0 {
+        note!("optobus: the display fell behind and skipped {dropped} events");
+    }
+    Ok(())
+}
