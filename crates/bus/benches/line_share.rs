@@ -198,11 +198,6 @@ async fn direct_run(format: LineFormat, duration: Duration) -> Run {
     }
 }
 
-fn median(mut values: Vec<f64>) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values[values.len() / 2]
-}
-
 fn main() {
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -221,7 +216,7 @@ fn main() {
             anchor.push(runtime.block_on(direct_run(format, duration)));
         }
         let report = |name: &str, runs: &[Run]| {
-            let ratio = median(runs.iter().map(|r| r.ratio).collect());
+            let ratio = common::median(&runs.iter().map(|r| r.ratio).collect::<Vec<_>>());
             let best = runs.iter().map(|r| r.ratio).fold(0.0, f64::max);
             let spread = runs.iter().map(|r| r.spread).max().unwrap_or(0);
             let gaps: u64 = runs.iter().map(|r| r.gap_violations).sum();

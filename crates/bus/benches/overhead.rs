@@ -9,6 +9,8 @@
 //! transaction of each and the bus's difference to the anchor (target ≤ 5 µs). Run with
 //! `cargo bench -p optobus-bus --bench overhead`.
 
+mod common;
+
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -104,11 +106,6 @@ devices: [{ name: head, model: p-series, slave: 1, poll: [{ read: measurements }
     elapsed.as_secs_f64() / (to - from).max(1) as f64
 }
 
-fn median(mut values: Vec<f64>) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values[values.len() / 2]
-}
-
 fn main() {
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -121,7 +118,7 @@ fn main() {
             times[index].push(runtime.block_on(trial(workload)));
         }
     }
-    let [direct, bus, listened] = [0, 1, 2].map(|i| median(times[i].clone()));
+    let [direct, bus, listened] = [0, 1, 2].map(|i| common::median(&times[i]));
     let per = |s: f64| s * 1e6;
     println!(
         "direct {:.2} µs/transaction ({:.0}/s)\nbus    {:.2} µs/transaction ({:.0}/s): adds {:.2} µs\nbus, events drained by a subscriber {:.2} µs/transaction ({:.0}/s): adds {:.2} µs",

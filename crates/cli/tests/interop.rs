@@ -9,24 +9,7 @@ mod common;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{json, ok, Served};
-
-fn tool(name: &str) -> bool {
-    let found = Command::new(name)
-        .arg("-h")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok();
-    if !found {
-        assert!(
-            std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
-            "{name} is not installed"
-        );
-        eprintln!("skipped: {name} is not installed");
-    }
-    found
-}
+use common::{json, ok, tool, Served};
 
 /// `mbpoll args…` once; the values it printed (`[3]: 425` lines).
 fn mbpoll(args: &[&str]) -> Vec<i64> {

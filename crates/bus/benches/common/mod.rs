@@ -27,7 +27,7 @@ pub(crate) fn models() -> [&'static DeviceInfo; 8] {
 
 /// The model's name as a bus file writes it.
 pub(crate) fn model_name(device: &DeviceInfo) -> String {
-    device.family.replace('_', "-")
+    device.model_name().to_string()
 }
 
 /// A bus file of one line called `bench` (`line` holds the rest of its flow mapping, e.g.

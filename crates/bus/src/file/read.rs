@@ -800,10 +800,7 @@ impl<'a> Reader<'a> {
                     self.error(
                         name_node.span,
                         why,
-                        format!(
-                            "`optobus registers {}` lists them",
-                            device.model_name().to_string()
-                        ),
+                        format!("`optobus registers {}` lists them", device.model_name()),
                     );
                     ok = false;
                 }
