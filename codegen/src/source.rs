@@ -167,6 +167,9 @@ pub struct SyntaxError {
     pub column: usize,
 }
 
+/// Rule name of text that is not YAML, or that a spec reader cannot read.
+pub const YAML_RULE: &str = "yaml";
+
 /// Rule name of the refusal of YAML anchors and aliases.
 pub const ALIAS_RULE: &str = "yaml-alias";
 
@@ -206,7 +209,7 @@ impl SourceFile {
                 Ok((event, mark)) => builder.on_event(event, mark),
                 Err(error) => {
                     break Some(SyntaxError {
-                        rule: crate::syntax::RULE,
+                        rule: YAML_RULE,
                         message: error.info().to_owned(),
                         help: NOT_YAML,
                         line: error.marker().line(),
@@ -221,7 +224,7 @@ impl SourceFile {
         let syntax_error = syntax_error.or_else(|| {
             let second = builder.documents.get(1)?;
             Some(SyntaxError {
-                rule: crate::syntax::RULE,
+                rule: YAML_RULE,
                 message: "a spec is one YAML document; this starts another".into(),
                 help: NOT_YAML,
                 line: second.span.line,

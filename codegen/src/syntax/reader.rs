@@ -9,7 +9,7 @@ use crate::diagnostic::{Diagnostic, Label, Location};
 use crate::source::{Node, Path, Span, Value};
 
 /// Rule name of every reading error.
-pub(crate) const RULE: &str = "yaml";
+pub(crate) const RULE: &str = crate::source::YAML_RULE;
 
 const HELP: &str = "see specs/README.md for the keys and forms a spec takes";
 
