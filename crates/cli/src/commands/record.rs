@@ -17,13 +17,14 @@ use crate::log::note;
 use crate::render::{csv_cell, csv_header, progress_bar, timestamp};
 
 #[derive(Debug, Args)]
+#[command(group = clap::ArgGroup::new("until").args(["duration", "count"]).required(true))]
 pub(crate) struct RecordArgs {
     #[command(flatten)]
     names: Names,
     #[command(flatten)]
     pub(crate) device: DeviceArgs,
     /// Record for this long (at most 24 h).
-    #[arg(long, value_parser = inputs::RUN_FOR.parser(), required_unless_present = "count", conflicts_with = "count")]
+    #[arg(long, value_parser = inputs::RUN_FOR.parser(), conflicts_with = "count")]
     duration: Option<Duration>,
     /// Record this many samples.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
