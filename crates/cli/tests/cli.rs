@@ -538,7 +538,7 @@ fn point_9_watch_reports_a_lasting_failure_once_then_its_recovery() {
     pipe.read_to_string(&mut stderr).expect("stderr");
     assert!(watch.wait().expect("watch ends").success(), "{stderr}");
     let lines = |sign: &str| stderr.lines().filter(|l| l.contains(sign)).count();
-    // Each attempt's count differs (`(1 attempts)`, `(2 attempts)`…); the refusal is said once.
+    // Each attempt's count differs (`(1 attempt)`, `(2 attempts)`…); the refusal is said once.
     assert_eq!(lines("Connection refused"), 1, "{stderr}");
     assert_eq!(lines("recovered after"), 1, "{stderr}");
     // A failure is said again only when its kind changes (a closed connection, then refused

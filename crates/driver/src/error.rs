@@ -267,7 +267,7 @@ impl Error {
 }
 
 /// The kind of a failure ([`Error::kind`]): two failures of one kind compare equal whatever
-/// their counts, durations and messages, so `cannot connect (1 attempts)` and `(2 attempts)`
+/// their counts, durations and messages, so `cannot connect (1 attempt)` and `(2 attempts)`
 /// are one kind, while a refused connection and an unreachable host, or exceptions 02 and 04,
 /// are two.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

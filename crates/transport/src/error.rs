@@ -77,7 +77,8 @@ impl fmt::Display for Error {
             Self::Unsupported(what) => write!(f, "not supported by this transport: {what}"),
             Self::Closed => f.write_str("the connection was closed by the other end"),
             Self::Connect { attempts, source } => {
-                write!(f, "cannot connect ({attempts} attempts): {source}")
+                let plural = if *attempts == 1 { "" } else { "s" };
+                write!(f, "cannot connect ({attempts} attempt{plural}): {source}")
             }
             Self::Desynchronised(what) => write!(f, "reply out of step: {what}"),
             Self::Line(error) => write!(f, "unusable serial line format: {error}"),

@@ -63,9 +63,10 @@ fn text(found: &Identification, verdict: &Verdict) -> String {
                 answered += 1;
             }
             if answered > 1 {
+                let after = answered - 1;
+                let plural = if after == 1 { "" } else { "s" };
                 out.push_str(&format!(
-                    "  + {finding}, and {} requests after it\n",
-                    answered - 1
+                    "  + {finding}, and {after} request{plural} after it\n"
                 ));
             } else {
                 out.push_str(&format!("  {sign} {finding}\n"));
