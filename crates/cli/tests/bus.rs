@@ -51,6 +51,16 @@ fn bus_check_passes_a_good_file_and_lists_every_problem_of_a_bad_one() {
 }
 
 #[test]
+fn a_bus_takes_no_spec_option() {
+    let (code, _, stderr) = outcome(&["run", "--demo", "--spec", "specs/ccs.yaml"]);
+    assert_eq!(code, Some(REFUSED), "{stderr}");
+    assert!(
+        stderr.contains("each device of the bus file names its `model` or `spec`"),
+        "{stderr}"
+    );
+}
+
+#[test]
 fn run_demo_prints_a_json_line_per_sample_of_every_device() {
     let stdout = ok(&[
         "run",

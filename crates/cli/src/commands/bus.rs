@@ -35,6 +35,16 @@ pub(crate) fn run(command: &BusCommand) -> Result<(), CliError> {
     }
 }
 
+/// Refuses `--spec`: a bus file names each device's model or spec file itself.
+pub(crate) fn no_spec(options: &crate::connect::Options) -> Result<(), CliError> {
+    match &options.spec {
+        Some(_) => Err(CliError::new(
+            "--spec does not apply to a bus: each device of the bus file names its `model` or `spec`",
+        )),
+        None => Ok(()),
+    }
+}
+
 /// The checked bus file at `path`: a file that cannot be read is the system's failure, one
 /// that does not pass is refused with every problem.
 pub(crate) fn load(path: &std::path::Path) -> Result<BusFile, CliError> {

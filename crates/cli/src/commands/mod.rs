@@ -86,8 +86,14 @@ pub(crate) async fn run(options: Options, command: Command) -> Result<(), CliErr
         Command::Identify(device) => identify::run(&options.with(&device)).await,
         Command::Scan(args) => scan::run(&options.with(&args.device), &args).await,
         Command::Simulate(args) => simulate::run(&options.with(&args.device), &args).await,
-        Command::Run(args) => run::run(options.json, &args).await,
-        Command::Bus(command) => bus::run(&command),
+        Command::Run(args) => {
+            bus::no_spec(&options)?;
+            run::run(options.json, &args).await
+        }
+        Command::Bus(command) => {
+            bus::no_spec(&options)?;
+            bus::run(&command)
+        }
         Command::Raw(command) => raw::run(&options, &command).await,
         Command::Frame(command) => frame::run(&options, &command),
     }
