@@ -31,6 +31,15 @@ pub enum ResolveError {
         /// How many copies there are (numbered from 1).
         copies: usize,
     },
+    /// A copy number was given for a name that stands for no repeat member.
+    NoRepeats {
+        /// The name given.
+        name: String,
+        /// The device's family.
+        family: &'static str,
+        /// The copy asked for.
+        number: u8,
+    },
 }
 
 impl fmt::Display for ResolveError {
@@ -52,6 +61,15 @@ impl fmt::Display for ResolveError {
                 f,
                 "`{name}` has no {repeat} {number}: {repeat}s are numbered 1 to {copies}"
             ),
+            Self::NoRepeats {
+                name,
+                family,
+                number,
+            } => write!(
+                f,
+                "`{name}` of {} holds no repeated register, so copy {number} (a channel) names nothing",
+                ModelName(family)
+            ),
         }
     }
 }
@@ -59,21 +77,34 @@ impl fmt::Display for ResolveError {
 impl std::error::Error for ResolveError {}
 
 /// The registers `name` stands for on `device`, in order: a register; a repeat member, every
-/// copy or only copy `copy` (1-based; ignored for a register named in full); or a group, its
-/// members expanded the same way.
+/// copy or only copy `copy` (1-based); or a group, its members expanded the same way (its
+/// registers named in full taken whole). A copy number for a name that holds no repeat member
+/// is refused: it would name nothing.
 pub fn resolve(
     device: &'static DeviceInfo,
     name: &str,
     copy: Option<u8>,
 ) -> Result<Vec<&'static RegisterInfo>, ResolveError> {
-    let Some(group) = device.group(name) else {
-        return members(device, name, copy);
+    let registers = match device.group(name) {
+        None => members(device, name, copy)?,
+        Some(group) => {
+            let mut registers = Vec::new();
+            for member in group.registers {
+                registers.extend(members(device, member, copy)?);
+            }
+            registers
+        }
     };
-    let mut registers = Vec::new();
-    for member in group.registers {
-        registers.extend(members(device, member, copy)?);
+    match copy {
+        Some(number) if registers.iter().all(|r| r.copy.is_none()) => {
+            Err(ResolveError::NoRepeats {
+                name: name.to_owned(),
+                family: device.family,
+                number,
+            })
+        }
+        _ => Ok(registers),
     }
-    Ok(registers)
 }
 
 /// The readable registers behind `names` (see [`resolve`]), in order, without repeats; a name
@@ -137,6 +168,7 @@ impl From<ResolveError> for Error {
                 Some(format!("did you mean {}?", near.join(", ")))
             }
             ResolveError::NoCopy { .. } => None,
+            ResolveError::NoRepeats { .. } => Some("leave the channel out".to_owned()),
         };
         Self {
             message: error.to_string(),

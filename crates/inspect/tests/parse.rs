@@ -144,8 +144,11 @@ fn bad_values_are_refused_in_one_line() {
 fn names_resolve_to_registers_copies_and_groups() {
     let found = |device, name, copy| resolve(device, name, copy).map(|r| names(&r));
     assert_eq!(found(P, "distance_1", None), Ok(vec!["distance_1"]));
-    // A register named in full ignores the copy number.
-    assert_eq!(found(P, "distance_1", Some(3)), Ok(vec!["distance_1"]));
+    // A copy number for a name that holds no repeat member names nothing: refused.
+    assert!(matches!(
+        resolve(P, "distance_1", Some(3)),
+        Err(ResolveError::NoRepeats { number: 3, .. })
+    ));
     let every = found(CCF, "exposure_time", None).unwrap_or_default();
     assert_eq!(every.len(), 4);
     let second = found(CCF, "exposure_time", Some(2)).unwrap_or_default();
@@ -236,4 +239,16 @@ fn other_si_prefixes_of_the_registers_unit_convert_exactly() {
         error.contains("`mm` is not a unit of the register: it is in us"),
         "{error}"
     );
+}
+
+#[test]
+fn a_channel_given_to_a_model_without_repeats_is_refused() {
+    let error = optobus_inspect::resolve(&optobus_p_series::DEVICE, "measurements", Some(2))
+        .expect_err("the P series repeats no register");
+    assert_eq!(
+        error.to_string(),
+        "`measurements` of p-series holds no repeated register, so copy 2 (a channel) names nothing"
+    );
+    // Without a copy number the group reads as before.
+    assert!(optobus_inspect::resolve(&optobus_p_series::DEVICE, "measurements", None).is_ok());
 }
