@@ -6,7 +6,9 @@
 use std::collections::BTreeMap;
 
 use crate::diagnostic::{Diagnostic, Label, Location};
-use crate::source::{Node, Path, Span, Value};
+use std::fmt;
+
+use crate::source::{Node, Span, Value};
 
 /// Rule name of every reading error.
 pub(crate) const RULE: &str = "yaml";
@@ -21,7 +23,7 @@ pub(crate) struct Reader {
 
 impl Reader {
     /// A key given twice in one mapping: at `again`, first at `first`.
-    fn repeated(&mut self, path: &Path, name: &str, again: Span, first: Span, help: &str) {
+    fn repeated(&mut self, path: &At<'_>, name: &str, again: Span, first: Span, help: &str) {
         self.diagnostics.push(Diagnostic {
             rule: RULE,
             message: format!("{} has `{name}` twice", what(path)),
@@ -54,7 +56,7 @@ impl Reader {
     fn pairs<'n>(
         &mut self,
         node: &'n Node,
-        path: &Path,
+        path: &At<'_>,
         expected: &str,
     ) -> Option<&'n [(Node, Node)]> {
         if let Value::Mapping(pairs) = &node.value {
@@ -70,7 +72,7 @@ impl Reader {
     pub(super) fn mapping<'n>(
         &mut self,
         node: &'n Node,
-        path: &Path,
+        path: &At<'_>,
         keys: &[&str],
     ) -> Option<Mapping<'n>> {
         let entries = self.pairs(
@@ -120,11 +122,11 @@ impl Reader {
     pub(crate) fn field<T: FromNode>(
         &mut self,
         map: &Mapping<'_>,
-        path: &Path,
+        path: &At<'_>,
         key: &str,
     ) -> Option<T> {
         match map.entries.get(key) {
-            Some((_, value)) => T::from_node(value, &path.key(key), self),
+            Some((_, value)) => T::from_node(value, &At::Key(path, key), self),
             None => T::absent().or_else(|| {
                 // Point into the mapping at its first key: a block mapping has no mark of its own.
                 let at = match &map.node.value {
@@ -147,12 +149,12 @@ impl Reader {
     pub(crate) fn field_or_default<T: FromNode + Default>(
         &mut self,
         map: &Mapping<'_>,
-        path: &Path,
+        path: &At<'_>,
         key: &str,
     ) -> Option<T> {
         let given = map.entries.get(key).filter(|(_, value)| !value.is_null());
         given.map_or(Some(T::default()), |(_, value)| {
-            T::from_node(value, &path.key(key), self)
+            T::from_node(value, &At::Key(path, key), self)
         })
     }
 
@@ -160,7 +162,7 @@ impl Reader {
     pub(super) fn scalar<'n>(
         &mut self,
         node: &'n Node,
-        path: &Path,
+        path: &At<'_>,
         expected: &str,
     ) -> Option<&'n str> {
         match &node.value {
@@ -177,9 +179,33 @@ impl Reader {
     }
 }
 
+/// Where a value being read is, such as `registers[3].address`: steps linked on the stack,
+/// written out only when a message names the place (most values are read without one).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum At<'a> {
+    /// The document's root.
+    Root,
+    /// A mapping key under its parent.
+    Key(&'a At<'a>, &'a str),
+    /// A sequence index under its parent.
+    Index(&'a At<'a>, usize),
+}
+
+/// Written like [`crate::source::Path`]: `registers[3].address`.
+impl fmt::Display for At<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Root => Ok(()),
+            Self::Key(Self::Root, key) => write!(f, "{key}"),
+            Self::Key(parent, key) => write!(f, "{parent}.{key}"),
+            Self::Index(parent, index) => write!(f, "{parent}[{index}]"),
+        }
+    }
+}
+
 /// How a path is named in messages.
-pub(super) fn what(path: &Path) -> String {
-    if path.0.is_empty() {
+pub(super) fn what(path: &At<'_>) -> String {
+    if matches!(path, At::Root) {
         "the spec".into()
     } else {
         format!("`{path}`")
@@ -196,7 +222,7 @@ pub(crate) struct Mapping<'n> {
 pub(crate) trait FromNode: Sized {
     /// Reads `node` (at `path`), reporting every problem to `reader`; `None` when it cannot
     /// be read.
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self>;
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self>;
 
     /// The value of an absent key; `None` makes the key required.
     fn absent() -> Option<Self> {
@@ -205,7 +231,7 @@ pub(crate) trait FromNode: Sized {
 }
 
 impl<T: FromNode> FromNode for Option<T> {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         if node.is_null() {
             return Some(None);
         }
@@ -218,7 +244,7 @@ impl<T: FromNode> FromNode for Option<T> {
 }
 
 impl FromNode for String {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         reader.scalar(node, path, "text").map(str::to_owned)
     }
 }
@@ -246,7 +272,7 @@ fn parse_integer(text: &str) -> Option<i128> {
 macro_rules! integers {
     ($($ty:ty),*) => {$(
         impl FromNode for $ty {
-            fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+            fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
                 let text = reader.scalar(node, path, "an integer")?;
                 let plain = matches!(node.value, Value::Scalar { plain: true, .. });
                 let Some(value) = parse_integer(text).filter(|_| plain) else {
@@ -281,7 +307,7 @@ macro_rules! integers {
 integers!(u8, u16, u32, u64, i64);
 
 impl FromNode for bool {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         match &node.value {
             Value::Scalar { text, plain: true } if text == "true" => Some(true),
             Value::Scalar { text, plain: true } if text == "false" => Some(false),
@@ -299,18 +325,18 @@ impl FromNode for bool {
 
 /// Reads every item; the list fails when any item does (after reporting them all).
 impl<T: FromNode> FromNode for Vec<T> {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         let items = sequence(node, path, reader)?;
         let read: Vec<Option<T>> = items
             .iter()
             .enumerate()
-            .map(|(i, item)| T::from_node(item, &path.index(i), reader))
+            .map(|(i, item)| T::from_node(item, &At::Index(path, i), reader))
             .collect();
         read.into_iter().collect()
     }
 }
 
-fn sequence<'n>(node: &'n Node, path: &Path, reader: &mut Reader) -> Option<&'n [Node]> {
+fn sequence<'n>(node: &'n Node, path: &At<'_>, reader: &mut Reader) -> Option<&'n [Node]> {
     match &node.value {
         Value::Sequence(items) => Some(items),
         _ => {
@@ -325,7 +351,7 @@ fn sequence<'n>(node: &'n Node, path: &Path, reader: &mut Reader) -> Option<&'n 
 }
 
 impl FromNode for (i64, i64) {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         let items = sequence(node, path, reader)?;
         if items.len() != 2 {
             reader.error(
@@ -339,8 +365,8 @@ impl FromNode for (i64, i64) {
             );
             return None;
         }
-        let min = i64::from_node(&items[0], &path.index(0), reader);
-        let max = i64::from_node(&items[1], &path.index(1), reader);
+        let min = i64::from_node(&items[0], &At::Index(path, 0), reader);
+        let max = i64::from_node(&items[1], &At::Index(path, 1), reader);
         Some((min?, max?))
     }
 }
@@ -368,10 +394,10 @@ impl<T> Items<T> {
 }
 
 impl<T: FromNode> FromNode for Items<T> {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         let mut read = Self::default();
         for (i, item) in sequence(node, path, reader)?.iter().enumerate() {
-            match T::from_node(item, &path.index(i), reader) {
+            match T::from_node(item, &At::Index(path, i), reader) {
                 Some(value) => read.found.push((i, value)),
                 None => read
                     .unread
@@ -390,7 +416,7 @@ impl<T> Entries<T> {
 }
 
 impl<T: FromNode> FromNode for Entries<T> {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         let pairs = reader.pairs(node, path, "expected `name: …` entries")?;
         let mut read = Self::default();
         let mut first: BTreeMap<&str, Span> = BTreeMap::new();
@@ -402,7 +428,7 @@ impl<T: FromNode> FromNode for Entries<T> {
                 reader.repeated(path, name, key.span, span, "rename one of them");
                 continue;
             }
-            match T::from_node(value, &path.key(name), reader) {
+            match T::from_node(value, &At::Key(path, name), reader) {
                 Some(item) => {
                     read.found.insert(name.to_owned(), item);
                 }
@@ -417,7 +443,7 @@ impl<T: FromNode> FromNode for Entries<T> {
 macro_rules! names {
     ($($ty:ty { $($spelling:literal => $value:expr),* $(,)? })*) => {$(
         impl FromNode for $ty {
-            fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+            fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
                 const SPELLINGS: &[(&str, $ty)] = &[$(($spelling, $value)),*];
                 let text = reader.scalar(node, path, "a name")?;
                 if let Some((_, value)) = SPELLINGS.iter().find(|(name, _)| *name == text) {
@@ -459,7 +485,7 @@ macro_rules! record {
         }
 
         impl FromNode for $name {
-            fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+            fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
                 const KEYS: &[&str] = &[$([$($key,)? stringify!($field)][0]),*];
                 let map = reader.mapping(node, path, KEYS)?;
                 $(
