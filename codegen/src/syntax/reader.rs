@@ -73,14 +73,14 @@ impl Reader {
         &mut self,
         node: &'n Node,
         path: &At<'_>,
-        keys: &[&str],
+        keys: &'static [&'static str],
     ) -> Option<Mapping<'n>> {
         let entries = self.pairs(
             node,
             path,
             "expected `key: value` lines or `{key: value, …}`",
         )?;
-        let mut found: BTreeMap<&str, (&Node, &Node)> = BTreeMap::new();
+        let mut found: Vec<Option<(&Node, &Node)>> = vec![None; keys.len()];
         for (key, value) in entries {
             let Some(name) = key.text().filter(|_| !key.is_null()) else {
                 self.error(
@@ -90,7 +90,7 @@ impl Reader {
                 );
                 continue;
             };
-            if !keys.contains(&name) {
+            let Some(slot) = keys.iter().position(|known| *known == name) else {
                 let mut diagnostic = Diagnostic {
                     rule: RULE,
                     message: format!("{} has an unknown key `{name}`", what(path)),
@@ -104,28 +104,30 @@ impl Reader {
                 diagnostic.help = Some(format!("expected one of: {}", keys.join(", ")));
                 self.diagnostics.push(diagnostic);
                 continue;
-            }
-            if let Some((first, _)) = found.get(name) {
+            };
+            if let Some((first, _)) = found[slot] {
                 let first = first.span;
                 self.repeated(path, name, key.span, first, "keep one of them");
                 continue;
             }
-            found.insert(name, (key, value));
+            found[slot] = Some((key, value));
         }
         Some(Mapping {
             node,
+            keys,
             entries: found,
         })
     }
 
-    /// Reads `key` of `map`: absent keys take `T::absent()` or are reported missing.
+    /// Reads the `slot`th key of `map`: absent keys take `T::absent()` or are reported missing.
     pub(crate) fn field<T: FromNode>(
         &mut self,
         map: &Mapping<'_>,
         path: &At<'_>,
-        key: &str,
+        slot: usize,
     ) -> Option<T> {
-        match map.entries.get(key) {
+        let key = map.keys[slot];
+        match map.entries[slot] {
             Some((_, value)) => T::from_node(value, &At::Key(path, key), self),
             None => T::absent().or_else(|| {
                 // Point into the mapping at its first key: a block mapping has no mark of its own.
@@ -145,14 +147,15 @@ impl Reader {
         }
     }
 
-    /// Reads `key` of `map`, or `T::default()` when it is absent or null.
+    /// Reads the `slot`th key of `map`, or `T::default()` when it is absent or null.
     pub(crate) fn field_or_default<T: FromNode + Default>(
         &mut self,
         map: &Mapping<'_>,
         path: &At<'_>,
-        key: &str,
+        slot: usize,
     ) -> Option<T> {
-        let given = map.entries.get(key).filter(|(_, value)| !value.is_null());
+        let key = map.keys[slot];
+        let given = map.entries[slot].filter(|(_, value)| !value.is_null());
         given.map_or(Some(T::default()), |(_, value)| {
             T::from_node(value, &At::Key(path, key), self)
         })
@@ -212,10 +215,11 @@ pub(super) fn what(path: &At<'_>) -> String {
     }
 }
 
-/// A mapping's entries by key (first occurrence).
+/// A mapping's entries (first occurrence), one slot per known key, in the order of `keys`.
 pub(crate) struct Mapping<'n> {
     node: &'n Node,
-    entries: BTreeMap<&'n str, (&'n Node, &'n Node)>,
+    keys: &'static [&'static str],
+    entries: Vec<Option<(&'n Node, &'n Node)>>,
 }
 
 /// A value read from a node of the tree.
@@ -488,19 +492,21 @@ macro_rules! record {
             fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
                 const KEYS: &[&str] = &[$([$($key,)? stringify!($field)][0]),*];
                 let map = reader.mapping(node, path, KEYS)?;
+                // Fields are read in the order of `KEYS`: the `slot`th key is the field's.
+                let mut slot = 0;
                 $(
-                    let $field = record!(
-                        @read reader, map, path, [$($key,)? stringify!($field)][0], $ty $(, $default)?
-                    );
+                    let $field = record!(@read reader, map, path, slot, $ty $(, $default)?);
+                    slot += 1;
                 )*
+                let _ = slot;
                 Some(Self { $($field: $field?,)* })
             }
         }
     };
-    (@read $reader:ident, $map:ident, $path:ident, $key:expr, $ty:ty) => {
-        $reader.field::<$ty>(&$map, $path, $key)
+    (@read $reader:ident, $map:ident, $path:ident, $slot:ident, $ty:ty) => {
+        $reader.field::<$ty>(&$map, $path, $slot)
     };
-    (@read $reader:ident, $map:ident, $path:ident, $key:expr, $ty:ty, default) => {
-        $reader.field_or_default::<$ty>(&$map, $path, $key)
+    (@read $reader:ident, $map:ident, $path:ident, $slot:ident, $ty:ty, default) => {
+        $reader.field_or_default::<$ty>(&$map, $path, $slot)
     };
 }
