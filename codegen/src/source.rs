@@ -439,15 +439,20 @@ fn index(node: &Node, path: Path, key: Option<Span>, out: &mut HashMap<Path, Ent
     }
 }
 
-/// A container being filled: its node and, for a mapping, a key waiting for its value.
+/// A container being filled: where it starts, and where its children start in
+/// [`Builder::children`].
 struct Open {
-    node: Node,
-    key: Option<Node>,
+    span: Span,
+    mapping: bool,
+    first_child: usize,
 }
 
 #[derive(Default)]
 struct Builder {
     stack: Vec<Open>,
+    /// The finished children of every open container, innermost last: each container takes
+    /// its own in one allocation of the right size when it ends.
+    children: Vec<Node>,
     documents: Vec<Node>,
     /// The first anchor or alias, which ends the parse.
     problem: Option<SyntaxError>,
@@ -464,16 +469,34 @@ fn span_at(mark: Marker, width: usize) -> Span {
 impl Builder {
     /// Adds a finished node to its parent (or ends the document).
     fn push(&mut self, node: Node) {
-        let Some(open) = self.stack.last_mut() else {
+        if self.stack.is_empty() {
             self.documents.push(node);
+        } else {
+            self.children.push(node);
+        }
+    }
+
+    /// Ends the innermost container: it takes its children (keys and values in turn, for a
+    /// mapping).
+    fn close(&mut self) {
+        let Some(open) = self.stack.pop() else {
             return;
         };
-        match (&mut open.node.value, open.key.take()) {
-            (Value::Sequence(items), _) => items.push(node),
-            (Value::Mapping(entries), Some(key)) => entries.push((key, node)),
-            (Value::Mapping(_), None) => open.key = Some(node),
-            (Value::Scalar { .. }, _) => {}
-        }
+        let children = self.children.drain(open.first_child..);
+        let value = if open.mapping {
+            let mut entries = Vec::with_capacity(children.len() / 2);
+            let mut children = children;
+            while let (Some(key), Some(value)) = (children.next(), children.next()) {
+                entries.push((key, value));
+            }
+            Value::Mapping(entries)
+        } else {
+            Value::Sequence(children.collect())
+        };
+        self.push(Node {
+            span: open.span,
+            value,
+        });
     }
 
     /// Notes the first anchor (`anchor` is not 0) or alias: the spec language has neither,
@@ -528,24 +551,13 @@ impl MarkedEventReceiver for Builder {
             }
             Event::MappingStart(anchor, _) | Event::SequenceStart(anchor, _) => {
                 self.refuse(mark, anchor, false);
-                let value = if matches!(event, Event::MappingStart(..)) {
-                    Value::Mapping(Vec::new())
-                } else {
-                    Value::Sequence(Vec::new())
-                };
                 self.stack.push(Open {
-                    node: Node {
-                        span: span_at(mark, 1),
-                        value,
-                    },
-                    key: None,
+                    span: span_at(mark, 1),
+                    mapping: matches!(event, Event::MappingStart(..)),
+                    first_child: self.children.len(),
                 });
             }
-            Event::MappingEnd | Event::SequenceEnd => {
-                if let Some(open) = self.stack.pop() {
-                    self.push(open.node);
-                }
-            }
+            Event::MappingEnd | Event::SequenceEnd => self.close(),
             Event::Alias(_) => self.refuse(mark, 0, true),
             _ => {}
         }

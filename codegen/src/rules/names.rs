@@ -82,21 +82,26 @@ pub fn is_snake_case(name: &str) -> bool {
         && !name.ends_with('_')
 }
 
+/// Where a name is written: a path of the model and the key and index that lead from it to
+/// the name, joined into one path only for a report.
+type Place<'a> = (&'a Path, Option<&'static str>, Option<usize>);
+
 /// A name with the place of its `name` key.
-fn keyed<'a>(name: &'a str, path: &Path) -> (&'a str, Path) {
-    (name, path.key("name"))
+fn keyed<'a>(name: &'a str, path: &'a Path) -> (&'a str, Place<'a>) {
+    (name, (path, Some("name"), None))
 }
 
 /// Checks that every name becomes a clean Rust identifier.
 pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
-    let mut names: Vec<(&str, Path)> = Vec::new();
-    names.push((&model.family, Path::root().key("family")));
+    let root = Path::root();
+    let mut names: Vec<(&str, Place<'_>)> = Vec::new();
+    names.push((&model.family, (&root, Some("family"), None)));
     names.extend(super::declared(model).map(|r| {
-        (
+        keyed(
             r.repeat
                 .as_ref()
                 .map_or(r.name.as_str(), |c| c.base.as_str()),
-            r.path.key("name"),
+            &r.path,
         )
     }));
     for register in super::declared(model) {
@@ -105,12 +110,11 @@ pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
                 names.extend(fields.iter().map(|f| keyed(&f.name, &f.path)));
             }
             Kind::Version(parts) => {
-                let at = register.path.key("parts");
                 names.extend(
                     parts
                         .iter()
                         .enumerate()
-                        .map(|(i, p)| (p.as_str(), at.index(i))),
+                        .map(|(i, p)| (p.as_str(), (&register.path, Some("parts"), Some(i)))),
                 );
             }
             _ => {}
@@ -118,19 +122,26 @@ pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
     }
     for e in &model.enums {
         if e.shared {
-            names.push((&e.name, e.path.clone()));
+            names.push((&e.name, (&e.path, None, None)));
         }
         names.extend(e.codes.iter().map(|c| keyed(&c.name, &c.path)));
     }
     names.extend(model.commands.iter().map(|c| keyed(&c.name, &c.path)));
     names.extend(model.groups.iter().map(|g| keyed(&g.name, &g.path)));
     names.extend(model.repeats.iter().map(|r| keyed(&r.name, &r.path)));
-    for (name, path) in names {
+    let joined = |(path, key, index): Place<'_>| {
+        let path = key.map_or_else(|| path.clone(), |key| path.key(key));
+        match index {
+            Some(index) => path.index(index),
+            None => path,
+        }
+    };
+    for (name, place) in names {
         if RESERVED.contains(&name) {
             out.push(
                 Diagnostic::at(
                     FORMAT_RULE,
-                    &path,
+                    &joined(place),
                     format!("`{name}` is a Rust path keyword"),
                 )
                 .label("cannot name a generated item")
@@ -138,9 +149,13 @@ pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
             );
         } else if !is_snake_case(name) {
             out.push(
-                Diagnostic::at(FORMAT_RULE, &path, format!("`{name}` is not snake_case"))
-                    .label("expected lowercase letters, digits and single underscores")
-                    .help("start with a letter, e.g. `us_100` rather than `100us`"),
+                Diagnostic::at(
+                    FORMAT_RULE,
+                    &joined(place),
+                    format!("`{name}` is not snake_case"),
+                )
+                .label("expected lowercase letters, digits and single underscores")
+                .help("start with a letter, e.g. `us_100` rather than `100us`"),
             );
         }
     }

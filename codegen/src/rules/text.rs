@@ -48,6 +48,13 @@ fn walk(node: &Node, out: &mut Vec<Diagnostic>) {
 }
 
 fn scalar(text: &str, span: Span, out: &mut Vec<Diagnostic>) {
+    // Printable ASCII (most of a spec) needs no look at each character.
+    if text
+        .bytes()
+        .all(|b| matches!(b, b' '..=b'~' | b'\n' | b'\t'))
+    {
+        return;
+    }
     let Some((c, why)) = text.chars().find_map(|c| forbidden(c).map(|why| (c, why))) else {
         return;
     };

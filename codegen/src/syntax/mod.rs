@@ -17,12 +17,12 @@
 mod reader;
 
 use reader::what;
-pub(crate) use reader::{Entries, FromNode, Items, Reader, RULE};
+pub(crate) use reader::{At, Entries, FromNode, Items, Reader, RULE};
 
 pub(crate) use crate::model::{
     Access, Addressing, Apply, Effect, ExceptionStyle, LongWrites, Parity, Table,
 };
-use crate::source::{Node, Path};
+use crate::source::Node;
 
 names! {
     Table { "holding" => Table::Holding, "input" => Table::Input }
@@ -66,7 +66,7 @@ names! {
 
 /// `none`, `odd` or `even`, exactly as the spec schema spells them.
 impl FromNode for Parity {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         let text = reader.scalar(node, path, "a name")?;
         match Parity::from_name(text).filter(|parity| parity.name() == text) {
             Some(parity) => Some(parity),
@@ -87,7 +87,7 @@ impl FromNode for Parity {
 
 /// Reads a whole spec from its root node.
 pub(crate) fn read(root: &Node, reader: &mut Reader) -> Option<SpecFile> {
-    SpecFile::from_node(root, &Path::root(), reader)
+    SpecFile::from_node(root, &At::Root, reader)
 }
 
 record! {

@@ -6,7 +6,9 @@
 use std::collections::BTreeMap;
 
 use crate::diagnostic::{Diagnostic, Label, Location};
-use crate::source::{Node, Path, Span, Value};
+use std::fmt;
+
+use crate::source::{Node, Span, Value};
 
 /// Rule name of every reading error.
 pub(crate) const RULE: &str = crate::source::YAML_RULE;
@@ -21,7 +23,7 @@ pub(crate) struct Reader {
 
 impl Reader {
     /// A key given twice in one mapping: at `again`, first at `first`.
-    fn repeated(&mut self, path: &Path, name: &str, again: Span, first: Span, help: &str) {
+    fn repeated(&mut self, path: &At<'_>, name: &str, again: Span, first: Span, help: &str) {
         self.diagnostics.push(Diagnostic {
             rule: RULE,
             message: format!("{} has `{name}` twice", what(path)),
@@ -54,7 +56,7 @@ impl Reader {
     fn pairs<'n>(
         &mut self,
         node: &'n Node,
-        path: &Path,
+        path: &At<'_>,
         expected: &str,
     ) -> Option<&'n [(Node, Node)]> {
         if let Value::Mapping(pairs) = &node.value {
@@ -70,15 +72,15 @@ impl Reader {
     pub(super) fn mapping<'n>(
         &mut self,
         node: &'n Node,
-        path: &Path,
-        keys: &[&str],
+        path: &At<'_>,
+        keys: &'static [&'static str],
     ) -> Option<Mapping<'n>> {
         let entries = self.pairs(
             node,
             path,
             "expected `key: value` lines or `{key: value, …}`",
         )?;
-        let mut found: BTreeMap<&str, (&Node, &Node)> = BTreeMap::new();
+        let mut found: Vec<Option<(&Node, &Node)>> = vec![None; keys.len()];
         for (key, value) in entries {
             let Some(name) = key.text().filter(|_| !key.is_null()) else {
                 self.error(
@@ -88,7 +90,7 @@ impl Reader {
                 );
                 continue;
             };
-            if !keys.contains(&name) {
+            let Some(slot) = keys.iter().position(|known| *known == name) else {
                 let mut diagnostic = Diagnostic {
                     rule: RULE,
                     message: format!("{} has an unknown key `{name}`", what(path)),
@@ -102,29 +104,31 @@ impl Reader {
                 diagnostic.help = Some(format!("expected one of: {}", keys.join(", ")));
                 self.diagnostics.push(diagnostic);
                 continue;
-            }
-            if let Some((first, _)) = found.get(name) {
+            };
+            if let Some((first, _)) = found[slot] {
                 let first = first.span;
                 self.repeated(path, name, key.span, first, "keep one of them");
                 continue;
             }
-            found.insert(name, (key, value));
+            found[slot] = Some((key, value));
         }
         Some(Mapping {
             node,
+            keys,
             entries: found,
         })
     }
 
-    /// Reads `key` of `map`: absent keys take `T::absent()` or are reported missing.
+    /// Reads the `slot`th key of `map`: absent keys take `T::absent()` or are reported missing.
     pub(crate) fn field<T: FromNode>(
         &mut self,
         map: &Mapping<'_>,
-        path: &Path,
-        key: &str,
+        path: &At<'_>,
+        slot: usize,
     ) -> Option<T> {
-        match map.entries.get(key) {
-            Some((_, value)) => T::from_node(value, &path.key(key), self),
+        let key = map.keys[slot];
+        match map.entries[slot] {
+            Some((_, value)) => T::from_node(value, &At::Key(path, key), self),
             None => T::absent().or_else(|| {
                 // Point into the mapping at its first key: a block mapping has no mark of its own.
                 let at = match &map.node.value {
@@ -143,16 +147,17 @@ impl Reader {
         }
     }
 
-    /// Reads `key` of `map`, or `T::default()` when it is absent or null.
+    /// Reads the `slot`th key of `map`, or `T::default()` when it is absent or null.
     pub(crate) fn field_or_default<T: FromNode + Default>(
         &mut self,
         map: &Mapping<'_>,
-        path: &Path,
-        key: &str,
+        path: &At<'_>,
+        slot: usize,
     ) -> Option<T> {
-        let given = map.entries.get(key).filter(|(_, value)| !value.is_null());
+        let key = map.keys[slot];
+        let given = map.entries[slot].filter(|(_, value)| !value.is_null());
         given.map_or(Some(T::default()), |(_, value)| {
-            T::from_node(value, &path.key(key), self)
+            T::from_node(value, &At::Key(path, key), self)
         })
     }
 
@@ -160,7 +165,7 @@ impl Reader {
     pub(super) fn scalar<'n>(
         &mut self,
         node: &'n Node,
-        path: &Path,
+        path: &At<'_>,
         expected: &str,
     ) -> Option<&'n str> {
         match &node.value {
@@ -177,26 +182,51 @@ impl Reader {
     }
 }
 
+/// Where a value being read is, such as `registers[3].address`: steps linked on the stack,
+/// written out only when a message names the place (most values are read without one).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum At<'a> {
+    /// The document's root.
+    Root,
+    /// A mapping key under its parent.
+    Key(&'a At<'a>, &'a str),
+    /// A sequence index under its parent.
+    Index(&'a At<'a>, usize),
+}
+
+/// Written like [`crate::source::Path`]: `registers[3].address`.
+impl fmt::Display for At<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Root => Ok(()),
+            Self::Key(Self::Root, key) => write!(f, "{key}"),
+            Self::Key(parent, key) => write!(f, "{parent}.{key}"),
+            Self::Index(parent, index) => write!(f, "{parent}[{index}]"),
+        }
+    }
+}
+
 /// How a path is named in messages.
-pub(super) fn what(path: &Path) -> String {
-    if path.0.is_empty() {
+pub(super) fn what(path: &At<'_>) -> String {
+    if matches!(path, At::Root) {
         "the spec".into()
     } else {
         format!("`{path}`")
     }
 }
 
-/// A mapping's entries by key (first occurrence).
+/// A mapping's entries (first occurrence), one slot per known key, in the order of `keys`.
 pub(crate) struct Mapping<'n> {
     node: &'n Node,
-    entries: BTreeMap<&'n str, (&'n Node, &'n Node)>,
+    keys: &'static [&'static str],
+    entries: Vec<Option<(&'n Node, &'n Node)>>,
 }
 
 /// A value read from a node of the tree.
 pub(crate) trait FromNode: Sized {
     /// Reads `node` (at `path`), reporting every problem to `reader`; `None` when it cannot
     /// be read.
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self>;
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self>;
 
     /// The value of an absent key; `None` makes the key required.
     fn absent() -> Option<Self> {
@@ -205,7 +235,7 @@ pub(crate) trait FromNode: Sized {
 }
 
 impl<T: FromNode> FromNode for Option<T> {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         if node.is_null() {
             return Some(None);
         }
@@ -218,7 +248,7 @@ impl<T: FromNode> FromNode for Option<T> {
 }
 
 impl FromNode for String {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         reader.scalar(node, path, "text").map(str::to_owned)
     }
 }
@@ -246,7 +276,7 @@ fn parse_integer(text: &str) -> Option<i128> {
 macro_rules! integers {
     ($($ty:ty),*) => {$(
         impl FromNode for $ty {
-            fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+            fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
                 let text = reader.scalar(node, path, "an integer")?;
                 let plain = matches!(node.value, Value::Scalar { plain: true, .. });
                 let Some(value) = parse_integer(text).filter(|_| plain) else {
@@ -281,7 +311,7 @@ macro_rules! integers {
 integers!(u8, u16, u32, u64, i64);
 
 impl FromNode for bool {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         match &node.value {
             Value::Scalar { text, plain: true } if text == "true" => Some(true),
             Value::Scalar { text, plain: true } if text == "false" => Some(false),
@@ -299,18 +329,18 @@ impl FromNode for bool {
 
 /// Reads every item; the list fails when any item does (after reporting them all).
 impl<T: FromNode> FromNode for Vec<T> {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         let items = sequence(node, path, reader)?;
         let read: Vec<Option<T>> = items
             .iter()
             .enumerate()
-            .map(|(i, item)| T::from_node(item, &path.index(i), reader))
+            .map(|(i, item)| T::from_node(item, &At::Index(path, i), reader))
             .collect();
         read.into_iter().collect()
     }
 }
 
-fn sequence<'n>(node: &'n Node, path: &Path, reader: &mut Reader) -> Option<&'n [Node]> {
+fn sequence<'n>(node: &'n Node, path: &At<'_>, reader: &mut Reader) -> Option<&'n [Node]> {
     match &node.value {
         Value::Sequence(items) => Some(items),
         _ => {
@@ -325,7 +355,7 @@ fn sequence<'n>(node: &'n Node, path: &Path, reader: &mut Reader) -> Option<&'n 
 }
 
 impl FromNode for (i64, i64) {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         let items = sequence(node, path, reader)?;
         if items.len() != 2 {
             reader.error(
@@ -339,8 +369,8 @@ impl FromNode for (i64, i64) {
             );
             return None;
         }
-        let min = i64::from_node(&items[0], &path.index(0), reader);
-        let max = i64::from_node(&items[1], &path.index(1), reader);
+        let min = i64::from_node(&items[0], &At::Index(path, 0), reader);
+        let max = i64::from_node(&items[1], &At::Index(path, 1), reader);
         Some((min?, max?))
     }
 }
@@ -368,10 +398,10 @@ impl<T> Items<T> {
 }
 
 impl<T: FromNode> FromNode for Items<T> {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         let mut read = Self::default();
         for (i, item) in sequence(node, path, reader)?.iter().enumerate() {
-            match T::from_node(item, &path.index(i), reader) {
+            match T::from_node(item, &At::Index(path, i), reader) {
                 Some(value) => read.found.push((i, value)),
                 None => read
                     .unread
@@ -390,7 +420,7 @@ impl<T> Entries<T> {
 }
 
 impl<T: FromNode> FromNode for Entries<T> {
-    fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+    fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
         let pairs = reader.pairs(node, path, "expected `name: …` entries")?;
         let mut read = Self::default();
         let mut first: BTreeMap<&str, Span> = BTreeMap::new();
@@ -402,7 +432,7 @@ impl<T: FromNode> FromNode for Entries<T> {
                 reader.repeated(path, name, key.span, span, "rename one of them");
                 continue;
             }
-            match T::from_node(value, &path.key(name), reader) {
+            match T::from_node(value, &At::Key(path, name), reader) {
                 Some(item) => {
                     read.found.insert(name.to_owned(), item);
                 }
@@ -417,7 +447,7 @@ impl<T: FromNode> FromNode for Entries<T> {
 macro_rules! names {
     ($($ty:ty { $($spelling:literal => $value:expr),* $(,)? })*) => {$(
         impl FromNode for $ty {
-            fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+            fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
                 const SPELLINGS: &[(&str, $ty)] = &[$(($spelling, $value)),*];
                 let text = reader.scalar(node, path, "a name")?;
                 if let Some((_, value)) = SPELLINGS.iter().find(|(name, _)| *name == text) {
@@ -459,22 +489,24 @@ macro_rules! record {
         }
 
         impl FromNode for $name {
-            fn from_node(node: &Node, path: &Path, reader: &mut Reader) -> Option<Self> {
+            fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
                 const KEYS: &[&str] = &[$([$($key,)? stringify!($field)][0]),*];
                 let map = reader.mapping(node, path, KEYS)?;
+                // Fields are read in the order of `KEYS`: the `slot`th key is the field's.
+                let mut slot = 0;
                 $(
-                    let $field = record!(
-                        @read reader, map, path, [$($key,)? stringify!($field)][0], $ty $(, $default)?
-                    );
+                    let $field = record!(@read reader, map, path, slot, $ty $(, $default)?);
+                    slot += 1;
                 )*
+                let _ = slot;
                 Some(Self { $($field: $field?,)* })
             }
         }
     };
-    (@read $reader:ident, $map:ident, $path:ident, $key:expr, $ty:ty) => {
-        $reader.field::<$ty>(&$map, $path, $key)
+    (@read $reader:ident, $map:ident, $path:ident, $slot:ident, $ty:ty) => {
+        $reader.field::<$ty>(&$map, $path, $slot)
     };
-    (@read $reader:ident, $map:ident, $path:ident, $key:expr, $ty:ty, default) => {
-        $reader.field_or_default::<$ty>(&$map, $path, $key)
+    (@read $reader:ident, $map:ident, $path:ident, $slot:ident, $ty:ty, default) => {
+        $reader.field_or_default::<$ty>(&$map, $path, $slot)
     };
 }
