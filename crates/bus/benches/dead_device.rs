@@ -24,7 +24,14 @@ use optobus_codec::LineFormat;
 
 const BAUD: u32 = 115_200;
 const TRIALS: usize = 3;
-const RUN: Duration = Duration::from_secs(8);
+/// A trial's length; `OPTOBUS_BENCH_RUN_SECS` sets another (a long trial shows the steady
+/// state, where the backoff has grown: the first failures and probes weigh less).
+fn trial_length() -> Duration {
+    std::env::var("OPTOBUS_BENCH_RUN_SECS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .map_or(Duration::from_secs(8), Duration::from_secs)
+}
 const GROUP: &str = "measurements";
 /// How long after going offline the dead device returns, one trial each.
 const RETURNS: [Duration; 3] = [
@@ -85,7 +92,7 @@ async fn rates(with_dead: bool) -> (Vec<f64>, u64) {
     let started = Instant::now();
     let running = bus.start().expect("starts");
     let mut polls = [0u64; 7];
-    while started.elapsed() < RUN {
+    while started.elapsed() < trial_length() {
         if let Ok(Ok(Event::Sample(sample))) =
             tokio::time::timeout(Duration::from_millis(100), events.recv()).await
         {
@@ -171,7 +178,7 @@ async fn run() {
     }
     println!(
         "{BAUD} baud 8N1, d8 dead (timeout 100 ms), {TRIALS} trials of {:.0} s each way, interleaved  (load {})",
-        RUN.as_secs_f64(),
+        trial_length().as_secs_f64(),
         common::load()
     );
     let mut worst: f64 = f64::INFINITY;
@@ -197,8 +204,8 @@ async fn run() {
     let asked_per_trial = asked as f64 / TRIALS as f64;
     println!(
         "  d8 was asked {asked_per_trial:.1} times a trial; the seven lost {:.3} s a trial, {:.3} s per request to d8 (its timeout: 0.100 s)",
-        (1.0 - worst) * RUN.as_secs_f64(),
-        (1.0 - worst) * RUN.as_secs_f64() / asked_per_trial
+        (1.0 - worst) * trial_length().as_secs_f64(),
+        (1.0 - worst) * trial_length().as_secs_f64() / asked_per_trial
     );
     for after in RETURNS {
         let (took, backoff, probes) = recovery(after).await;
