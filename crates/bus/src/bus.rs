@@ -44,7 +44,7 @@ impl std::fmt::Debug for Bus {
 pub struct Running {
     events: broadcast::Sender<Event>,
     handle: Handle,
-    gateways: Vec<(String, SocketAddr)>,
+    gateways: Vec<(String, SocketAddr, Arc<GatewayCounters>)>,
     tasks: Vec<JoinHandle<()>>,
     simulators: Vec<(String, Simulator)>,
 }
@@ -157,11 +157,11 @@ impl Bus {
                         address: config.listen,
                         source,
                     })?;
-                    if let Ok(address) = listener.local_addr() {
-                        gateways.push((line.name.clone(), address));
-                    }
                     let (queue, requests) = mpsc::channel(config.clients);
                     let counters = Arc::new(GatewayCounters::default());
+                    if let Ok(address) = listener.local_addr() {
+                        gateways.push((line.name.clone(), address, Arc::clone(&counters)));
+                    }
                     tasks.push(tokio::spawn(gateway::serve(
                         listener,
                         config.clone(),
@@ -283,15 +283,29 @@ impl Running {
     pub fn gateways(&self) -> impl Iterator<Item = (&str, SocketAddr)> {
         self.gateways
             .iter()
-            .map(|(line, address)| (line.as_str(), *address))
+            .map(|(line, address, _)| (line.as_str(), *address))
     }
 
     /// Where the gateway of line `line` listens (its port, when the file asked for port 0).
     pub fn gateway_address(&self, line: &str) -> Option<SocketAddr> {
         self.gateways
             .iter()
-            .find(|(name, _)| name == line)
-            .map(|(_, address)| *address)
+            .find(|(name, ..)| name == line)
+            .map(|(_, address, _)| *address)
+    }
+
+    /// What the gateway of line `line` has done: requests passed to the line, and clients
+    /// closed at once because the client limit was reached.
+    pub fn gateway_counts(&self, line: &str) -> Option<(u64, u64)> {
+        self.gateways
+            .iter()
+            .find(|(name, ..)| name == line)
+            .map(|(_, _, counters)| {
+                (
+                    counters.requests.load(std::sync::atomic::Ordering::Relaxed),
+                    counters.refused.load(std::sync::atomic::Ordering::Relaxed),
+                )
+            })
     }
 
     /// Stops every line.

@@ -171,6 +171,8 @@ async fn clients_beyond_the_limit_are_closed_and_a_broken_client_harms_no_other(
     let mut byte = [0u8; 1];
     let closed = tokio::time::timeout(Duration::from_secs(5), third.read(&mut byte)).await;
     assert!(matches!(closed, Ok(Ok(0)) | Ok(Err(_))), "{closed:?}");
+    // The refused client is counted, beside the two requests passed.
+    assert_eq!(running.gateway_counts("rs485"), Some((2, 1)));
     // Protocol id 1 is not Modbus: that connection is closed, the other goes on.
     second
         .write_all(&[0, 1, 0, 1, 0, 6, 1, 4, 0, 0, 0, 1])
