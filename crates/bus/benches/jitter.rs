@@ -1,8 +1,9 @@
 //! An unsaturated line: 8 devices of mixed families on the byte-timed RS-485 emulator at
 //! 115200 baud 8N1, each polling its measurements periodically (periods of 38 to 190 ms,
 //! several of them multiples of each other so that ticks collide), the polls needing about
-//! 60 % of the line (≤ 70 %; the line's own utilisation is printed), then the same with the
-//! periods doubled (about 30 %).
+//! half of the line (≤ 70 %; the line's own utilisation is printed), then the same with the
+//! periods doubled. Each runs twice: with tokio's clock paused (byte timing and schedule
+//! exact: what the schedule itself does) and on the wall clock (what the machine adds).
 //!
 //! For every poll it prints the p50 and p99 of its period jitter, the deviation of the
 //! interval between the requests of consecutive samples from the poll's period, against the
@@ -13,22 +14,24 @@
 //! interval of 1.5 periods or more) are counted too. Two more anchors of the same run: the
 //! jitter of a plain tokio interval of 10 ms beside the bus on the same runtime (what the
 //! machine does to any timer), and the jitter an ideal non-preemptive earliest-deadline-first
-//! line would give these polls with the run's median transaction times (what colliding
-//! ticks alone cost), and the same with the polls' first ticks staggered (what a schedule
-//! that does not start every poll at once could reach). Run with
+//! line without a phase plan would give these polls with the run's median transaction times
+//! (every poll first due at once, and first ticks packed back to back): what the bus's phase
+//! plan is measured against. Run with
 //! `cargo bench -p optobus-bus --bench jitter`.
 
 mod common;
 
 use std::collections::HashMap;
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, SystemTime};
+
+use tokio::time::Instant;
 
 use common::{bus_file, emulated_line, model_name, models, ms, quantile, simulators};
 use optobus_bus::{Bus, Event};
 use optobus_codec::LineFormat;
 
 const BAUD: u32 = 115_200;
-/// The periods at the heavier load (about 60 % of the line); the lighter load doubles them.
+/// The periods at the heavier load (about half of the line); the lighter load doubles them.
 const PERIODS_MS: [u64; 8] = [38, 45, 60, 75, 90, 120, 150, 190];
 const RUN: Duration = Duration::from_secs(15);
 /// The first polls (all due at once at the start) are left out.
@@ -95,7 +98,7 @@ fn jitters(starts: &[f64], period: f64) -> Vec<f64> {
         .collect()
 }
 
-async fn run(periods: [u64; 8]) {
+async fn run(periods: [u64; 8], clock: &str) {
     let format = LineFormat::new(BAUD);
     let devices: Vec<String> = models()
         .iter()
@@ -131,7 +134,8 @@ async fn run(periods: [u64; 8]) {
         })
         .collect();
     let started = Instant::now();
-    let warm_until = SystemTime::now() + WARM_UP;
+    // Samples carry the line's wall-clock mapping of its (possibly paused) clock.
+    let mut warm_until: Option<SystemTime> = None;
     let running = bus.start().expect("starts");
     let probe = tokio::spawn(timer_probe(started + RUN));
     let mut longest = Duration::ZERO;
@@ -141,6 +145,7 @@ async fn run(periods: [u64; 8]) {
         match tokio::time::timeout(Duration::from_millis(100), events.recv()).await {
             Ok(Ok(Event::Sample(sample))) => {
                 let index: usize = sample.source.device[1..].parse::<usize>().unwrap() - 1;
+                let warm_until = *warm_until.get_or_insert(sample.requested + WARM_UP);
                 if sample.register.name != first[index] || sample.requested < warm_until {
                     continue;
                 }
@@ -171,7 +176,7 @@ async fn run(periods: [u64; 8]) {
         .fold(0.0, f64::max);
     let strict = typical + 1.0;
     println!(
-        "{BAUD} baud 8N1, 8 periodic polls, {:.0} s: line utilisation {:.2}, {} line errors, {} gap violations, {} events lost by the bench  (load {})",
+        "{clock}: {BAUD} baud 8N1, 8 periodic polls, {:.0} s: line utilisation {:.2}, {} line errors, {} gap violations, {} events lost by the bench  (load {})",
         RUN.as_secs_f64(),
         utilisation.0,
         utilisation.1,
@@ -246,7 +251,22 @@ async fn run(periods: [u64; 8]) {
 }
 
 fn main() {
+    // Tokio's clock paused: time moves only when every task waits, so the line's byte timing
+    // and the schedule are exact and the machine's load plays no part: what the schedule
+    // itself does.
+    let paused = || {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .start_paused(true)
+            .build()
+            .unwrap()
+    };
+    paused().block_on(run(PERIODS_MS, "schedule alone (paused clock)"));
+    paused().block_on(run(
+        PERIODS_MS.map(|p| p * 2),
+        "schedule alone (paused clock)",
+    ));
     let runtime = common::runtime();
-    runtime.block_on(run(PERIODS_MS));
-    runtime.block_on(run(PERIODS_MS.map(|p| p * 2)));
+    runtime.block_on(run(PERIODS_MS, "wall clock"));
+    runtime.block_on(run(PERIODS_MS.map(|p| p * 2), "wall clock"));
 }

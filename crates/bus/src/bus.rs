@@ -146,7 +146,6 @@ impl Bus {
                     simulators.push((config.name.clone(), simulator));
                 }
             }
-            schedule.stagger();
             let opener = match self.streams.remove(&line.name) {
                 Some(stream) => Opener::Stream(Some(stream)),
                 None => port_opener(&line.port, line.format, line_simulators),
