@@ -8,7 +8,7 @@
 //! - A device that fails [`OFFLINE_AFTER`] times in a row goes offline: its polls stop, and one
 //!   of them probes it after a backoff that starts at [`FIRST_BACKOFF`] and doubles to
 //!   [`MAX_BACKOFF`], so a dead device costs at most one timeout per backoff period. A
-//!   successful probe brings it back online with its periodic polls starting afresh.
+//!   successful probe brings it back online, its periodic polls resuming at their phases.
 //! - A device is first asked once its power-up wait has passed.
 
 use std::time::Duration;
@@ -243,8 +243,11 @@ impl Schedule {
                     failures: 0,
                     backoff: FIRST_BACKOFF,
                 };
+                // Its periodic polls resume at their planned phases, clear of the others.
                 for poll in self.polls.iter_mut().filter(|p| p.device == device_index) {
-                    poll.due = now;
+                    if let Some(every) = poll.every {
+                        poll.due = next_tick(poll.due, every, now);
+                    }
                 }
                 Some(Health::Online)
             }
@@ -465,7 +468,7 @@ mod tests {
         let mut schedule = Schedule::default();
         let dead = schedule.add_device(start);
         let dead_poll = schedule.add_poll(dead, None, 0);
-        let _second_dead_poll = schedule.add_poll(dead, Some(ms(50)), 0);
+        let periodic_dead_poll = schedule.add_poll(dead, Some(ms(50)), 0);
         let alive = schedule.add_device(start);
         let alive_poll = schedule.add_poll(alive, None, 0);
         let mut now = start;
@@ -508,6 +511,13 @@ mod tests {
             Some(Health::Online)
         );
         assert_eq!(schedule.health(dead), Health::Online);
+        // Its periodic poll resumes on its own ticks (every 50 ms from the start).
+        let resumed = probe_due + ms(50);
+        assert_ne!(
+            schedule.next(resumed - ms(1)),
+            Next::Run(periodic_dead_poll)
+        );
+        assert_eq!(schedule.next(resumed), Next::Run(periodic_dead_poll));
     }
 
     #[test]
