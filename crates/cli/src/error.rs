@@ -133,11 +133,15 @@ pub(crate) fn driver_error(error: optobus_driver::Error, register: Option<&str>)
         exit: exit_of(&error),
     };
     if timed_out {
-        explained.hint("check wiring, --slave, --baud and --parity, or raise --timeout")
+        explained.hint(
+            "check the connection and --slave (on a serial line also --baud and --parity), or \
+             raise --timeout",
+        )
     } else if misfit {
         explained.hint(
             "check --model: the reply does not fit this model's framing, `optobus identify` \
-             names the model that answers; then wiring, --baud and --parity",
+             names the model that answers; then the connection (on a serial line --baud and \
+             --parity)",
         )
     } else {
         explained

@@ -611,3 +611,27 @@ fn dump_of_a_device_refusing_reserved_rows_answers_in_full() {
         .collect();
     assert_eq!(refused, [(140, 15)]);
 }
+
+#[test]
+fn a_timeout_over_tcp_hints_at_the_connection_not_at_baud_rates() {
+    // A server that accepts and never answers.
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    let address = listener.local_addr().expect("address").to_string();
+    let held = std::thread::spawn(move || listener.accept().map(|(stream, _)| stream));
+    let (code, _, stderr) = outcome(&[
+        "read",
+        "distance_1",
+        "--tcp",
+        &address,
+        "--model",
+        "p-series",
+        "--timeout",
+        "200ms",
+    ]);
+    assert_eq!(code, Some(FAILED), "{stderr}");
+    assert!(
+        stderr.contains("check the connection and --slave (on a serial line also --baud and --parity), or raise --timeout"),
+        "{stderr}"
+    );
+    drop(held);
+}
