@@ -71,6 +71,21 @@ fn a_buffer_download_is_drawn_over_time() {
     assert!(chart.contains("<polyline"));
 }
 
+#[test]
+fn a_saved_buffer_download_is_drawn_over_its_index() {
+    let (csv, out) = (scratch("buffer.csv"), scratch("saved-buffer.svg"));
+    ok(&["buffer", "--count", "50", "--wait", "0", "--out", &csv]);
+    let text = std::fs::read_to_string(&csv).expect("the download was saved");
+    assert!(text.starts_with("index,value_mm\n"), "{text}");
+    ok(&["plot", &csv, "--out", &out]);
+    let _ = std::fs::remove_file(&csv);
+    let chart = svg(&out);
+    let texts = tick_labels(&chart);
+    let has = |label: &str| texts.iter().any(|t| t == label);
+    assert!(has("value_mm") && has("index") && has("40"), "{texts:?}");
+    assert!(chart.contains("<polyline"));
+}
+
 /// The texts of an SVG chart: axis descriptions and tick labels.
 fn tick_labels(chart: &str) -> Vec<String> {
     chart
@@ -113,7 +128,7 @@ fn a_buffer_at_ratio_10_is_drawn_at_ten_times_the_sampling_interval() {
 #[test]
 fn what_cannot_be_drawn_is_refused() {
     let csv = scratch("not-a-recording.csv");
-    std::fs::write(&csv, "index,value_mm\n0,1.0\n").expect("write");
+    std::fs::write(&csv, "when,what\nnoon,1.0\n").expect("write");
     let stderr = fails(&["plot", &csv, "--out", &scratch("x.svg")]);
     assert!(stderr.contains("no recording"), "{stderr}");
     let stderr = fails(&["plot", &csv, "--out", &scratch("x.pdf")]);

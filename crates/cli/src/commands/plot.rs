@@ -1,5 +1,6 @@
-//! `optobus plot`: a file `optobus record` wrote, drawn as SVG or PNG: each value column over the
-//! elapsed seconds, with the units of its header.
+//! `optobus plot`: a file `optobus record` (or `optobus run --record`) wrote, drawn as SVG or
+//! PNG: each value column over the elapsed seconds, with the units of its header; or a buffer
+//! download `optobus buffer --out` saved, over its index.
 
 use std::path::PathBuf;
 
@@ -12,7 +13,8 @@ use crate::log::note;
 
 #[derive(Debug, Args)]
 pub(crate) struct PlotArgs {
-    /// A CSV file of `optobus record` (time, `elapsed [s]`, one column per register).
+    /// A CSV file of `optobus record` (time, `elapsed [s]`, one column per register), or of
+    /// `optobus buffer --out` (index, value).
     file: PathBuf,
     /// The chart to write: `.svg` or `.png`.
     #[arg(long)]
@@ -50,15 +52,23 @@ fn series(args: &PlotArgs) -> Result<(String, Vec<Series>), CliError> {
     })?;
     let mut reader = csv::Reader::from_reader(file);
     let headers = reader.headers().map_err(unreadable)?.clone();
-    let Some(x_label) = headers.get(1).filter(|h| h.starts_with("elapsed")) else {
-        return Err(CliError::new(format!(
-            "{shown} is no recording: its second column is not the elapsed time"
-        ))
-        .hint("record one with `optobus record`"));
-    };
+    // A recording: time, elapsed seconds, values; a buffer download: index, value.
+    let x_column =
+        match (headers.get(0), headers.get(1)) {
+            (_, Some(elapsed)) if elapsed.starts_with("elapsed") => 1,
+            (Some("index"), Some(_)) => 0,
+            _ => return Err(CliError::new(format!(
+                "{shown} is no recording or buffer download: its columns are neither time, \
+                 elapsed, values nor index, value"
+            ))
+            .hint(
+                "record one with `optobus record`, or save a download with `optobus buffer --out`",
+            )),
+        };
+    let x_label = headers.get(x_column).unwrap_or_default().to_owned();
     let mut series: Vec<Series> = headers
         .iter()
-        .skip(2)
+        .skip(x_column + 1)
         .map(|label| Series {
             label: label.to_owned(),
             points: Vec::new(),
@@ -66,10 +76,10 @@ fn series(args: &PlotArgs) -> Result<(String, Vec<Series>), CliError> {
         .collect();
     for row in reader.records() {
         let row = row.map_err(unreadable)?;
-        let Some(x) = row.get(1).and_then(|x| x.parse::<f64>().ok()) else {
+        let Some(x) = row.get(x_column).and_then(|x| x.parse::<f64>().ok()) else {
             continue;
         };
-        for (one, cell) in series.iter_mut().zip(row.iter().skip(2)) {
+        for (one, cell) in series.iter_mut().zip(row.iter().skip(x_column + 1)) {
             one.points.push((x, cell.parse::<f64>().ok()));
         }
     }
@@ -77,7 +87,7 @@ fn series(args: &PlotArgs) -> Result<(String, Vec<Series>), CliError> {
     if series.is_empty() {
         return Err(CliError::new(format!("{shown} holds no numbers to plot")));
     }
-    Ok((x_label.to_owned(), series))
+    Ok((x_label, series))
 }
 
 pub(crate) fn run(args: &PlotArgs) -> Result<(), CliError> {
