@@ -13,6 +13,9 @@ use optobus_driver::Encode;
 use optobus_inspect::{decode_value, Value};
 use tokio::sync::{mpsc, oneshot};
 
+use crate::event::DeviceId;
+use crate::trace::{Frame, LineFrames};
+
 /// Jobs a line keeps queued for its API callers.
 pub(crate) const JOB_QUEUE: usize = 64;
 
@@ -54,7 +57,7 @@ impl Encode for Checked {
 /// A device as the handle finds it.
 #[derive(Clone, Debug)]
 pub(crate) struct Entry {
-    pub(crate) name: String,
+    pub(crate) id: Arc<DeviceId>,
     pub(crate) line: usize,
     /// Its index among its line's devices.
     pub(crate) index: usize,
@@ -101,14 +104,28 @@ impl std::error::Error for JobError {}
 pub struct Handle {
     pub(crate) lines: Arc<[mpsc::Sender<Job>]>,
     pub(crate) devices: Arc<[Entry]>,
+    /// Each line's frame rings.
+    pub(crate) frames: Arc<[Arc<LineFrames>]>,
 }
 
 impl Handle {
     fn entry(&self, device: &str) -> Result<&Entry, JobError> {
         self.devices
             .iter()
-            .find(|entry| entry.name == device)
+            .find(|entry| *entry.id.device == *device)
             .ok_or_else(|| JobError::UnknownDevice(device.to_owned()))
+    }
+
+    /// The bus's devices in file order, each with its model.
+    pub fn devices(&self) -> impl Iterator<Item = (&Arc<DeviceId>, &'static DeviceInfo)> {
+        self.devices.iter().map(|entry| (&entry.id, entry.device))
+    }
+
+    /// The recent frames of device `device` (at most [`FRAMES_KEPT`](crate::FRAMES_KEPT)),
+    /// oldest first; frames are kept on RTU lines (serial, RTU over TCP, simulated).
+    pub fn frames(&self, device: &str) -> Result<Vec<Frame>, JobError> {
+        let entry = self.entry(device)?;
+        Ok(self.frames[entry.line].of(entry.index))
     }
 
     /// The model of device `name`.
