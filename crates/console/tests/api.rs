@@ -1,0 +1,268 @@
+//! The console's JSON API, asked through its router: real values from a simulated bus, the
+//! register map from the spec, frames as they went, and every bad request refused with a 4xx
+//! and the tool's one-line message.
+
+use std::net::SocketAddr;
+use std::path::Path;
+use std::time::Duration;
+
+use axum::body::Body;
+use axum::http::{Request, StatusCode};
+use axum::Router;
+use optobus_bus::{Bus, BusFile, Catalogue, HttpConfig, Running};
+use optobus_console::Console;
+use serde_json::Value;
+use tower::ServiceExt;
+
+const TWO: &str = "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms, poll: [{ read: measurements, every: 20ms }] }
+  - { name: confocal, model: ccs, slave: 2, timeout: 50ms, poll: [{ read: measurements, every: 20ms }] }
+";
+
+const ADDRESS: &str = "127.0.0.1:8080";
+
+pub(crate) fn start(text: &str) -> Running {
+    let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
+    let file = BusFile::parse("bus.yaml", text, Path::new("."), &catalogue)
+        .unwrap_or_else(|e| panic!("{}", e.render()));
+    Bus::new(file).start().unwrap()
+}
+
+fn console(running: &Running, config: &HttpConfig) -> Console {
+    Console::new(running, config, config.listen).unwrap()
+}
+
+fn loopback() -> HttpConfig {
+    HttpConfig::new(ADDRESS.parse::<SocketAddr>().unwrap())
+}
+
+/// Sends a request (to 127.0.0.1:8080 unless `host` says otherwise): its status and JSON body.
+async fn call(router: &Router, request: Request<Body>) -> (StatusCode, Value) {
+    let response = router.clone().oneshot(request).await.unwrap();
+    let status = response.status();
+    let bytes = axum::body::to_bytes(response.into_body(), 1 << 20)
+        .await
+        .unwrap();
+    let json = serde_json::from_slice(&bytes).unwrap_or(Value::Null);
+    (status, json)
+}
+
+fn get(path: &str) -> Request<Body> {
+    Request::get(path)
+        .header("host", ADDRESS)
+        .body(Body::empty())
+        .unwrap()
+}
+
+/// Waits until `path` gives what `ready` accepts.
+async fn until(router: &Router, path: &str, ready: impl Fn(&Value) -> bool) -> Value {
+    for _ in 0..200 {
+        let (status, json) = call(router, get(path)).await;
+        assert_eq!(status, StatusCode::OK, "{json}");
+        if ready(&json) {
+            return json;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    panic!("{path} never became ready");
+}
+
+#[tokio::test]
+async fn devices_come_with_model_line_slave_and_health() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let (status, json) = call(&router, get("/api/devices")).await;
+    assert_eq!(status, StatusCode::OK);
+    let devices = json["devices"].as_array().unwrap();
+    let names: Vec<&str> = devices
+        .iter()
+        .map(|d| d["device"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["head", "confocal"]);
+    assert_eq!(devices[0]["model"], "p-series");
+    assert_eq!(devices[1]["slave"], 2);
+    assert_eq!(devices[0]["line"], "rs485");
+    assert_eq!(devices[0]["health"], "online");
+    assert_eq!(json["needs_token"], false);
+}
+
+#[tokio::test]
+async fn latest_values_are_the_polled_samples_with_their_units() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let json = until(&router, "/api/values", |json| {
+        json["head"].as_array().is_some_and(|v| !v.is_empty())
+            && json["confocal"].as_array().is_some_and(|v| !v.is_empty())
+    })
+    .await;
+    let distance = json["head"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v["register"] == "distance_1")
+        .expect("distance_1 is polled");
+    let text = distance["text"].as_str().unwrap();
+    let (number, unit) = text.split_once(' ').unwrap();
+    assert_eq!(unit, "mm");
+    assert_eq!(distance["value"]["unit"], "mm");
+    assert_eq!(distance["value"]["value"], number);
+    assert_eq!(
+        distance["number"].as_f64().unwrap(),
+        number.parse::<f64>().unwrap()
+    );
+    assert!(
+        distance["time"].as_f64().unwrap() > 1.7e12,
+        "milliseconds since 1970"
+    );
+}
+
+#[tokio::test]
+async fn the_register_map_comes_from_the_spec() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let (status, json) = call(&router, get("/api/devices/head")).await;
+    assert_eq!(status, StatusCode::OK);
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    let row = json["registers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["name"] == "light_power")
+        .unwrap();
+    assert_eq!(row["address"], power.address);
+    assert_eq!(row["address_hex"], format!("0x{:04X}", power.address));
+    assert_eq!(row["unit"], "%");
+    assert_eq!(
+        row["range"],
+        optobus_inspect::range_text(power).unwrap().as_str()
+    );
+    assert_eq!(row["writable"], true);
+    assert_eq!(row["section"], power.section);
+    let commands = json["commands"].as_array().unwrap();
+    for command in optobus_p_series::DEVICE.commands {
+        let shown = commands.iter().find(|c| c["name"] == command.name).unwrap();
+        assert_eq!(
+            shown["drastic"],
+            command.effect.is_drastic(),
+            "{}",
+            command.name
+        );
+    }
+    assert!(commands.iter().any(|c| c["drastic"] == true));
+}
+
+#[tokio::test]
+async fn frames_show_the_requests_and_replies_of_a_device() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let frames = until(&router, "/api/devices/confocal/frames", |json| {
+        json.as_array().is_some_and(|f| f.len() >= 2)
+    })
+    .await;
+    let request = &frames[0];
+    assert_eq!(request["direction"], "sent");
+    assert!(
+        request["hex"].as_str().unwrap().starts_with("02 04 "),
+        "{request}"
+    );
+    assert_eq!(frames[1]["direction"], "received");
+    assert!(frames[1]["hex"].as_str().unwrap().starts_with("02 04 "));
+    assert!(frames[1]["after_us"].as_u64().unwrap() > 0);
+}
+
+#[tokio::test]
+async fn a_register_is_read_on_demand_and_unknown_names_are_refused() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let (status, json) = call(&router, get("/api/devices/head/read/light_power")).await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    let simulator = running.simulator("head").unwrap();
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    let raw = simulator
+        .peek(optobus_device::Table::Holding, power.address)
+        .unwrap();
+    assert_eq!(
+        json["text"],
+        optobus_inspect::decode_value(power, &raw).to_string()
+    );
+    let (status, json) = call(&router, get("/api/devices/tail/frames")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert_eq!(json["error"], "the bus has no device `tail`");
+    let (status, json) = call(&router, get("/api/devices/head/read/lihgt_power")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert_eq!(json["error"], "p-series has no register `lihgt_power`");
+}
+
+#[tokio::test]
+async fn a_loopback_console_answers_its_own_host_and_origin_only() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let rebound = Request::get("/api/devices")
+        .header("host", "evil.example:8080")
+        .body(Body::empty())
+        .unwrap();
+    let (status, json) = call(&router, rebound).await;
+    assert_eq!(status, StatusCode::MISDIRECTED_REQUEST);
+    assert_eq!(
+        json["error"],
+        "the console answers requests to 127.0.0.1 or localhost only"
+    );
+    let foreign = Request::get("/api/stream")
+        .header("host", ADDRESS)
+        .header("origin", "http://evil.example")
+        .body(Body::empty())
+        .unwrap();
+    let (status, json) = call(&router, foreign).await;
+    assert_eq!(status, StatusCode::FORBIDDEN);
+    assert_eq!(
+        json["error"],
+        "pages of http://evil.example may not call this console"
+    );
+    let own = Request::get("/api/devices")
+        .header("host", "localhost:8080")
+        .header("origin", "http://localhost:8080")
+        .body(Body::empty())
+        .unwrap();
+    assert_eq!(call(&router, own).await.0, StatusCode::OK);
+}
+
+#[tokio::test]
+async fn a_listed_origin_may_call_and_is_told_so() {
+    let running = start(TWO);
+    let mut config = loopback();
+    config.origins = vec!["https://scada.example".into()];
+    let router = console(&running, &config).router();
+    let request = Request::get("/api/devices")
+        .header("host", ADDRESS)
+        .header("origin", "https://scada.example")
+        .body(Body::empty())
+        .unwrap();
+    let response = router.clone().oneshot(request).await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert_eq!(
+        response.headers()["access-control-allow-origin"],
+        "https://scada.example"
+    );
+}
+
+#[tokio::test]
+async fn the_page_and_its_assets_are_served_from_the_binary() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let mut total = 0;
+    for path in ["/", "/app.js", "/style.css"] {
+        let response = router.clone().oneshot(get(path)).await.unwrap();
+        assert_eq!(response.status(), StatusCode::OK, "{path}");
+        assert!(response.headers()["content-security-policy"]
+            .to_str()
+            .unwrap()
+            .starts_with("default-src 'self'"));
+        let body = axum::body::to_bytes(response.into_body(), 1 << 20)
+            .await
+            .unwrap();
+        total += body.len();
+    }
+    assert_eq!(total, optobus_console::PAGE_BYTES);
+}
