@@ -266,3 +266,34 @@ async fn the_page_and_its_assets_are_served_from_the_binary() {
     }
     assert_eq!(total, optobus_console::PAGE_BYTES);
 }
+
+#[tokio::test]
+async fn the_stream_sends_batches_of_samples_health_and_line_statistics() {
+    use futures_util::StreamExt;
+    let running = start(TWO);
+    let console = console(&running, &loopback());
+    let response = console.router().oneshot(get("/api/stream")).await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert_eq!(response.headers()["content-type"], "text/event-stream");
+    let mut body = response.into_body().into_data_stream();
+    let mut devices = std::collections::BTreeSet::new();
+    let mut lines = 0;
+    while devices.len() < 2 || lines == 0 {
+        let chunk = tokio::time::timeout(Duration::from_secs(5), body.next())
+            .await
+            .expect("a batch within 5 s")
+            .unwrap()
+            .unwrap();
+        let text = std::str::from_utf8(&chunk).unwrap();
+        for data in text.lines().filter_map(|l| l.strip_prefix("data: ")) {
+            let batch: Value = serde_json::from_str(data).unwrap();
+            for sample in batch["samples"].as_array().unwrap() {
+                assert!(sample["text"].is_string() && sample["register"].is_string());
+                devices.insert(sample["device"].as_str().unwrap().to_owned());
+            }
+            lines += batch["lines"].as_array().unwrap().len();
+            assert_eq!(batch["overflow"], 0);
+        }
+    }
+    assert_eq!(console.dropped_batches(), 0);
+}
