@@ -282,7 +282,10 @@ function showCommands() {
       }
     };
     list.append(el("li", {},
-      el("button", { type: "button", data: { command: c.name }, onclick: run }, c.name + (c.drastic ? " …" : "")),
+      el("button", {
+        type: "button", data: { command: c.name }, onclick: run, disabled: !c.allowed,
+        title: c.allowed ? "" : "the bus file's `writable` does not list it",
+      }, c.name + (c.drastic ? " …" : "")),
       " " + c.doc));
   }
 }

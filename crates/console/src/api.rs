@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use axum::extract::{DefaultBodyLimit, Path, State};
 use axum::http::StatusCode;
-use axum::routing::get;
+use axum::routing::{get, post};
 use axum::{Json, Router};
 use optobus_bus::{rfc3339, Direction};
 use optobus_inspect::hex;
@@ -13,7 +13,7 @@ use serde_json::{json, Value as Json_};
 
 use crate::error::ApiError;
 use crate::state::{health_json, unix_ms, Shared};
-use crate::{guard, map, page, stream, BODY_LIMIT};
+use crate::{guard, map, page, stream, write, BODY_LIMIT};
 
 pub(crate) fn router(shared: Arc<Shared>) -> Router {
     Router::new()
@@ -27,6 +27,8 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
         .route("/api/devices/{device}", get(device_map))
         .route("/api/devices/{device}/frames", get(frames))
         .route("/api/devices/{device}/read/{register}", get(read))
+        .route("/api/devices/{device}/set", post(write::set))
+        .route("/api/devices/{device}/do", post(write::run))
         .layer(axum::middleware::from_fn_with_state(
             Arc::clone(&shared),
             guard::check,
@@ -35,7 +37,7 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
         .with_state(shared)
 }
 
-fn unknown_device(name: &str) -> ApiError {
+pub(crate) fn unknown_device(name: &str) -> ApiError {
     ApiError::not_found(format!("the bus has no device `{name}`"))
 }
 
@@ -97,7 +99,8 @@ async fn device_map(
         .handle
         .device_info(&device)
         .ok_or_else(|| unknown_device(&device))?;
-    Ok(Json(map::device_map(&device, info)))
+    let writable = shared.handle.writable(&device).cloned().unwrap_or_default();
+    Ok(Json(map::device_map(&device, info, &writable)))
 }
 
 /// `GET /api/devices/{device}/frames`: its recent frames, oldest first.

@@ -13,13 +13,19 @@
 //! | `GET /api/values` | the latest value of every register polled, per device |
 //! | `GET /api/devices/{device}` | the device's register map, commands and groups, from its spec |
 //! | `GET /api/devices/{device}/frames` | its recent frames: direction, hex, time, reply delay |
+//! | `GET /api/devices/{device}/read/{register}` | the register read now, ahead of the polls |
+//! | `POST /api/devices/{device}/set` | `{"register": "light_power", "value": "12.5 %"}`: set as `optobus set` does, if the bus file's `writable` lists it; the value read back |
+//! | `POST /api/devices/{device}/do` | `{"command": "zero_position_1"}`: run as `optobus do` does, if listed (a drastic one only when named there) |
 //! | `GET /api/stream` | server-sent events: a batch of samples, health and line statistics every 100 ms |
 //! | `GET /api/status` | the stream's clients and the batches dropped for slow ones |
 //!
 //! Safe by default: it listens on 127.0.0.1 and then answers only requests addressed to the
 //! loopback (`Host`), against DNS rebinding; a request from a page of another origin is refused
 //! unless the bus file lists that origin; bodies are limited to [`BODY_LIMIT`] bytes; every
-//! refusal is a 4xx whose JSON `error` is the tool's one-line message.
+//! refusal is a 4xx whose JSON `error` is the tool's one-line message. Writes are checked
+//! by the bus ([`optobus_bus::Handle::set_listed`]): nothing refused reaches the line. A
+//! console given a token file, or listening beyond the loopback, takes writes only with its
+//! token (`Authorization: Bearer …`); beyond the loopback without a token file it takes none.
 //!
 //! ```no_run
 //! # async fn demo(running: &optobus_bus::Running) -> Result<(), Box<dyn std::error::Error>> {
@@ -38,6 +44,7 @@ mod map;
 mod page;
 mod state;
 mod stream;
+mod write;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;

@@ -1,11 +1,12 @@
 //! A device's register map, commands and groups as the page shows them, from its spec.
 
+use optobus_bus::Writable;
 use optobus_device::{DeviceInfo, RegisterInfo, ValueKind};
 use optobus_inspect::{code_list, range_text};
 use serde_json::{json, Value as Json};
 
 /// One register: where it is, its type, unit, range or codes, and the manual's words.
-fn register(register: &RegisterInfo) -> Json {
+fn register(register: &'static RegisterInfo, writable: &Writable) -> Json {
     let values = match register.kind {
         ValueKind::Enum => code_list(register.codes),
         ValueKind::Packed(fields) => fields
@@ -22,7 +23,7 @@ fn register(register: &RegisterInfo) -> Json {
         "address_hex": format!("0x{:04X}", register.address),
         "words": register.words,
         "access": register.access.as_str(),
-        "writable": register.access.writable(),
+        "writable": writable.allows_register(register),
         "type": register.kind.name(),
         "unit": register.unit,
         "range": values,
@@ -33,17 +34,19 @@ fn register(register: &RegisterInfo) -> Json {
     })
 }
 
-/// The whole map of `device`.
-pub(crate) fn device_map(name: &str, device: &'static DeviceInfo) -> Json {
+/// The whole map of `device`; `writable` tells which registers and commands the bus file lets
+/// the network write.
+pub(crate) fn device_map(name: &str, device: &'static DeviceInfo, writable: &Writable) -> Json {
     json!({
         "device": name,
         "model": device.model_name().to_string(),
         "title": device.title,
-        "registers": device.registers.iter().map(register).collect::<Vec<_>>(),
+        "registers": device.registers.iter().map(|r| register(r, writable)).collect::<Vec<_>>(),
         "commands": device.commands.iter().map(|c| json!({
             "name": c.name,
             "doc": c.doc,
             "drastic": c.effect.is_drastic(),
+            "allowed": writable.allows_command(c),
             "busy_ms": c.busy_ms,
         })).collect::<Vec<_>>(),
         "groups": device.groups.iter().map(|g| json!({"name": g.name, "registers": g.registers})).collect::<Vec<_>>(),

@@ -11,7 +11,7 @@ use axum::http::{Request, StatusCode};
 use axum::Router;
 use optobus_bus::{Bus, BusFile, Catalogue, HttpConfig, Running};
 use optobus_console::Console;
-use serde_json::Value;
+use serde_json::{json, Value};
 use tower::ServiceExt;
 
 const TWO: &str = "
@@ -138,7 +138,10 @@ async fn the_register_map_comes_from_the_spec() {
         row["range"],
         optobus_inspect::range_text(power).unwrap().as_str()
     );
-    assert_eq!(row["writable"], true);
+    assert_eq!(
+        row["writable"], false,
+        "nothing is writable unless the bus file lists it"
+    );
     assert_eq!(row["section"], power.section);
     let commands = json["commands"].as_array().unwrap();
     for command in optobus_p_series::DEVICE.commands {
@@ -296,4 +299,235 @@ async fn the_stream_sends_batches_of_samples_health_and_line_statistics() {
         }
     }
     assert_eq!(console.dropped_batches(), 0);
+}
+
+const WRITABLE: &str = "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms, writable: [light_power, save_parameters], poll: [{ read: measurements, every: 20ms }] }
+";
+
+fn post(path: &str, body: impl Into<String>) -> Request<Body> {
+    Request::post(path)
+        .header("host", ADDRESS)
+        .header("content-type", "application/json")
+        .body(Body::from(body.into()))
+        .unwrap()
+}
+
+/// Whether the head's frames hold a write (FC06 or FC16).
+fn wrote(running: &Running) -> bool {
+    running
+        .handle()
+        .frames("head")
+        .unwrap()
+        .iter()
+        .any(|f| f.direction == optobus_bus::Direction::Sent && matches!(f.bytes[1], 6 | 16))
+}
+
+fn light_power(running: &Running) -> Option<Vec<u16>> {
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    running
+        .simulator("head")
+        .unwrap()
+        .peek(optobus_device::Table::Holding, power.address)
+}
+
+#[tokio::test]
+async fn a_set_is_read_as_optobus_set_reads_it_and_answers_the_value_read_back() {
+    let running = start(WRITABLE);
+    let router = console(&running, &loopback()).router();
+    let (status, json) = call(
+        &router,
+        post(
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": "12.5 %"}"#,
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    assert_eq!(json["text"], "12.5 %");
+    assert_eq!(json["value"], json!({"value": "12.5", "unit": "%"}));
+    assert_eq!(light_power(&running), Some(vec![125]));
+    // A number is its text.
+    let (status, json) = call(
+        &router,
+        post(
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": 50}"#,
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    assert_eq!(light_power(&running), Some(vec![500]));
+}
+
+#[tokio::test]
+async fn bad_input_gets_a_4xx_with_the_tools_message_and_nothing_reaches_the_line() {
+    let running = start(WRITABLE);
+    let router = console(&running, &loopback()).router();
+    let before = light_power(&running);
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    let refusal = |text: &str| {
+        let error = optobus_inspect::parse_value(power, text).unwrap_err();
+        optobus_inspect::Error::from(error).to_string()
+    };
+    let cases: Vec<(&str, String, StatusCode, String)> = vec![
+        (
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": "#.into(),
+            StatusCode::BAD_REQUEST,
+            "Failed to parse the request body as JSON".into(),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": "1", "force": true}"#.into(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "unknown field `force`".into(),
+        ),
+        (
+            "/api/devices/tail/set",
+            r#"{"register": "light_power", "value": "1"}"#.into(),
+            StatusCode::NOT_FOUND,
+            "the bus has no device `tail`".into(),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "lihgt_power", "value": "1"}"#.into(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "`lihgt_power`".into(),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": "12.5 mm"}"#.into(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            refusal("12.5 mm"),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": "150"}"#.into(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            refusal("150"),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": [1]}"#.into(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "`value` is text".into(),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "median_filter_width", "value": "1"}"#.into(),
+            StatusCode::FORBIDDEN,
+            "`median_filter_width` of `head` is not writable here".into(),
+        ),
+        (
+            "/api/devices/head/do",
+            r#"{"command": "reboot"}"#.into(),
+            StatusCode::FORBIDDEN,
+            "`reboot` of `head` is not writable here".into(),
+        ),
+        (
+            "/api/devices/head/set",
+            format!(
+                r#"{{"register": "light_power", "value": "{}"}}"#,
+                "1".repeat(5000)
+            ),
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!(
+                "the body is too large: at most {} bytes",
+                optobus_console::BODY_LIMIT
+            ),
+        ),
+    ];
+    for (path, body, status, message) in cases {
+        let (got, json) = call(&router, post(path, body.clone())).await;
+        assert_eq!(got, status, "{body:.80}: {json}");
+        let error = json["error"].as_str().unwrap();
+        assert!(
+            error.contains(&message),
+            "{body:.80}: {error} lacks {message}"
+        );
+        assert!(!error.contains('\n'), "one line: {error}");
+    }
+    assert_eq!(light_power(&running), before);
+    assert!(!wrote(&running), "nothing refused reaches the line");
+}
+
+#[tokio::test]
+async fn beyond_the_loopback_writes_need_the_token_from_the_file() {
+    let running = start(WRITABLE);
+    let body = r#"{"register": "light_power", "value": "20 %"}"#;
+    let open = HttpConfig::new("0.0.0.0:8080".parse().unwrap());
+    let router = console(&running, &open).router();
+    let (status, json) = call(&router, post("/api/devices/head/set", body)).await;
+    assert_eq!(status, StatusCode::FORBIDDEN);
+    assert!(json["error"]
+        .as_str()
+        .unwrap()
+        .starts_with("writes are off: the console listens beyond 127.0.0.1"));
+    let token = std::env::temp_dir().join(format!("optobus-console-{}.token", std::process::id()));
+    std::fs::write(&token, "correct-horse-battery-staple\n").unwrap();
+    let mut guarded = open.clone();
+    guarded.token_file = Some(token.clone());
+    let router = console(&running, &guarded).router();
+    let (status, json) = call(&router, post("/api/devices/head/set", body)).await;
+    assert_eq!(status, StatusCode::UNAUTHORIZED, "{json}");
+    let mut wrong = post("/api/devices/head/set", body);
+    wrong
+        .headers_mut()
+        .insert("authorization", "Bearer correct-horse".parse().unwrap());
+    assert_eq!(call(&router, wrong).await.0, StatusCode::UNAUTHORIZED);
+    assert!(!wrote(&running));
+    let mut right = post("/api/devices/head/set", body);
+    right.headers_mut().insert(
+        "authorization",
+        "Bearer correct-horse-battery-staple".parse().unwrap(),
+    );
+    let (status, json) = call(&router, right).await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    assert_eq!(light_power(&running), Some(vec![200]));
+    // Reads need no token.
+    assert_eq!(call(&router, get("/api/devices")).await.0, StatusCode::OK);
+    std::fs::write(&token, "short").unwrap();
+    let error = Console::new(&running, &guarded, guarded.listen).unwrap_err();
+    assert!(error.to_string().contains("at least 16"), "{error}");
+    let _ = std::fs::remove_file(token);
+}
+
+#[tokio::test]
+async fn a_command_listed_runs_and_the_map_says_what_may_be_written() {
+    let running = start(WRITABLE);
+    let router = console(&running, &loopback()).router();
+    let (_, map) = call(&router, get("/api/devices/head")).await;
+    let row = |name: &str| {
+        map["registers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["name"] == name)
+            .unwrap()
+            .clone()
+    };
+    assert_eq!(row("light_power")["writable"], true);
+    assert_eq!(row("median_filter_width")["writable"], false);
+    let command = |name: &str| {
+        map["commands"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["name"] == name)
+            .unwrap()
+            .clone()
+    };
+    assert_eq!(command("save_parameters")["allowed"], true);
+    assert_eq!(command("reboot")["allowed"], false);
+    let (status, json) = call(
+        &router,
+        post("/api/devices/head/do", r#"{"command": "save_parameters"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    assert_eq!(json["done"], true);
+    assert!(wrote(&running));
 }
