@@ -63,7 +63,7 @@ pub use file::outputs::{HttpConfig, Outputs};
 pub use file::{
     BusFile, DeviceConfig, LineConfig, LoadError, PollConfig, Port, Rejected, Writable,
 };
-pub use handle::{Handle, JobError};
+pub use handle::{Buffered, Handle, JobError};
 pub use link::Stream;
 pub use schedule::Health;
 pub use trace::{Direction, Frame, FRAMES_KEPT};

@@ -306,6 +306,9 @@ impl LineTask {
                 let result = self.devices[device].core.read_group(&registers).await;
                 let _ = done.send(result.map(|readings| handle::values(&registers, &readings)));
             }
+            Job::Buffer { device, done } => {
+                let _ = done.send(handle::download(&mut self.devices[device].core).await);
+            }
         }
     }
 

@@ -30,14 +30,19 @@ function note(text) {
   document.getElementById("note").textContent = text;
 }
 
+function authorised(headers) {
+  const token = sessionStorage.getItem("optobus-token");
+  if (token) headers.authorization = "Bearer " + token;
+  return headers;
+}
+
 async function api(path, body) {
   const options = body === undefined ? {} : {
     method: "POST",
     headers: { "content-type": "application/json" },
     body: JSON.stringify(body),
   };
-  const token = sessionStorage.getItem("optobus-token");
-  if (body !== undefined && token) options.headers.authorization = "Bearer " + token;
+  if (body !== undefined) authorised(options.headers);
   const response = await fetch(path, options);
   const json = await response.json().catch(() => ({ error: response.statusText }));
   if (!response.ok) {
@@ -118,11 +123,13 @@ function draw() {
     for (const [, y] of points) { if (y < min) min = y; if (y > max) max = y; }
     const span = max - min || 1;
     const end = points[points.length - 1][0];
+    // Up to the last minutes; a younger series fills the chart.
+    const shown = Math.min(CHART_MS, Math.max(end - points[0][0], 1000));
     g.strokeStyle = "#0969da";
     g.lineWidth = 2;
     g.beginPath();
     points.forEach(([t, y], i) => {
-      const x = canvas.width * (1 - (end - t) / CHART_MS);
+      const x = canvas.width * (1 - (end - t) / shown);
       const h = canvas.height - 4 - (canvas.height - 8) * (y - min) / span;
       if (i === 0) g.moveTo(x, h); else g.lineTo(x, h);
     });
@@ -179,7 +186,10 @@ function connect() {
 }
 
 function download(name, rows) {
-  const text = rows.map((r) => r.map((c) => /[",\n]/.test(String(c)) ? `"${String(c).replace(/"/g, '""')}"` : c).join(",")).join("\n") + "\n";
+  save(name, rows.map((r) => r.map((c) => /[",\n]/.test(String(c)) ? `"${String(c).replace(/"/g, '""')}"` : c).join(",")).join("\n") + "\n");
+}
+
+function save(name, text) {
   const link = el("a", { href: URL.createObjectURL(new Blob([text], { type: "text/csv" })), download: name });
   document.body.append(link);
   link.click();
@@ -199,7 +209,7 @@ function exportValues(device) {
 // ---- detail: register map, commands, frames ----
 
 function tab(name) {
-  for (const t of ["registers", "commands", "frames"]) {
+  for (const t of ["registers", "commands", "frames", "buffer"]) {
     document.getElementById("tab-" + t).hidden = t !== name;
   }
   if (name === "frames") loadFrames().catch((e) => note(e.message));
@@ -210,6 +220,7 @@ async function openDetail(device, which) {
   state.map = await api(`/api/devices/${encodeURIComponent(device)}`);
   document.getElementById("detail").hidden = false;
   document.getElementById("detail-title").textContent = `${device} · ${state.map.title}`;
+  document.getElementById("buffer-tab").hidden = !state.map.buffer;
   showMap();
   showCommands();
   tab(which);
@@ -240,7 +251,7 @@ function showMap() {
         }
       };
       input.addEventListener("keydown", (e) => { if (e.key === "Enter") set(); });
-      edit.append(input, el("button", { type: "button", onclick: set }, "Set"), message);
+      edit.append(input, el("button", { type: "button", data: { action: "set" }, onclick: set }, "Set"), message);
     }
     const readable = !r.access.startsWith("w");
     const read = el("button", { type: "button", hidden: !readable, onclick: async () => {
@@ -301,6 +312,43 @@ async function loadFrames() {
     el("td", {}, f.hex))));
 }
 
+let bufferCsv = "";
+async function readBuffer() {
+  const result = document.getElementById("buffer-result");
+  result.textContent = "reading out…";
+  const response = await fetch(`/api/devices/${encodeURIComponent(state.detail)}/buffer`,
+    { method: "POST", headers: authorised({}) });
+  if (!response.ok) {
+    const json = await response.json().catch(() => ({ error: response.statusText }));
+    result.textContent = json.error;
+    return;
+  }
+  bufferCsv = await response.text();
+  const [header, ...rows] = bufferCsv.trim().split("\n");
+  const columns = header.split(",");
+  const points = rows.map((r) => r.split(",")).filter((c) => c[c.length - 1] !== "")
+    .map((c) => [Number(c[columns.length === 3 ? 1 : 0]), Number(c[c.length - 1])]);
+  result.textContent = `${rows.length} values (${columns[columns.length - 1]} over ${columns.length === 3 ? "time [s]" : "index"})`;
+  document.getElementById("buffer-csv").disabled = false;
+  const canvas = document.getElementById("buffer-plot");
+  const g = canvas.getContext("2d");
+  g.clearRect(0, 0, canvas.width, canvas.height);
+  if (!points.length) return;
+  const xs = points.map((p) => p[0]), ys = points.map((p) => p[1]);
+  const [x0, x1] = [Math.min(...xs), Math.max(...xs)], [y0, y1] = [Math.min(...ys), Math.max(...ys)];
+  g.strokeStyle = "#0969da";
+  g.beginPath();
+  points.forEach(([x, y], i) => {
+    const px = 10 + (canvas.width - 20) * (x - x0) / ((x1 - x0) || 1);
+    const py = canvas.height - 10 - (canvas.height - 20) * (y - y0) / ((y1 - y0) || 1);
+    if (i === 0) g.moveTo(px, py); else g.lineTo(px, py);
+  });
+  g.stroke();
+  g.fillStyle = "#57606a";
+  g.fillText(`${y1}`, 12, 12);
+  g.fillText(`${y0}`, 12, canvas.height - 12);
+}
+
 document.addEventListener("DOMContentLoaded", () => {
   for (const button of document.querySelectorAll("[data-tab]")) {
     button.addEventListener("click", () => tab(button.dataset.tab));
@@ -310,6 +358,8 @@ document.addEventListener("DOMContentLoaded", () => {
   document.getElementById("frames-refresh").addEventListener("click", () => loadFrames().catch((e) => note(e.message)));
   document.getElementById("frames-csv").addEventListener("click", () =>
     download(`${state.detail}-frames.csv`, [["time", "direction", "after_us", "bytes"], ...frames.map((f) => [f.time, f.direction, f.after_us ?? "", f.hex])]));
+  document.getElementById("buffer-read").addEventListener("click", () => readBuffer().catch((e) => note(e.message)));
+  document.getElementById("buffer-csv").addEventListener("click", () => save(`${state.detail}-buffer.csv`, bufferCsv));
   connect();
   requestAnimationFrame(draw);
 });

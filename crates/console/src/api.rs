@@ -29,6 +29,7 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
         .route("/api/devices/{device}/read/{register}", get(read))
         .route("/api/devices/{device}/set", post(write::set))
         .route("/api/devices/{device}/do", post(write::run))
+        .route("/api/devices/{device}/buffer", post(write::buffer))
         .layer(axum::middleware::from_fn_with_state(
             Arc::clone(&shared),
             guard::check,

@@ -16,6 +16,7 @@
 //! | `GET /api/devices/{device}/read/{register}` | the register read now, ahead of the polls |
 //! | `POST /api/devices/{device}/set` | `{"register": "light_power", "value": "12.5 %"}`: set as `optobus set` does, if the bus file's `writable` lists it; the value read back |
 //! | `POST /api/devices/{device}/do` | `{"command": "zero_position_1"}`: run as `optobus do` does, if listed (a drastic one only when named there) |
+//! | `POST /api/devices/{device}/buffer` | its data buffer read out (if `writable` lists the buffer's lock and unlock), as CSV: `index,time_s,value_UNIT` |
 //! | `GET /api/stream` | server-sent events: a batch of samples, health and line statistics every 100 ms |
 //! | `GET /api/status` | the stream's clients and the batches dropped for slow ones |
 //!

@@ -41,6 +41,7 @@ pub(crate) fn device_map(name: &str, device: &'static DeviceInfo, writable: &Wri
         "device": name,
         "model": device.model_name().to_string(),
         "title": device.title,
+        "buffer": device.buffer.is_some(),
         "registers": device.registers.iter().map(|r| register(r, writable)).collect::<Vec<_>>(),
         "commands": device.commands.iter().map(|c| json!({
             "name": c.name,

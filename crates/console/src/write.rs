@@ -5,7 +5,9 @@ use std::sync::Arc;
 
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, State};
+use axum::http::header::CONTENT_TYPE;
 use axum::http::StatusCode;
+use axum::response::IntoResponse;
 use axum::Json;
 use optobus_bus::JobError;
 use serde::Deserialize;
@@ -95,4 +97,38 @@ pub(crate) async fn run(
         .await
         .map_err(|e| job_error(&device, e))?;
     Ok(Json(json!({ "command": command, "done": true })))
+}
+
+/// `POST …/buffer`: the device's data buffer read out, as CSV: `index`, `time_s` (since the
+/// first value, where the buffer's timing is known) and `value_UNIT` (empty where invalid).
+pub(crate) async fn buffer(
+    State(shared): State<Arc<Shared>>,
+    Path(device): Path<String>,
+) -> Result<impl IntoResponse, ApiError> {
+    let buffered = shared
+        .handle
+        .download_buffer(&device)
+        .await
+        .map_err(|e| job_error(&device, e))?;
+    let unit = buffered.register.unit.unwrap_or("");
+    let value_column = if unit.is_empty() {
+        "value".to_owned()
+    } else {
+        format!("value_{unit}")
+    };
+    let mut csv = match buffered.timing {
+        Some(_) => format!("index,time_s,{value_column}\n"),
+        None => format!("index,{value_column}\n"),
+    };
+    for (index, value) in buffered.values.iter().enumerate() {
+        let value = value.as_ref().map(ToString::to_string).unwrap_or_default();
+        match buffered.timing {
+            Some(timing) => {
+                let time = timing.time_of(index).as_secs_f64();
+                csv.push_str(&format!("{index},{time},{value}\n"));
+            }
+            None => csv.push_str(&format!("{index},{value}\n")),
+        }
+    }
+    Ok(([(CONTENT_TYPE, "text/csv; charset=utf-8")], csv))
 }

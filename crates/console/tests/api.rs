@@ -531,3 +531,64 @@ async fn a_command_listed_runs_and_the_map_says_what_may_be_written() {
     assert_eq!(json["done"], true);
     assert!(wrote(&running));
 }
+
+#[tokio::test]
+async fn the_data_buffer_is_read_out_as_csv_when_its_lock_and_unlock_are_listed() {
+    let running = start(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, writable: [buffer_report_count, lock_buffer, unlock_buffer] }
+  - { name: other, model: p-series, slave: 2 }
+",
+    );
+    let router = console(&running, &loopback()).router();
+    let (status, json) = call(
+        &router,
+        post(
+            "/api/devices/head/set",
+            r#"{"register": "buffer_report_count", "value": "100"}"#,
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    let (status, json) = call(
+        &router,
+        post("/api/devices/head/do", r#"{"command": "unlock_buffer"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let response = router
+        .clone()
+        .oneshot(post("/api/devices/head/buffer", ""))
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert_eq!(
+        response.headers()["content-type"],
+        "text/csv; charset=utf-8"
+    );
+    let csv = axum::body::to_bytes(response.into_body(), 1 << 20)
+        .await
+        .unwrap();
+    let csv = std::str::from_utf8(&csv).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("index,time_s,value_mm"));
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 100, "{csv}");
+    for (index, row) in rows.iter().enumerate() {
+        let cells: Vec<&str> = row.split(',').collect();
+        assert_eq!(cells[0], index.to_string());
+        assert!(
+            cells[1].parse::<f64>().is_ok() && cells[2].parse::<f64>().is_ok(),
+            "{row}"
+        );
+    }
+    let (status, json) = call(&router, post("/api/devices/other/buffer", "")).await;
+    assert_eq!(status, StatusCode::FORBIDDEN);
+    assert_eq!(
+        json["error"],
+        "`lock_buffer` of `other` is not writable here: the bus file's `writable` does not list it"
+    );
+}
