@@ -161,6 +161,9 @@ impl Server {
 impl Drop for Server {
     fn drop(&mut self) {
         self.task.abort();
+        // Connections outlive the listening task: end the live streams, as a stopped process
+        // would.
+        self.console.shared.stopped.send_replace(true);
     }
 }
 

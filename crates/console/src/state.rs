@@ -11,8 +11,8 @@ use optobus_bus::{DeviceId, ErrorCounts, Event, Handle, Health, HealthEvent, Lin
 use optobus_device::DeviceInfo;
 use optobus_inspect::Value;
 use serde_json::{json, Value as Json};
-use tokio::sync::broadcast;
 use tokio::sync::broadcast::error::RecvError;
+use tokio::sync::{broadcast, watch};
 
 use crate::guard::Guard;
 use crate::stream::{Batch, BATCH_EVERY, BATCH_QUEUE};
@@ -31,6 +31,8 @@ pub(crate) struct Shared {
     pub(crate) missed: AtomicU64,
     /// Clients of the live stream now.
     pub(crate) clients: AtomicUsize,
+    /// Set when the server stops: the live streams end (their browsers reconnect).
+    pub(crate) stopped: watch::Sender<bool>,
 }
 
 /// A device's latest state.
@@ -78,6 +80,7 @@ impl Shared {
             dropped: AtomicU64::new(0),
             missed: AtomicU64::new(0),
             clients: AtomicUsize::new(0),
+            stopped: watch::channel(false).0,
         }
     }
 

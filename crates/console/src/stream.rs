@@ -13,8 +13,8 @@ use axum::extract::State;
 use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
 use futures_util::Stream;
 use serde_json::Value as Json;
-use tokio::sync::broadcast;
 use tokio::sync::broadcast::error::RecvError;
+use tokio::sync::{broadcast, watch};
 
 use crate::state::{Kind, Shared};
 
@@ -71,6 +71,7 @@ impl Batch {
 /// One client of the stream, counted while it is connected.
 struct Client {
     batches: broadcast::Receiver<Arc<str>>,
+    stopped: watch::Receiver<bool>,
     shared: Arc<Shared>,
 }
 
@@ -87,10 +88,16 @@ pub(crate) async fn stream(
     shared.clients.fetch_add(1, Ordering::Relaxed);
     let client = Client {
         batches: shared.batches.subscribe(),
+        stopped: shared.stopped.subscribe(),
         shared,
     };
     let events = futures_util::stream::unfold(client, |mut client| async move {
-        let event = match client.batches.recv().await {
+        let batch = tokio::select! {
+            batch = client.batches.recv() => batch,
+            // The server stopped (or is gone): the stream ends.
+            _ = client.stopped.wait_for(|stopped| *stopped) => return None,
+        };
+        let event = match batch {
             Ok(text) => SseEvent::default().data(&*text),
             Err(RecvError::Lagged(missed)) => {
                 client.shared.dropped.fetch_add(missed, Ordering::Relaxed);

@@ -1,7 +1,8 @@
 //! The page in a real browser: headless Chromium driven through chromedriver (WebDriver), one
 //! session for every step to keep CI short. The page loads with no console error, values
 //! change live, an out-of-range edit shows the server's refusal and leaves the simulator's
-//! register as it was, a drastic command asks before it acts, and a screenshot is written.
+//! register as it was, a drastic command asks before it acts, a screenshot is written, and
+//! the page's stream reconnects by itself when the server comes back after a stop.
 //!
 //! `.ci/run` installs `chromium` and `chromium-driver` and sets `OPTOBUS_REQUIRE_INTEROP=1`, so
 //! there a missing browser fails the test; elsewhere it says it was skipped.
@@ -176,9 +177,9 @@ async fn an_out_of_range_edit_shows_the_refusal_and_changes_nothing(
     let before = head.peek(Table::Holding, power.address);
     let card = "article[data-device='head']";
     client
-        .find(Locator::XPath(&format!(
-            "//article[@data-device='head']//button[text()='Registers']"
-        )))
+        .find(Locator::XPath(
+            "//article[@data-device='head']//button[text()='Registers']",
+        ))
         .await
         .unwrap_or_else(|_| panic!("{card} has a Registers button"))
         .click()
@@ -295,6 +296,21 @@ async fn a_screenshot_is_written(client: &Client) {
     }
 }
 
+async fn the_stream_reconnects_after_the_server_restarts(
+    client: &Client,
+    server: optobus_console::Server,
+    running: &Running,
+) -> optobus_console::Server {
+    let address = server.address();
+    drop(server);
+    until_text(client, "#link", |t| t == "stream: reconnecting…").await;
+    let config = HttpConfig::new(address);
+    let server = optobus_console::serve(running, &config).await.unwrap();
+    until_text(client, "#link", |t| t == "stream: live").await;
+    values_change_live(client).await;
+    server
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_in_a_real_browser() {
     if !browser_present() {
@@ -325,6 +341,9 @@ async fn the_page_in_a_real_browser() {
         })
         .collect();
     assert!(errors.is_empty(), "the page logged errors: {errors:?}");
+    // Last, as the browser logs the refused connections while the server is away.
+    let server = the_stream_reconnects_after_the_server_restarts(&client, server, &running).await;
     client.close().await.unwrap();
+    drop(server);
     drop(driver);
 }
