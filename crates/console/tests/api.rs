@@ -592,3 +592,48 @@ devices:
         "`lock_buffer` of `other` is not writable here: the bus file's `writable` does not list it"
     );
 }
+
+#[tokio::test]
+async fn a_device_going_offline_shows_in_the_stream_and_the_device_list_with_its_reason() {
+    use futures_util::StreamExt;
+    let running = start(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms, poll: [{ read: measurements, every: 50ms }] }
+  - { name: dead, model: p-series, slave: 2, timeout: 30ms, faults: 'drop=1', poll: [{ read: light_power, every: 50ms }] }
+",
+    );
+    let console = console(&running, &loopback());
+    let response = console.router().oneshot(get("/api/stream")).await.unwrap();
+    let mut body = response.into_body().into_data_stream();
+    let health = loop {
+        let chunk = tokio::time::timeout(Duration::from_secs(5), body.next())
+            .await
+            .expect("a batch within 5 s")
+            .unwrap()
+            .unwrap();
+        let text = std::str::from_utf8(&chunk).unwrap().to_owned();
+        let found = text
+            .lines()
+            .filter_map(|l| l.strip_prefix("data: "))
+            .map(|data| serde_json::from_str::<Value>(data).unwrap())
+            .flat_map(|batch| batch["health"].as_array().cloned().unwrap_or_default())
+            .find(|h| h["device"] == "dead");
+        if let Some(health) = found {
+            break health;
+        }
+    };
+    assert_eq!(health["health"], "offline");
+    assert!(
+        health["errors"]["timeouts"].as_u64().unwrap() >= 3,
+        "{health}"
+    );
+    let reason = health["reason"].as_str().unwrap();
+    assert!(reason.contains("no reply within 30 ms"), "{reason}");
+    let (_, json) = call(&console.router(), get("/api/devices")).await;
+    let devices = json["devices"].as_array().unwrap();
+    assert_eq!(devices[0]["health"], "online");
+    assert_eq!(devices[1]["health"], "offline");
+    assert_eq!(devices[1]["reason"], reason);
+}
