@@ -135,7 +135,7 @@ async fn latest_values(runtime: &tokio::runtime::Handle, baud: u32) {
         .unwrap();
     let samples = running_samples(&running);
     println!(
-        "1. latest values, 20 devices polled as fast as 4 lines at 4 Mbaud allow ({samples}):"
+        "1. latest values, 20 devices polled as fast as 4 lines at {baud} baud allow ({samples}):"
     );
     let p99 = show("/api/values", values);
     let anchor = show("/api/status", status);
