@@ -261,7 +261,7 @@ function showMap() {
       } catch (e) { current.textContent = e.message; }
     } }, "Read");
     rows.append(el("tr", { data: { register: r.name } },
-      el("td", {}, el("div", {}, r.name), el("div", { class: "doc" }, r.doc)),
+      el("td", {}, el("div", {}, r.name), el("div", { class: "doc" }, r.doc + (r.manual_name ? ` (manual: ${r.manual_name})` : ""))),
       el("td", {}, `${r.address_hex} (${r.address})`),
       el("td", {}, r.table),
       el("td", {}, `${r.type} · ${r.access}`),
