@@ -19,6 +19,7 @@ use crate::handle::{Entry, Handle, JOB_QUEUE};
 use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun};
 use crate::link::{DeviceLink, DeviceSettings, LineState, Stream};
 use crate::schedule::Schedule;
+use crate::trace::LineFrames;
 
 /// Events a bus keeps for a slow receiver before it drops the oldest (the receiver learns how
 /// many it missed).
@@ -85,20 +86,30 @@ impl Bus {
         let mut gateways = Vec::new();
         let mut job_queues = Vec::new();
         let mut entries = Vec::new();
+        let mut line_frames = Vec::new();
         let start = Instant::now();
         for (index, line) in self.file.lines.iter().enumerate() {
             let name: Arc<str> = Arc::from(line.name.as_str());
+            let frames = Arc::new(LineFrames::new(self.file.devices_on(index).count()));
+            line_frames.push(Arc::clone(&frames));
             let state = Arc::new(Mutex::new(LineState::new(
                 line.format
                     .map_or(std::time::Duration::ZERO, |f| f.frame_gap()),
+                frames,
             )));
             let mut schedule = Schedule::default();
             let mut devices = Vec::new();
             let mut polls = Vec::new();
             let mut line_simulators = Vec::new();
             for (_, config) in self.file.devices_on(index) {
+                let id = Arc::new(DeviceId {
+                    device: Arc::from(config.name.as_str()),
+                    model: Arc::from(config.device.model_name().to_string()),
+                    line: Arc::clone(&name),
+                    slave: config.slave,
+                });
                 entries.push(Entry {
-                    name: config.name.clone(),
+                    id: Arc::clone(&id),
                     line: index,
                     index: devices.len(),
                     device: config.device,
@@ -115,6 +126,7 @@ impl Bus {
                 let link = DeviceLink {
                     line: Arc::clone(&state),
                     settings,
+                    index: devices.len(),
                     errors: Arc::clone(&errors),
                 };
                 let core = Core::new(link, config.slave, config.device)
@@ -128,12 +140,7 @@ impl Bus {
                 }
                 devices.push(DeviceRun {
                     settings,
-                    id: Arc::new(DeviceId {
-                        device: Arc::from(config.name.as_str()),
-                        model: Arc::from(config.device.model_name().to_string()),
-                        line: Arc::clone(&name),
-                        slave: config.slave,
-                    }),
+                    id,
                     core,
                     errors,
                 });
@@ -196,6 +203,7 @@ impl Bus {
             handle: Handle {
                 lines: job_queues.into(),
                 devices: entries.into(),
+                frames: line_frames.into(),
             },
             events: self.events,
             gateways,

@@ -9,11 +9,13 @@
 use std::sync::Arc;
 
 use optobus_device::{CommandInfo, DeviceInfo, Invalid, RegisterInfo};
-use optobus_driver::Encode;
+use optobus_driver::{BufferTiming, Encode, Fixed};
 use optobus_inspect::{decode_value, parse_value, resolve_one, Value};
 use tokio::sync::{mpsc, oneshot};
 
+use crate::event::DeviceId;
 use crate::file::Writable;
+use crate::trace::{Frame, LineFrames};
 
 /// Jobs a line keeps queued for its API callers.
 pub(crate) const JOB_QUEUE: usize = 64;
@@ -42,6 +44,22 @@ pub(crate) enum Job {
         registers: Vec<&'static RegisterInfo>,
         done: oneshot::Sender<Result<Vec<Value>, optobus_driver::Error>>,
     },
+    /// Read the data buffer out (lock, pages, unlock) and when its values were taken.
+    Buffer {
+        device: usize,
+        done: oneshot::Sender<Result<Buffered, optobus_driver::Error>>,
+    },
+}
+
+/// A device's data buffer as [`Handle::download_buffer`] read it out.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Buffered {
+    /// The register the values are copies of (its unit and scale are theirs).
+    pub register: &'static RegisterInfo,
+    /// The values, oldest first; `None` where the device marks one invalid.
+    pub values: Vec<Option<Fixed>>,
+    /// When they were taken, where the buffer names its sampling interval.
+    pub timing: Option<BufferTiming>,
 }
 
 /// Words [`Handle::write`] checked against the register's spec, written as they are.
@@ -56,7 +74,7 @@ impl Encode for Checked {
 /// A device as the handle finds it.
 #[derive(Clone, Debug)]
 pub(crate) struct Entry {
-    pub(crate) name: String,
+    pub(crate) id: Arc<DeviceId>,
     pub(crate) line: usize,
     /// Its index among its line's devices.
     pub(crate) index: usize,
@@ -122,14 +140,28 @@ impl std::error::Error for JobError {}
 pub struct Handle {
     pub(crate) lines: Arc<[mpsc::Sender<Job>]>,
     pub(crate) devices: Arc<[Entry]>,
+    /// Each line's frame rings.
+    pub(crate) frames: Arc<[Arc<LineFrames>]>,
 }
 
 impl Handle {
     fn entry(&self, device: &str) -> Result<&Entry, JobError> {
         self.devices
             .iter()
-            .find(|entry| entry.name == device)
+            .find(|entry| *entry.id.device == *device)
             .ok_or_else(|| JobError::UnknownDevice(device.to_owned()))
+    }
+
+    /// The bus's devices in file order, each with its model.
+    pub fn devices(&self) -> impl Iterator<Item = (&Arc<DeviceId>, &'static DeviceInfo)> {
+        self.devices.iter().map(|entry| (&entry.id, entry.device))
+    }
+
+    /// The recent frames of device `device` (at most [`FRAMES_KEPT`](crate::FRAMES_KEPT)),
+    /// oldest first; frames are kept on RTU lines (serial, RTU over TCP, simulated).
+    pub fn frames(&self, device: &str) -> Result<Vec<Frame>, JobError> {
+        let entry = self.entry(device)?;
+        Ok(self.frames[entry.line].of(entry.index))
     }
 
     /// The model of device `name`.
@@ -257,6 +289,38 @@ impl Handle {
         self.run(device, found, register).await
     }
 
+    /// Reads out the data buffer of device `device` (where its spec has one) ahead of the
+    /// line's polls: its sampling timing, then the buffer locked, read a page at a time and
+    /// unlocked, as `optobus buffer` does. The lock and unlock are commands: the bus file's
+    /// `writable` must list them (`all` does), since reading out empties the buffer.
+    pub async fn download_buffer(&self, device: &str) -> Result<Buffered, JobError> {
+        let entry = self.entry(device)?;
+        let info = entry.device;
+        let buffer = info.buffer.ok_or_else(|| {
+            JobError::Refused(optobus_inspect::Error::new(format!(
+                "{} has no data buffer",
+                info.model_name()
+            )))
+        })?;
+        for name in [buffer.lock, buffer.unlock] {
+            let listed = info
+                .command(name)
+                .is_some_and(|command| entry.writable.allows_command(command));
+            if !listed {
+                return Err(JobError::NotListed {
+                    device: device.to_owned(),
+                    name: name.to_owned(),
+                });
+            }
+        }
+        let index = entry.index;
+        self.send(entry.line, |done| Job::Buffer {
+            device: index,
+            done,
+        })
+        .await
+    }
+
     /// What writes from the network may change on device `device`.
     pub fn writable(&self, device: &str) -> Option<&Writable> {
         self.entry(device).ok().map(|entry| &entry.writable)
@@ -288,4 +352,30 @@ pub(crate) fn values(
         .iter()
         .map(|register| decode_value(register, readings.words(register)))
         .collect()
+}
+
+/// Reads the data buffer of `core`'s device out: its timing first, then the values.
+pub(crate) async fn download<T: optobus_transport::Transport>(
+    core: &mut optobus_driver::Core<T>,
+) -> Result<Buffered, optobus_driver::Error> {
+    let device = core.device();
+    let buffer = device.buffer.ok_or(optobus_driver::Error::NotAllowed {
+        register: "buffer",
+        what: "read out (the device has no data buffer)",
+    })?;
+    let register =
+        device
+            .members(buffer.values)
+            .next()
+            .ok_or(optobus_driver::Error::NotAllowed {
+                register: buffer.values,
+                what: "read out (the spec lacks it)",
+            })?;
+    let timing = core.read_buffer_timing().await?;
+    let values = core.download_buffer(|_| {}).await?;
+    Ok(Buffered {
+        register,
+        values,
+        timing,
+    })
 }

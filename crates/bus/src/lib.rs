@@ -54,13 +54,16 @@ mod handle;
 mod line;
 mod link;
 pub mod schedule;
+mod trace;
 
 pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
 pub use catalogue::Catalogue;
 pub use event::{rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
+pub use file::outputs::{HttpConfig, Outputs};
 pub use file::{
     BusFile, DeviceConfig, LineConfig, LoadError, PollConfig, Port, Rejected, Writable,
 };
-pub use handle::{Handle, JobError};
+pub use handle::{Buffered, Handle, JobError};
 pub use link::Stream;
 pub use schedule::Health;
+pub use trace::{Direction, Frame, FRAMES_KEPT};

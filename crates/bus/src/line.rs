@@ -19,6 +19,7 @@ use crate::gateway::{self, GatewayRequest};
 use crate::handle::{self, Checked, Job};
 use crate::link::{Client, DeviceLink, DeviceSettings, LineState, Stream};
 use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
+use crate::trace::{LineFrames, TracedStream};
 
 /// The gateway's exception for a request the line could not carry out.
 fn path_or_target(error: &Error) -> u8 {
@@ -49,10 +50,18 @@ pub(crate) enum Opener {
 }
 
 impl Opener {
-    async fn open(&mut self, format: Option<LineFormat>) -> Result<Client, Error> {
+    async fn open(
+        &mut self,
+        format: Option<LineFormat>,
+        frames: &Arc<LineFrames>,
+    ) -> Result<Client, Error> {
         let rtu = |stream: Box<dyn Stream>| {
+            let traced = TracedStream {
+                inner: stream,
+                frames: Arc::clone(frames),
+            };
             Client::Rtu(RtuClient::with_config(
-                stream,
+                Box::new(traced),
                 RtuConfig {
                     line: format,
                     ..RtuConfig::default()
@@ -297,6 +306,9 @@ impl LineTask {
                 let result = self.devices[device].core.read_group(&registers).await;
                 let _ = done.send(result.map(|readings| handle::values(&registers, &readings)));
             }
+            Job::Buffer { device, done } => {
+                let _ = done.send(handle::download(&mut self.devices[device].core).await);
+            }
         }
     }
 
@@ -318,8 +330,9 @@ impl LineTask {
         let function = pdu[0];
         let refused = |code| Some(gateway::exception(function, code));
         let writes = self.gateway.as_ref().is_some_and(|g| g.writes);
+        let index = self.devices.iter().position(|d| d.id.slave == unit);
         let (settings, shape, refusal) = {
-            let device = self.devices.iter().find(|d| d.id.slave == unit);
+            let device = index.map(|index| &self.devices[index]);
             let refusal = match (gateway::is_write(function), device) {
                 (true, _) if !writes => Some(gateway::ILLEGAL_FUNCTION),
                 (true, Some(device)) => gateway::refuse_write(device.core.device(), pdu),
@@ -338,7 +351,7 @@ impl LineTask {
         };
         let mut state = self.state.lock().await;
         let started = Instant::now();
-        let result = match state.client_for(&settings) {
+        let result = match state.client_for(index, &settings) {
             Ok(Client::Rtu(rtu)) => rtu.transact_pdu(unit, &pass, &shape).await,
             #[cfg(feature = "tcp")]
             Ok(Client::Tcp(_)) => Err(Error::Unsupported("a gateway serves RTU lines")),
@@ -363,7 +376,8 @@ impl LineTask {
         }
         state.client = None;
         state.broken = false;
-        match self.opener.open(self.format).await {
+        let frames = Arc::clone(&state.frames);
+        match self.opener.open(self.format, &frames).await {
             Ok(client) => {
                 state.client = Some(client);
                 true

@@ -11,6 +11,7 @@ use tokio::sync::Mutex;
 use tokio::time::Instant;
 
 use crate::event::ErrorCounts;
+use crate::trace::LineFrames;
 
 /// A byte stream a line's RTU frames travel on.
 pub trait Stream: AsyncRead + AsyncWrite + Unpin + Send + 'static {}
@@ -74,10 +75,12 @@ pub(crate) struct LineState {
     pub(crate) busy: Duration,
     /// The port failed in a way that needs it reopened.
     pub(crate) broken: bool,
+    /// The recent frames of the line's devices.
+    pub(crate) frames: Arc<LineFrames>,
 }
 
 impl LineState {
-    pub(crate) fn new(frame_gap: Duration) -> Self {
+    pub(crate) fn new(frame_gap: Duration, frames: Arc<LineFrames>) -> Self {
         Self {
             client: None,
             frame_gap,
@@ -86,6 +89,7 @@ impl LineState {
             errors: ErrorCounts::default(),
             busy: Duration::ZERO,
             broken: false,
+            frames,
         }
     }
 }
@@ -110,13 +114,21 @@ fn breaks_the_port(error: &Error) -> bool {
 pub(crate) struct DeviceLink {
     pub(crate) line: Arc<Mutex<LineState>>,
     pub(crate) settings: DeviceSettings,
+    /// Its index among its line's devices.
+    pub(crate) index: usize,
     /// This device's errors.
     pub(crate) errors: Arc<std::sync::Mutex<ErrorCounts>>,
 }
 
 impl LineState {
-    /// The client, set up for a request with `settings`; `Closed` while the port is.
-    pub(crate) fn client_for(&mut self, settings: &DeviceSettings) -> Result<&mut Client, Error> {
+    /// The client, set up for a request to device `device` of the line (`None`: a slave the
+    /// bus file does not name) with `settings`; `Closed` while the port is.
+    pub(crate) fn client_for(
+        &mut self,
+        device: Option<usize>,
+        settings: &DeviceSettings,
+    ) -> Result<&mut Client, Error> {
+        self.frames.begin(device);
         let gap = self.owed.max(self.frame_gap + settings.silence_before);
         let client = self.client.as_mut().ok_or(Error::Closed)?;
         match client {
@@ -173,7 +185,7 @@ impl Transport for DeviceLink {
     async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, Error> {
         let mut line = self.line.lock().await;
         let started = Instant::now();
-        let result = match line.client_for(&self.settings)? {
+        let result = match line.client_for(Some(self.index), &self.settings)? {
             Client::Rtu(rtu) => rtu.read_words(slave, read).await,
             #[cfg(feature = "tcp")]
             Client::Tcp(tcp) => tcp.read_words(slave, read).await,
@@ -186,7 +198,7 @@ impl Transport for DeviceLink {
     async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), Error> {
         let mut line = self.line.lock().await;
         let started = Instant::now();
-        let result = match line.client_for(&self.settings)? {
+        let result = match line.client_for(Some(self.index), &self.settings)? {
             Client::Rtu(rtu) => rtu.write(slave, address, value).await,
             #[cfg(feature = "tcp")]
             Client::Tcp(tcp) => tcp.write(slave, address, value).await,

@@ -357,3 +357,51 @@ devices:
         );
     }
 }
+
+#[test]
+fn the_console_listens_on_loopback_unless_told_and_takes_a_token_file_and_origins() {
+    let one_device = "
+lines: [{ name: a, simulated: true }]
+devices: [{ name: head, model: p-series }]
+";
+    let short = parse(&format!("{one_device}outputs: {{ http: 8081 }}\n")).expect("a port alone");
+    let http = short.outputs.http.expect("http given");
+    assert_eq!(http.listen, "127.0.0.1:8081".parse().unwrap());
+    assert_eq!(http.token_file, None);
+    let full = parse(&format!(
+        "{one_device}outputs:\n  http: {{ listen: 0.0.0.0:9000, token_file: secret/console.token, \
+         origins: [\"https://scada.example:8443/\"] }}\n"
+    ))
+    .expect("a full mapping");
+    let http = full.outputs.http.expect("http given");
+    assert_eq!(http.listen, "0.0.0.0:9000".parse().unwrap());
+    assert_eq!(
+        http.token_file.as_deref(),
+        Some(Path::new("./secret/console.token"))
+    );
+    assert_eq!(http.origins, ["https://scada.example:8443"]);
+    assert_eq!(parse(one_device).expect("no outputs").outputs.http, None);
+}
+
+#[test]
+fn a_bad_console_address_key_or_origin_is_located() {
+    let rendered = parse(
+        "
+lines: [{ name: a, simulated: true }]
+devices: [{ name: head, model: p-series }]
+outputs:
+  http: { listen: nowhere, tokens: x, origins: [\"javascript:alert(1)\"] }
+  ftp: 21
+",
+    )
+    .expect_err("bad outputs");
+    for expected in [
+        "`http` has no key `tokens`",
+        "`nowhere` is no address to listen on",
+        "`javascript:alert(1)` is no origin",
+        "`outputs` has no key `ftp`",
+        "bus.yaml:5:19",
+    ] {
+        assert!(rendered.contains(expected), "{expected}: {rendered}");
+    }
+}

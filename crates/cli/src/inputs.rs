@@ -51,6 +51,9 @@ pub(crate) const TIMEOUT: DurationBound = DurationBound::up_to_a_day("--timeout"
 /// `watch --interval`.
 pub(crate) const INTERVAL: DurationBound = DurationBound::up_to_a_day("--interval", MS);
 /// `buffer --wait`.
+/// `optobus ui --every`.
+pub(crate) const EVERY: DurationBound = DurationBound::up_to_a_day("--every", MS);
+
 pub(crate) const WAIT: DurationBound = DurationBound::up_to_a_day("--wait", Duration::ZERO);
 /// `simulate --duration`.
 pub(crate) const RUN_FOR: DurationBound = DurationBound::up_to_a_day("--duration", Duration::ZERO);

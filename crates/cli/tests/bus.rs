@@ -172,3 +172,96 @@ fn the_demo_gateway_serves_mbpoll_while_the_bus_polls() {
     let samples = BufReader::new(bus.stdout.take().unwrap()).lines().count();
     assert!(samples > 0, "the bus kept polling");
 }
+
+/// A bare HTTP/1.1 GET to the console at `address`: the status code and the body.
+fn http_get(address: &str, path: &str) -> (u16, String) {
+    use std::io::{Read, Write};
+    let mut stream = std::net::TcpStream::connect(address).expect("the console listens");
+    write!(
+        stream,
+        "GET {path} HTTP/1.1\r\nHost: {address}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut reply = String::new();
+    stream.read_to_string(&mut reply).unwrap();
+    let (head, body) = reply.split_once("\r\n\r\n").expect("a head and a body");
+    let status = head.split(' ').nth(1).and_then(|s| s.parse().ok()).unwrap();
+    (status, body.to_owned())
+}
+
+/// Starts `optobus args…`, waits for the console's address on `stdout` or `stderr`, and gives
+/// the device names `/api/devices` lists.
+fn console_devices(args: &[&str]) -> Vec<String> {
+    let mut child = common::optobus()
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start optobus");
+    let stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut address = None;
+    for line in stderr.lines() {
+        let line = line.unwrap();
+        if let Some(url) = line.strip_prefix("optobus: the console is on http://") {
+            address = Some(url.trim_end_matches('/').to_owned());
+            break;
+        }
+    }
+    let address = address.expect("the console's address on stderr");
+    let (status, body) = http_get(&address, "/api/devices");
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(status, 200, "{body}");
+    let json: serde_json::Value = serde_json::from_str(&body).unwrap();
+    json["devices"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["device"].as_str().unwrap().to_owned())
+        .collect()
+}
+
+#[test]
+fn ui_serves_the_demo_bus_and_says_where() {
+    let devices = console_devices(&["ui", "--http", "127.0.0.1:0", "--duration", "20s"]);
+    assert_eq!(
+        devices,
+        [
+            "head",
+            "rangefinder",
+            "confocal",
+            "distance",
+            "four-channel"
+        ]
+    );
+}
+
+#[test]
+fn ui_makes_one_device_given_by_its_model_into_a_bus() {
+    let devices = console_devices(&[
+        "ui",
+        "--model",
+        "ccs",
+        "--http",
+        "127.0.0.1:0",
+        "--duration",
+        "20s",
+    ]);
+    assert_eq!(devices, ["ccs"]);
+}
+
+#[test]
+fn run_with_http_serves_the_console_of_the_bus() {
+    let devices = console_devices(&[
+        "run",
+        "--demo",
+        "--gateway",
+        "127.0.0.1:0",
+        "--http",
+        "127.0.0.1:0",
+        "--duration",
+        "20s",
+        "--json",
+    ]);
+    assert_eq!(devices.len(), 5, "{devices:?}");
+}

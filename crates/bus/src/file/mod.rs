@@ -5,6 +5,7 @@
 //! whole file passes. The schema and a tour are in the crate's README.
 
 mod check;
+pub mod outputs;
 mod read;
 
 pub use read::{resolve, writable};
@@ -30,6 +31,8 @@ pub struct BusFile {
     pub lines: Vec<LineConfig>,
     /// The devices, in file order.
     pub devices: Vec<DeviceConfig>,
+    /// Where the bus serves what it reads besides its events (the console).
+    pub outputs: outputs::Outputs,
 }
 
 /// One line: a port and the character format on it.

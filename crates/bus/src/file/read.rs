@@ -10,6 +10,7 @@ use optobus_codegen::source::{Node, Span, SyntaxError, Value};
 use optobus_codegen::Diagnostic;
 use optobus_device::{DeviceInfo, RegisterInfo};
 
+use super::outputs::Outputs;
 use super::{
     BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, Writable,
     DEFAULT_GATEWAY_CLIENTS, MAX_DURATION,
@@ -91,7 +92,7 @@ pub(super) struct DevicePlaces {
 
 /// Reads the bus file's tree, collecting every problem.
 pub(super) struct Reader<'a> {
-    base: &'a Path,
+    pub(super) base: &'a Path,
     catalogue: &'a Catalogue,
     pub(super) diagnostics: Vec<Diagnostic>,
 }
@@ -136,7 +137,7 @@ fn entries(node: &Node) -> Option<&[(Node, Node)]> {
 }
 
 /// A plain or quoted scalar's text.
-fn scalar(node: &Node) -> Option<&str> {
+pub(super) fn scalar(node: &Node) -> Option<&str> {
     match &node.value {
         Value::Scalar { text, .. } if !node.is_null() => Some(text),
         _ => None,
@@ -152,7 +153,12 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn error(&mut self, span: Span, message: impl Into<String>, help: impl Into<String>) {
+    pub(super) fn error(
+        &mut self,
+        span: Span,
+        message: impl Into<String>,
+        help: impl Into<String>,
+    ) {
         self.diagnostics.push(Diagnostic {
             rule: RULE,
             message: message.into(),
@@ -167,7 +173,7 @@ impl<'a> Reader<'a> {
 
     /// The entries of `node`, checked against `allowed` keys (each unknown or repeated key
     /// reported), or an error saying `what` must be a mapping.
-    fn mapping<'n>(
+    pub(super) fn mapping<'n>(
         &mut self,
         node: &'n Node,
         what: &str,
@@ -215,7 +221,7 @@ impl<'a> Reader<'a> {
     }
 
     /// The items of a list, or an error.
-    fn list<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n [Node]> {
+    pub(super) fn list<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n [Node]> {
         match &node.value {
             Value::Sequence(items) => Some(items),
             _ => {
@@ -229,7 +235,7 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn text<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n str> {
+    pub(super) fn text<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n str> {
         let text = scalar(node);
         if text.is_none() {
             self.error(
@@ -260,7 +266,7 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn boolean(&mut self, node: &Node, what: &str) -> Option<bool> {
+    pub(super) fn boolean(&mut self, node: &Node, what: &str) -> Option<bool> {
         match scalar(node) {
             Some("true") => Some(true),
             Some("false") => Some(false),
@@ -337,13 +343,16 @@ impl<'a> Reader<'a> {
             }
             None => self.error(root.span, "the bus file has no `devices`", HELP),
         }
-        if let Some((_, outputs)) = top.iter().find(|(k, _)| scalar(k) == Some("outputs")) {
-            if !outputs.is_null() {
-                self.mapping(outputs, "`outputs`", &[]);
-            }
-        }
+        let outputs = match top.iter().find(|(k, _)| scalar(k) == Some("outputs")) {
+            Some((_, node)) if !node.is_null() => self.outputs(node),
+            _ => Outputs::default(),
+        };
         Some(Parsed {
-            file: BusFile { lines, devices },
+            file: BusFile {
+                lines,
+                devices,
+                outputs,
+            },
             places: Places {
                 lines: line_places,
                 devices: device_places,
@@ -978,7 +987,7 @@ pub fn resolve(
 }
 
 /// `a`, `b` and `c` in backquotes.
-fn quoted(names: &[&str]) -> String {
+pub(super) fn quoted(names: &[&str]) -> String {
     names
         .iter()
         .map(|n| format!("`{n}`"))
@@ -987,7 +996,7 @@ fn quoted(names: &[&str]) -> String {
 }
 
 /// A port alone (on 127.0.0.1), `localhost:PORT`, or `IP:PORT`.
-fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
+pub(super) fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
     let text = text.trim();
     if let Ok(port) = text.parse::<u16>() {
         return Some(std::net::SocketAddr::from(([127, 0, 0, 1], port)));

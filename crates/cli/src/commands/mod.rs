@@ -17,6 +17,7 @@ mod run;
 mod scan;
 mod set;
 mod simulate;
+mod ui;
 mod watch;
 
 use clap::Subcommand;
@@ -58,6 +59,9 @@ pub(crate) enum Command {
     /// Poll a bus of sensors (several devices on shared lines) from a bus file and show them
     /// live; --json prints a line per sample, --record writes a CSV per device.
     Run(run::RunArgs),
+    /// The console in the browser: the demo bus, or one device (--model, --spec, --serial,
+    /// --tcp); prints the page's address.
+    Ui(ui::UiArgs),
     /// Bus files: `optobus bus check FILE`.
     #[command(subcommand)]
     Bus(bus::BusCommand),
@@ -90,6 +94,7 @@ pub(crate) async fn run(options: Options, command: Command) -> Result<(), CliErr
             bus::no_spec(&options)?;
             run::run(options.json, &args).await
         }
+        Command::Ui(args) => ui::run(&options.with(&args.device), &args).await,
         Command::Bus(command) => {
             bus::no_spec(&options)?;
             bus::run(&command)

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::time::{Duration, SystemTime};
 
 use clap::Args;
-use optobus_bus::{Bus, BusFile, Event, Health, Sample};
+use optobus_bus::{Bus, BusFile, Event, Health, HttpConfig, Sample};
 use optobus_device::RegisterInfo;
 use optobus_inspect::Value;
 use tokio::sync::broadcast::error::RecvError;
@@ -40,6 +40,10 @@ pub(crate) struct RunArgs {
     /// With --demo: where its gateway listens instead of 127.0.0.1:5020.
     #[arg(long, requires = "demo", value_name = "ADDRESS")]
     gateway: Option<SocketAddr>,
+    /// Serve the console in the browser here (instead of the bus file's `outputs.http`
+    /// address, keeping its token and origins).
+    #[arg(long, value_name = "ADDRESS")]
+    http: Option<SocketAddr>,
     /// Write a CSV per device into this folder (the `record` format; a row per poll).
     #[arg(long, value_name = "DIR")]
     record: Option<PathBuf>,
@@ -49,7 +53,7 @@ pub(crate) struct RunArgs {
 }
 
 /// The demo's bus file, its gateway moved to `gateway` if given.
-fn demo(gateway: Option<SocketAddr>) -> Result<BusFile, CliError> {
+pub(crate) fn demo(gateway: Option<SocketAddr>) -> Result<BusFile, CliError> {
     let mut bus = BusFile::parse("demo.yaml", DEMO, ".".as_ref(), &models::catalogue())
         .map_err(|rejected| CliError::new(rejected.render()))?;
     if let (Some(address), Some(line)) = (gateway, bus.lines.first_mut()) {
@@ -242,6 +246,14 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
         Some(dir) => Some(Recorder::create(dir, &bus_file)?),
         None => None,
     };
+    let http = match (args.http, bus_file.outputs.http.clone()) {
+        (Some(address), Some(config)) => Some(HttpConfig {
+            listen: address,
+            ..config
+        }),
+        (Some(address), None) => Some(HttpConfig::new(address)),
+        (None, config) => config,
+    };
     let lines = bus_file.lines.len();
     let devices = bus_file.devices.len();
     let bus = Bus::new(bus_file);
@@ -263,6 +275,16 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     if !gateways.is_empty() {
         note!("optobus: {}", gateways.join(", "));
     }
+    let console = match &http {
+        Some(config) => {
+            let server = optobus_console::serve(&running, config)
+                .await
+                .map_err(|e| CliError::failed(e.to_string()))?;
+            note!("optobus: the console is on {}", server.url());
+            Some(server)
+        }
+        None => None,
+    };
     let terminal = std::io::stdout().is_terminal() && !json;
     let ctrl_c = tokio::signal::ctrl_c();
     tokio::pin!(ctrl_c);
@@ -348,6 +370,7 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
             redraw_at = tokio::time::Instant::now() + REDRAW_EVERY;
         }
     }
+    drop(console);
     drop(running);
     if let Some(recorder) = recorder {
         recorder.finish()?;

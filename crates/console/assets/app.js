@@ -1,0 +1,365 @@
+// The optobus console: devices, live values and charts from the server's event stream, the
+// register map with edits the server checks, commands, frame traces. No library, no build step.
+"use strict";
+
+const CHART_MS = 5 * 60 * 1000; // what a chart shows
+const CHART_STEP_MS = 100; // at most one chart point per 100 ms per value
+
+const state = {
+  devices: [], // from /api/devices
+  cards: new Map(), // device name -> card parts
+  series: new Map(), // "device/register" -> [[time, number], ...]
+  dirty: new Set(), // charts to redraw
+  detail: null, // the device shown in detail
+  map: null, // its register map
+};
+
+function el(tag, props, ...children) {
+  const node = document.createElement(tag);
+  for (const [key, value] of Object.entries(props || {})) {
+    if (key === "class") node.className = value;
+    else if (key === "data") for (const [k, v] of Object.entries(value)) node.dataset[k] = v;
+    else if (key.startsWith("on")) node.addEventListener(key.slice(2), value);
+    else node[key] = value;
+  }
+  for (const child of children) node.append(child);
+  return node;
+}
+
+function note(text) {
+  document.getElementById("note").textContent = text;
+}
+
+function authorised(headers) {
+  const token = sessionStorage.getItem("optobus-token");
+  if (token) headers.authorization = "Bearer " + token;
+  return headers;
+}
+
+async function api(path, body) {
+  const options = body === undefined ? {} : {
+    method: "POST",
+    headers: { "content-type": "application/json" },
+    body: JSON.stringify(body),
+  };
+  if (body !== undefined) authorised(options.headers);
+  const response = await fetch(path, options);
+  const json = await response.json().catch(() => ({ error: response.statusText }));
+  if (!response.ok) {
+    if (response.status === 401 && body !== undefined) {
+      const given = window.prompt("This console needs its token for writes:");
+      if (given) {
+        sessionStorage.setItem("optobus-token", given.trim());
+        return api(path, body);
+      }
+    }
+    throw new Error(json.error || response.statusText);
+  }
+  return json;
+}
+
+// ---- devices and live values ----
+
+function card(device) {
+  const health = el("span", { class: "health" });
+  const reason = el("div", { class: "reason" });
+  const rows = el("tbody");
+  const node = el("article", { class: "card", data: { device: device.device } },
+    el("h2", {}, el("span", {}, device.device), health),
+    el("div", { class: "facts" }, `${device.model} · line ${device.line} · slave ${device.slave} · ${device.title}`),
+    reason,
+    el("table", {}, rows),
+    el("div", { class: "actions" },
+      el("button", { type: "button", onclick: () => openDetail(device.device, "registers") }, "Registers"),
+      el("button", { type: "button", onclick: () => openDetail(device.device, "commands") }, "Commands"),
+      el("button", { type: "button", onclick: () => openDetail(device.device, "frames") }, "Frames"),
+      el("button", { type: "button", onclick: () => exportValues(device.device) }, "Export CSV")));
+  return { node, health, reason, rows, values: new Map() };
+}
+
+function showHealth(entry) {
+  const parts = state.cards.get(entry.device);
+  if (!parts) return;
+  const offline = entry.health === "offline";
+  parts.health.textContent = offline ? "offline" : "online";
+  parts.health.classList.toggle("offline", offline);
+  parts.reason.textContent = offline && entry.reason ? entry.reason : "";
+}
+
+function showSample(sample) {
+  const parts = state.cards.get(sample.device);
+  if (!parts) return;
+  const key = sample.device + "/" + sample.register;
+  let row = parts.values.get(sample.register);
+  if (!row) {
+    const value = el("td", { class: "num", data: { value: key } });
+    const chart = el("canvas", { class: "spark", width: 240, height: 56 });
+    row = { value, chart };
+    parts.values.set(sample.register, row);
+    parts.rows.append(el("tr", {}, el("td", {}, sample.register), value, el("td", {}, chart)));
+  }
+  row.value.textContent = sample.text;
+  if (typeof sample.number === "number") {
+    let points = state.series.get(key);
+    if (!points) state.series.set(key, (points = []));
+    const last = points[points.length - 1];
+    if (!last || sample.time - last[0] >= CHART_STEP_MS) points.push([sample.time, sample.number]);
+    else last[1] = sample.number;
+    while (points.length && points[0][0] < sample.time - CHART_MS) points.shift();
+    state.dirty.add(key);
+  }
+}
+
+function draw() {
+  for (const key of state.dirty) {
+    const [device, register] = key.split("/");
+    const row = state.cards.get(device)?.values.get(register);
+    const points = state.series.get(key);
+    if (!row || !points || !points.length) continue;
+    const canvas = row.chart;
+    const g = canvas.getContext("2d");
+    g.clearRect(0, 0, canvas.width, canvas.height);
+    let min = Infinity, max = -Infinity;
+    for (const [, y] of points) { if (y < min) min = y; if (y > max) max = y; }
+    const span = max - min || 1;
+    const end = points[points.length - 1][0];
+    // Up to the last minutes; a younger series fills the chart.
+    const shown = Math.min(CHART_MS, Math.max(end - points[0][0], 1000));
+    g.strokeStyle = "#0969da";
+    g.lineWidth = 2;
+    g.beginPath();
+    points.forEach(([t, y], i) => {
+      const x = canvas.width * (1 - (end - t) / shown);
+      const h = canvas.height - 4 - (canvas.height - 8) * (y - min) / span;
+      if (i === 0) g.moveTo(x, h); else g.lineTo(x, h);
+    });
+    g.stroke();
+  }
+  state.dirty.clear();
+  requestAnimationFrame(draw);
+}
+
+function showLines(lines) {
+  const text = lines.map((l) =>
+    `${l.line}: ${l.open ? "open" : "CLOSED"}, ${l.transactions} transactions, ` +
+    `${Math.round(l.utilisation * 100)} % busy`).join(" · ");
+  document.getElementById("summary").textContent =
+    `${state.devices.length} device${state.devices.length === 1 ? "" : "s"}` + (text ? " · " + text : "");
+}
+
+async function load() {
+  const [devices, values] = await Promise.all([api("/api/devices"), api("/api/values")]);
+  state.devices = devices.devices;
+  const box = document.getElementById("devices");
+  box.replaceChildren();
+  state.cards.clear();
+  for (const device of state.devices) {
+    const parts = card(device);
+    state.cards.set(device.device, parts);
+    box.append(parts.node);
+    showHealth(device);
+  }
+  for (const samples of Object.values(values)) samples.forEach(showSample);
+  showLines(devices.lines);
+}
+
+function connect() {
+  const link = document.getElementById("link");
+  const source = new EventSource("/api/stream");
+  source.onopen = () => {
+    link.textContent = "stream: live";
+    link.classList.remove("down");
+    // After a restart of the server the devices may be others: read them again.
+    load().catch((e) => note(e.message));
+  };
+  source.onerror = () => {
+    link.textContent = "stream: reconnecting…";
+    link.classList.add("down");
+  };
+  source.onmessage = (message) => {
+    const batch = JSON.parse(message.data);
+    batch.samples.forEach(showSample);
+    batch.health.forEach(showHealth);
+    if (batch.lines.length) showLines(batch.lines);
+  };
+  source.addEventListener("dropped", (message) => note(`the page fell behind: ${message.data} batches skipped`));
+}
+
+function download(name, rows) {
+  save(name, rows.map((r) => r.map((c) => /[",\n]/.test(String(c)) ? `"${String(c).replace(/"/g, '""')}"` : c).join(",")).join("\n") + "\n");
+}
+
+function save(name, text) {
+  const link = el("a", { href: URL.createObjectURL(new Blob([text], { type: "text/csv" })), download: name });
+  document.body.append(link);
+  link.click();
+  link.remove();
+}
+
+function exportValues(device) {
+  const rows = [["time", "register", "value"]];
+  for (const [key, points] of state.series) {
+    const [owner, register] = key.split("/");
+    if (owner !== device) continue;
+    for (const [t, y] of points) rows.push([new Date(t).toISOString(), register, y]);
+  }
+  download(`${device}.csv`, rows);
+}
+
+// ---- detail: register map, commands, frames ----
+
+function tab(name) {
+  for (const t of ["registers", "commands", "frames", "buffer"]) {
+    document.getElementById("tab-" + t).hidden = t !== name;
+  }
+  if (name === "frames") loadFrames().catch((e) => note(e.message));
+}
+
+async function openDetail(device, which) {
+  state.detail = device;
+  state.map = await api(`/api/devices/${encodeURIComponent(device)}`);
+  document.getElementById("detail").hidden = false;
+  document.getElementById("detail-title").textContent = `${device} · ${state.map.title}`;
+  document.getElementById("buffer-tab").hidden = !state.map.buffer;
+  showMap();
+  showCommands();
+  tab(which);
+  document.getElementById("detail").scrollIntoView();
+}
+
+function showMap() {
+  const filter = document.getElementById("register-filter").value.trim().toLowerCase();
+  const rows = document.getElementById("map-rows");
+  rows.replaceChildren();
+  for (const r of state.map.registers) {
+    if (filter && !r.name.includes(filter) && !r.doc.toLowerCase().includes(filter)) continue;
+    const current = el("td", { class: "num" });
+    const edit = el("td", {});
+    if (r.writable) {
+      const input = el("input", { type: "text", size: 10, placeholder: r.unit ? "value " + r.unit : "value" });
+      const message = el("div", { class: "refusal" });
+      const set = async () => {
+        message.className = "refusal";
+        message.textContent = "";
+        try {
+          const done = await api(`/api/devices/${encodeURIComponent(state.detail)}/set`, { register: r.name, value: input.value });
+          message.className = "accepted";
+          message.textContent = "set: " + done.text;
+          current.textContent = done.text;
+        } catch (e) {
+          message.textContent = e.message;
+        }
+      };
+      input.addEventListener("keydown", (e) => { if (e.key === "Enter") set(); });
+      edit.append(input, el("button", { type: "button", data: { action: "set" }, onclick: set }, "Set"), message);
+    }
+    const readable = !r.access.startsWith("w");
+    const read = el("button", { type: "button", hidden: !readable, onclick: async () => {
+      try {
+        const got = await api(`/api/devices/${encodeURIComponent(state.detail)}/read/${r.name}`);
+        current.textContent = got.text;
+      } catch (e) { current.textContent = e.message; }
+    } }, "Read");
+    rows.append(el("tr", { data: { register: r.name } },
+      el("td", {}, el("div", {}, r.name), el("div", { class: "doc" }, r.doc + (r.manual_name ? ` (manual: ${r.manual_name})` : ""))),
+      el("td", {}, `${r.address_hex} (${r.address})`),
+      el("td", {}, r.table),
+      el("td", {}, `${r.type} · ${r.access}`),
+      el("td", {}, r.unit || ""),
+      el("td", {}, r.range),
+      el("td", {}, r.section),
+      el("td", {}, current, read),
+      edit));
+  }
+}
+
+function showCommands() {
+  const list = document.getElementById("command-list");
+  const result = document.getElementById("command-result");
+  list.replaceChildren();
+  result.textContent = "";
+  for (const c of state.map.commands) {
+    const run = async () => {
+      if (c.drastic && !window.confirm(`${c.name} on ${state.detail}: ${c.doc}\nThis changes the device. Go on?`)) {
+        result.textContent = `${c.name}: not done`;
+        return;
+      }
+      result.textContent = `${c.name}: running…`;
+      try {
+        await api(`/api/devices/${encodeURIComponent(state.detail)}/do`, { command: c.name });
+        result.textContent = `${c.name}: done`;
+      } catch (e) {
+        result.textContent = `${c.name}: ${e.message}`;
+      }
+    };
+    list.append(el("li", {},
+      el("button", {
+        type: "button", data: { command: c.name }, onclick: run, disabled: !c.allowed,
+        title: c.allowed ? "" : "the bus file's `writable` does not list it",
+      }, c.name + (c.drastic ? " …" : "")),
+      " " + c.doc));
+  }
+}
+
+let frames = [];
+async function loadFrames() {
+  frames = await api(`/api/devices/${encodeURIComponent(state.detail)}/frames`);
+  const rows = document.getElementById("frame-rows");
+  rows.replaceChildren(...frames.slice().reverse().map((f) => el("tr", { class: f.direction },
+    el("td", {}, f.time.slice(11, 26)),
+    el("td", {}, f.direction === "sent" ? "→" : "←"),
+    el("td", {}, f.after_us === null ? "" : (f.after_us / 1000).toFixed(1) + " ms"),
+    el("td", {}, f.hex))));
+}
+
+let bufferCsv = "";
+async function readBuffer() {
+  const result = document.getElementById("buffer-result");
+  result.textContent = "reading out…";
+  const response = await fetch(`/api/devices/${encodeURIComponent(state.detail)}/buffer`,
+    { method: "POST", headers: authorised({}) });
+  if (!response.ok) {
+    const json = await response.json().catch(() => ({ error: response.statusText }));
+    result.textContent = json.error;
+    return;
+  }
+  bufferCsv = await response.text();
+  const [header, ...rows] = bufferCsv.trim().split("\n");
+  const columns = header.split(",");
+  const points = rows.map((r) => r.split(",")).filter((c) => c[c.length - 1] !== "")
+    .map((c) => [Number(c[columns.length === 3 ? 1 : 0]), Number(c[c.length - 1])]);
+  result.textContent = `${rows.length} values (${columns[columns.length - 1]} over ${columns.length === 3 ? "time [s]" : "index"})`;
+  document.getElementById("buffer-csv").disabled = false;
+  const canvas = document.getElementById("buffer-plot");
+  const g = canvas.getContext("2d");
+  g.clearRect(0, 0, canvas.width, canvas.height);
+  if (!points.length) return;
+  const xs = points.map((p) => p[0]), ys = points.map((p) => p[1]);
+  const [x0, x1] = [Math.min(...xs), Math.max(...xs)], [y0, y1] = [Math.min(...ys), Math.max(...ys)];
+  g.strokeStyle = "#0969da";
+  g.beginPath();
+  points.forEach(([x, y], i) => {
+    const px = 10 + (canvas.width - 20) * (x - x0) / ((x1 - x0) || 1);
+    const py = canvas.height - 10 - (canvas.height - 20) * (y - y0) / ((y1 - y0) || 1);
+    if (i === 0) g.moveTo(px, py); else g.lineTo(px, py);
+  });
+  g.stroke();
+  g.fillStyle = "#57606a";
+  g.fillText(`${y1}`, 12, 12);
+  g.fillText(`${y0}`, 12, canvas.height - 12);
+}
+
+document.addEventListener("DOMContentLoaded", () => {
+  for (const button of document.querySelectorAll("[data-tab]")) {
+    button.addEventListener("click", () => tab(button.dataset.tab));
+  }
+  document.getElementById("close-detail").addEventListener("click", () => { document.getElementById("detail").hidden = true; });
+  document.getElementById("register-filter").addEventListener("input", showMap);
+  document.getElementById("frames-refresh").addEventListener("click", () => loadFrames().catch((e) => note(e.message)));
+  document.getElementById("frames-csv").addEventListener("click", () =>
+    download(`${state.detail}-frames.csv`, [["time", "direction", "after_us", "bytes"], ...frames.map((f) => [f.time, f.direction, f.after_us ?? "", f.hex])]));
+  document.getElementById("buffer-read").addEventListener("click", () => readBuffer().catch((e) => note(e.message)));
+  document.getElementById("buffer-csv").addEventListener("click", () => save(`${state.detail}-buffer.csv`, bufferCsv));
+  connect();
+  requestAnimationFrame(draw);
+});

@@ -1,0 +1,170 @@
+//! The routes and the JSON API's handlers.
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+use axum::extract::{DefaultBodyLimit, Path, State};
+use axum::http::StatusCode;
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use optobus_bus::{rfc3339, Direction};
+use optobus_inspect::hex;
+use serde_json::{json, Value as Json_};
+
+use crate::error::ApiError;
+use crate::state::{health_json, unix_ms, Shared};
+use crate::{guard, map, page, stream, write, BODY_LIMIT};
+
+pub(crate) fn router(shared: Arc<Shared>) -> Router {
+    Router::new()
+        .route("/", get(page::index))
+        .route("/app.js", get(page::script))
+        .route("/style.css", get(page::style))
+        .route("/api/devices", get(devices))
+        .route("/api/values", get(values))
+        .route("/api/status", get(status))
+        .route("/api/stream", get(stream::stream))
+        .route("/api/devices/{device}", get(device_map))
+        .route("/api/devices/{device}/frames", get(frames))
+        .route("/api/devices/{device}/read/{register}", get(read))
+        .route("/api/devices/{device}/set", post(write::set))
+        .route("/api/devices/{device}/do", post(write::run))
+        .route("/api/devices/{device}/buffer", post(write::buffer))
+        .layer(axum::middleware::from_fn_with_state(
+            Arc::clone(&shared),
+            guard::check,
+        ))
+        .layer(DefaultBodyLimit::max(BODY_LIMIT))
+        .with_state(shared)
+}
+
+pub(crate) fn unknown_device(name: &str) -> ApiError {
+    ApiError::not_found(format!("the bus has no device `{name}`"))
+}
+
+/// `GET /api/devices`: each device with its health, and each line's statistics.
+async fn devices(State(shared): State<Arc<Shared>>) -> Json<Json_> {
+    let board = shared.board();
+    let devices: Vec<Json_> = board
+        .devices
+        .iter()
+        .map(|d| {
+            let mut json = health_json(d);
+            json["model"] = d.id.model.to_string().into();
+            json["line"] = d.id.line.to_string().into();
+            json["slave"] = d.id.slave.into();
+            json["title"] = d.info.title.into();
+            json
+        })
+        .collect();
+    let lines: Vec<&Json_> = board.lines.iter().map(|(_, json)| json).collect();
+    Json(json!({
+        "devices": devices,
+        "lines": lines,
+        "needs_token": shared.guard.needs_token(),
+    }))
+}
+
+/// `GET /api/values`: the latest sample of every register polled, per device, in the map's
+/// order.
+async fn values(State(shared): State<Arc<Shared>>) -> Json<Json_> {
+    let board = shared.board();
+    let mut devices = serde_json::Map::new();
+    for device in &board.devices {
+        let values: Vec<&Json_> = device
+            .info
+            .registers
+            .iter()
+            .filter_map(|r| device.values.get(r.name))
+            .collect();
+        devices.insert(device.id.device.to_string(), json!(values));
+    }
+    Json(Json_::Object(devices))
+}
+
+/// `GET /api/status`: the live stream's clients and what was dropped.
+async fn status(State(shared): State<Arc<Shared>>) -> Json<Json_> {
+    Json(json!({
+        "stream_clients": shared.clients.load(Ordering::Relaxed),
+        "dropped_batches": shared.dropped(),
+        "missed_events": shared.missed.load(Ordering::Relaxed),
+    }))
+}
+
+/// `GET /api/devices/{device}`: its register map, commands and groups.
+async fn device_map(
+    State(shared): State<Arc<Shared>>,
+    Path(device): Path<String>,
+) -> Result<Json<Json_>, ApiError> {
+    let info = shared
+        .handle
+        .device_info(&device)
+        .ok_or_else(|| unknown_device(&device))?;
+    let writable = shared.handle.writable(&device).cloned().unwrap_or_default();
+    Ok(Json(map::device_map(&device, info, &writable)))
+}
+
+/// `GET /api/devices/{device}/frames`: its recent frames, oldest first.
+async fn frames(
+    State(shared): State<Arc<Shared>>,
+    Path(device): Path<String>,
+) -> Result<Json<Json_>, ApiError> {
+    let frames = shared
+        .handle
+        .frames(&device)
+        .map_err(|_| unknown_device(&device))?;
+    let frames: Vec<Json_> = frames
+        .iter()
+        .map(|frame| {
+            json!({
+                "direction": match frame.direction {
+                    Direction::Sent => "sent",
+                    Direction::Received => "received",
+                },
+                "hex": hex(&frame.bytes),
+                "time": rfc3339(frame.at),
+                "unix_ms": unix_ms(frame.at),
+                "after_us": frame.after_request.map(|d| d.as_micros() as u64),
+            })
+        })
+        .collect();
+    Ok(Json(json!(frames)))
+}
+
+/// `GET /api/devices/{device}/read/{register}`: reads the register now, ahead of the polls
+/// (a register whose read changes the device is refused).
+async fn read(
+    State(shared): State<Arc<Shared>>,
+    Path((device, register)): Path<(String, String)>,
+) -> Result<Json<Json_>, ApiError> {
+    let info = shared
+        .handle
+        .device_info(&device)
+        .ok_or_else(|| unknown_device(&device))?;
+    let found = info.register(&register).ok_or_else(|| {
+        ApiError::not_found(format!(
+            "{} has no register `{register}`",
+            info.model_name()
+        ))
+    })?;
+    if !found.readable() || !found.read_is_repeatable() {
+        return Err(ApiError::bad_request(format!(
+            "`{register}` is not read from the console: {}",
+            found.read_side_effect.unwrap_or("it cannot be read")
+        )));
+    }
+    let values = shared
+        .handle
+        .read(&device, vec![found])
+        .await
+        .map_err(|e| ApiError::new(StatusCode::BAD_GATEWAY, e.to_string()))?;
+    let value = values
+        .into_iter()
+        .next()
+        .unwrap_or(optobus_inspect::Value::Invalid);
+    Ok(Json(json!({
+        "register": found.name,
+        "text": value.to_string(),
+        "value": value,
+    })))
+}

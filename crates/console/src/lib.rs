@@ -1,0 +1,192 @@
+//! A console in the browser for a running [`optobus_bus`] bus: every device with its health,
+//! live values with their units and a chart of the last minutes, the register map from the
+//! spec with editing checked by the server, commands (drastic ones confirmed), the frame trace
+//! of a device, and CSV export of what is on screen.
+//!
+//! The server is [axum](https://docs.rs/axum); the page, its script and its style are carried in
+//! the binary (nothing is fetched from elsewhere at run time). What it serves:
+//!
+//! | Route | What |
+//! |---|---|
+//! | `GET /` | the page |
+//! | `GET /api/devices` | the devices with their health and errors, and the lines' statistics |
+//! | `GET /api/values` | the latest value of every register polled, per device |
+//! | `GET /api/devices/{device}` | the device's register map, commands and groups, from its spec |
+//! | `GET /api/devices/{device}/frames` | its recent frames: direction, hex, time, reply delay |
+//! | `GET /api/devices/{device}/read/{register}` | the register read now, ahead of the polls |
+//! | `POST /api/devices/{device}/set` | `{"register": "light_power", "value": "12.5 %"}`: set as `optobus set` does, if the bus file's `writable` lists it; the value read back |
+//! | `POST /api/devices/{device}/do` | `{"command": "zero_position_1"}`: run as `optobus do` does, if listed (a drastic one only when named there) |
+//! | `POST /api/devices/{device}/buffer` | its data buffer read out (if `writable` lists the buffer's lock and unlock), as CSV: `index,time_s,value_UNIT` |
+//! | `GET /api/stream` | server-sent events: a batch of samples, health and line statistics every 100 ms |
+//! | `GET /api/status` | the stream's clients and the batches dropped for slow ones |
+//!
+//! Safe by default: it listens on 127.0.0.1 and then answers only requests addressed to the
+//! loopback (`Host`), against DNS rebinding; a request from a page of another origin is refused
+//! unless the bus file lists that origin; bodies are limited to [`BODY_LIMIT`] bytes; every
+//! refusal is a 4xx whose JSON `error` is the tool's one-line message. Writes are checked
+//! by the bus ([`optobus_bus::Handle::set_listed`]): nothing refused reaches the line. A
+//! console given a token file, or listening beyond the loopback, takes writes only with its
+//! token (`Authorization: Bearer …`); beyond the loopback without a token file it takes none.
+//!
+//! ```no_run
+//! # async fn demo(running: &optobus_bus::Running) -> Result<(), Box<dyn std::error::Error>> {
+//! let config = optobus_bus::HttpConfig::new("127.0.0.1:8080".parse()?);
+//! let server = optobus_console::serve(running, &config).await?;
+//! println!("the console is on {}", server.url());
+//! # Ok(())
+//! # }
+//! ```
+#![forbid(unsafe_code)]
+
+mod api;
+mod error;
+mod guard;
+mod map;
+mod page;
+mod state;
+mod stream;
+mod write;
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use axum::Router;
+use optobus_bus::{HttpConfig, Running};
+use tokio::task::JoinHandle;
+
+pub use page::PAGE_BYTES;
+pub use stream::{BATCH_EVERY, BATCH_QUEUE};
+
+/// The largest request body accepted, in bytes.
+pub const BODY_LIMIT: usize = 4096;
+
+/// Why the console cannot start.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum ConsoleError {
+    /// The token file cannot be read or holds no usable token.
+    Token {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        why: String,
+    },
+    /// The address cannot be listened on.
+    Listen {
+        /// The address.
+        address: SocketAddr,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
+impl std::fmt::Display for ConsoleError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Token { path, why } => {
+                write!(f, "the console's token file {}: {why}", path.display())
+            }
+            Self::Listen { address, source } => {
+                write!(f, "the console cannot listen on {address}: {source}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for ConsoleError {}
+
+/// The console of a running bus: its router, and a task that follows the bus's events while
+/// the bus runs and the router (or a clone of it) lives.
+#[derive(Debug)]
+pub struct Console {
+    router: Router,
+    shared: Arc<state::Shared>,
+}
+
+impl Console {
+    /// The console of `running` as `config` sets it up, answering at `address` (the address
+    /// it is reached at, which the `Host` check compares with). Subscribes to the bus's events
+    /// at once: values sampled from now on are shown.
+    pub fn new(
+        running: &Running,
+        config: &HttpConfig,
+        address: SocketAddr,
+    ) -> Result<Self, ConsoleError> {
+        let guard = guard::Guard::new(config, address)?;
+        let shared = Arc::new(state::Shared::new(running.handle(), guard));
+        tokio::spawn(state::collect(Arc::downgrade(&shared), running.subscribe()));
+        Ok(Self {
+            router: api::router(Arc::clone(&shared)),
+            shared,
+        })
+    }
+
+    /// Its routes, to serve or to send requests to directly (tests).
+    pub fn router(&self) -> Router {
+        self.router.clone()
+    }
+
+    /// Batches of the live stream dropped because a client fell behind, since it started.
+    pub fn dropped_batches(&self) -> u64 {
+        self.shared.dropped()
+    }
+}
+
+/// A console serving on its address; dropping it stops it.
+#[derive(Debug)]
+pub struct Server {
+    address: SocketAddr,
+    console: Console,
+    task: JoinHandle<()>,
+}
+
+impl Server {
+    /// Where it listens (its port, when the configuration asked for port 0).
+    pub fn address(&self) -> SocketAddr {
+        self.address
+    }
+
+    /// The page's address, for people.
+    pub fn url(&self) -> String {
+        format!("http://{}/", self.address)
+    }
+
+    /// The console it serves.
+    pub fn console(&self) -> &Console {
+        &self.console
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        self.task.abort();
+        // Connections outlive the listening task: end the live streams, as a stopped process
+        // would.
+        self.console.shared.stopped.send_replace(true);
+    }
+}
+
+/// Serves the console of `running` on `config.listen` (within a tokio runtime).
+pub async fn serve(running: &Running, config: &HttpConfig) -> Result<Server, ConsoleError> {
+    let listen_error = |source| ConsoleError::Listen {
+        address: config.listen,
+        source,
+    };
+    let listener = tokio::net::TcpListener::bind(config.listen)
+        .await
+        .map_err(listen_error)?;
+    let address = listener.local_addr().map_err(listen_error)?;
+    let console = Console::new(running, config, address)?;
+    let router = console.router();
+    let task = tokio::spawn(async move {
+        if let Err(error) = axum::serve(listener, router).await {
+            tracing::warn!(target: "optobus_console", "the console stopped: {error}");
+        }
+    });
+    Ok(Server {
+        address,
+        console,
+        task,
+    })
+}

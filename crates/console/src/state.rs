@@ -1,0 +1,227 @@
+//! What the console knows of the bus: the latest value of every register polled, each
+//! device's health and each line's statistics, kept up to date from the bus's events by one
+//! task, which also gathers them into the live stream's batches.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, Weak};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use optobus_bus::{DeviceId, ErrorCounts, Event, Handle, Health, HealthEvent, LineStats, Sample};
+use optobus_device::DeviceInfo;
+use optobus_inspect::Value;
+use serde_json::{json, Value as Json};
+use tokio::sync::broadcast::error::RecvError;
+use tokio::sync::{broadcast, watch};
+
+use crate::guard::Guard;
+use crate::stream::{Batch, BATCH_EVERY, BATCH_QUEUE};
+
+/// Everything the handlers share.
+#[derive(Debug)]
+pub(crate) struct Shared {
+    pub(crate) handle: Handle,
+    pub(crate) guard: Guard,
+    pub(crate) board: Mutex<Board>,
+    /// The live stream's batches, as JSON text.
+    pub(crate) batches: broadcast::Sender<Arc<str>>,
+    /// Batches dropped for clients that fell behind.
+    pub(crate) dropped: AtomicU64,
+    /// Events of the bus the console itself missed (it fell behind the bus).
+    pub(crate) missed: AtomicU64,
+    /// Clients of the live stream now.
+    pub(crate) clients: AtomicUsize,
+    /// Set when the server stops: the live streams end (their browsers reconnect).
+    pub(crate) stopped: watch::Sender<bool>,
+}
+
+/// A device's latest state.
+#[derive(Debug)]
+pub(crate) struct DeviceState {
+    pub(crate) id: Arc<DeviceId>,
+    pub(crate) info: &'static DeviceInfo,
+    pub(crate) health: Health,
+    pub(crate) errors: ErrorCounts,
+    pub(crate) reason: Option<String>,
+    /// The latest sample of each register, as the stream sends it.
+    pub(crate) values: HashMap<&'static str, Json>,
+}
+
+/// The latest of everything.
+#[derive(Debug)]
+pub(crate) struct Board {
+    /// In the bus file's order.
+    pub(crate) devices: Vec<DeviceState>,
+    /// Each line's latest statistics, as the stream sends them.
+    pub(crate) lines: Vec<(Arc<str>, Json)>,
+}
+
+impl Shared {
+    pub(crate) fn new(handle: Handle, guard: Guard) -> Self {
+        let devices = handle
+            .devices()
+            .map(|(id, info)| DeviceState {
+                id: Arc::clone(id),
+                info,
+                health: Health::Online,
+                errors: ErrorCounts::default(),
+                reason: None,
+                values: HashMap::new(),
+            })
+            .collect();
+        Self {
+            handle,
+            guard,
+            board: Mutex::new(Board {
+                devices,
+                lines: Vec::new(),
+            }),
+            batches: broadcast::channel(BATCH_QUEUE).0,
+            dropped: AtomicU64::new(0),
+            missed: AtomicU64::new(0),
+            clients: AtomicUsize::new(0),
+            stopped: watch::channel(false).0,
+        }
+    }
+
+    pub(crate) fn board(&self) -> std::sync::MutexGuard<'_, Board> {
+        self.board.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    pub(crate) fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+}
+
+/// Milliseconds since 1970, as the page's charts take times.
+pub(crate) fn unix_ms(time: SystemTime) -> f64 {
+    time.duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
+}
+
+/// A value as a number for a chart, when it is one.
+fn number(value: &Value) -> Option<f64> {
+    match value {
+        Value::Integer(n) => Some(*n as f64),
+        Value::Quantity(fixed, _) => Some(fixed.to_f64()),
+        Value::Bool(b) => Some(f64::from(u8::from(*b))),
+        Value::Code(code, _) => Some(f64::from(*code)),
+        _ => None,
+    }
+}
+
+/// A sample as the page takes it: its text as the tool shows it, its JSON value, a number for
+/// charts, and the reply's time.
+pub(crate) fn sample_json(sample: &Sample) -> Json {
+    json!({
+        "device": &*sample.source.device,
+        "register": sample.register.name,
+        "text": sample.value.to_string(),
+        "value": sample.value,
+        "number": number(&sample.value),
+        "time": unix_ms(sample.replied),
+    })
+}
+
+pub(crate) fn health_json(state: &DeviceState) -> Json {
+    json!({
+        "device": &*state.id.device,
+        "health": state.health,
+        "errors": state.errors,
+        "reason": state.reason,
+    })
+}
+
+pub(crate) fn line_json(stats: &LineStats) -> Json {
+    json!({
+        "line": &*stats.line,
+        "transactions": stats.transactions,
+        "errors": stats.errors,
+        "utilisation": stats.utilisation(),
+        "open": stats.open,
+    })
+}
+
+impl Board {
+    fn device(&mut self, name: &str) -> Option<&mut DeviceState> {
+        self.devices.iter_mut().find(|d| &*d.id.device == name)
+    }
+
+    /// Takes in one event; gives what the stream sends of it.
+    fn apply(&mut self, event: &Event) -> Option<(Kind, Json)> {
+        match event {
+            Event::Sample(sample) => {
+                let json = sample_json(sample);
+                let device = self.device(&sample.source.device)?;
+                device.values.insert(sample.register.name, json.clone());
+                Some((Kind::Sample, json))
+            }
+            Event::Health(health) => {
+                let HealthEvent {
+                    source,
+                    health,
+                    errors,
+                    reason,
+                } = &**health;
+                let device = self.device(&source.device)?;
+                device.health = *health;
+                device.errors = *errors;
+                device.reason.clone_from(reason);
+                Some((Kind::Health, health_json(device)))
+            }
+            Event::Line(stats) => {
+                let json = line_json(stats);
+                match self.lines.iter_mut().find(|(line, _)| *line == stats.line) {
+                    Some((_, latest)) => *latest = json.clone(),
+                    None => self.lines.push((Arc::clone(&stats.line), json.clone())),
+                }
+                Some((Kind::Line, json))
+            }
+        }
+    }
+}
+
+/// What a stream entry is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Kind {
+    Sample,
+    Health,
+    Line,
+}
+
+/// Follows the bus's events until the bus stops or nothing serves the console any more: the
+/// board kept up to date, a batch sent to the stream's clients every [`BATCH_EVERY`] when
+/// anything happened.
+pub(crate) async fn collect(shared: Weak<Shared>, mut events: broadcast::Receiver<Event>) {
+    let mut batch = Batch::default();
+    let mut tick = tokio::time::interval(BATCH_EVERY);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    loop {
+        let event = tokio::select! {
+            event = events.recv() => Some(event),
+            _ = tick.tick() => None,
+        };
+        let Some(shared) = shared.upgrade() else {
+            break;
+        };
+        match event {
+            Some(event) => match event {
+                Ok(event) => {
+                    if let Some((kind, json)) = shared.board().apply(&event) {
+                        batch.add(kind, json);
+                    }
+                }
+                Err(RecvError::Lagged(missed)) => {
+                    shared.missed.fetch_add(missed, Ordering::Relaxed);
+                }
+                Err(RecvError::Closed) => break,
+            },
+            None => {
+                if let Some(text) = batch.take() {
+                    // No client is no error.
+                    let _ = shared.batches.send(text);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,134 @@
+//! Writes from the page: a register set from text, a command run, both through the bus's
+//! allow-listed, validated path; every refusal a 4xx with the tool's one-line message.
+
+use std::sync::Arc;
+
+use axum::extract::rejection::JsonRejection;
+use axum::extract::{Path, State};
+use axum::http::header::CONTENT_TYPE;
+use axum::http::StatusCode;
+use axum::response::IntoResponse;
+use axum::Json;
+use optobus_bus::JobError;
+use serde::Deserialize;
+use serde_json::{json, Value as Json_};
+
+use crate::api::unknown_device;
+use crate::error::ApiError;
+use crate::state::Shared;
+
+/// `POST …/set`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct Set {
+    register: String,
+    /// As `optobus set` takes it: `12.5 %`, `100us`, a code name; a JSON number is its text.
+    value: Json_,
+}
+
+/// `POST …/do`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct Do {
+    command: String,
+}
+
+/// A body that is not the JSON asked for (or too large): its status and axum's one line.
+fn body_error(rejection: JsonRejection) -> ApiError {
+    let status = rejection.status();
+    let message = match status {
+        StatusCode::PAYLOAD_TOO_LARGE => {
+            format!("the body is too large: at most {} bytes", crate::BODY_LIMIT)
+        }
+        _ => rejection.body_text(),
+    };
+    ApiError::new(status, message)
+}
+
+/// The status of a job's refusal or failure; its message is the bus's.
+fn job_error(device: &str, error: JobError) -> ApiError {
+    let status = match &error {
+        JobError::UnknownDevice(_) => return unknown_device(device),
+        JobError::NotListed { .. } => StatusCode::FORBIDDEN,
+        JobError::Stopped => StatusCode::SERVICE_UNAVAILABLE,
+        JobError::Device(_) => StatusCode::BAD_GATEWAY,
+        _ => StatusCode::UNPROCESSABLE_ENTITY,
+    };
+    ApiError::new(status, error.to_string())
+}
+
+pub(crate) async fn set(
+    State(shared): State<Arc<Shared>>,
+    Path(device): Path<String>,
+    body: Result<Json<Set>, JsonRejection>,
+) -> Result<Json<Json_>, ApiError> {
+    let Json(Set { register, value }) = body.map_err(body_error)?;
+    let text = match value {
+        Json_::String(text) => text,
+        Json_::Number(number) => number.to_string(),
+        other => {
+            return Err(ApiError::new(
+                StatusCode::UNPROCESSABLE_ENTITY,
+                format!("`value` is text such as \"12.5 %\" or a number, not {other}"),
+            ))
+        }
+    };
+    let back = shared
+        .handle
+        .set_listed(&device, &register, &text)
+        .await
+        .map_err(|e| job_error(&device, e))?;
+    Ok(Json(json!({
+        "register": register,
+        "text": back.as_ref().map_or_else(|| "written".to_owned(), ToString::to_string),
+        "value": back,
+    })))
+}
+
+pub(crate) async fn run(
+    State(shared): State<Arc<Shared>>,
+    Path(device): Path<String>,
+    body: Result<Json<Do>, JsonRejection>,
+) -> Result<Json<Json_>, ApiError> {
+    let Json(Do { command }) = body.map_err(body_error)?;
+    shared
+        .handle
+        .do_listed(&device, &command)
+        .await
+        .map_err(|e| job_error(&device, e))?;
+    Ok(Json(json!({ "command": command, "done": true })))
+}
+
+/// `POST …/buffer`: the device's data buffer read out, as CSV: `index`, `time_s` (since the
+/// first value, where the buffer's timing is known) and `value_UNIT` (empty where invalid).
+pub(crate) async fn buffer(
+    State(shared): State<Arc<Shared>>,
+    Path(device): Path<String>,
+) -> Result<impl IntoResponse, ApiError> {
+    let buffered = shared
+        .handle
+        .download_buffer(&device)
+        .await
+        .map_err(|e| job_error(&device, e))?;
+    let unit = buffered.register.unit.unwrap_or("");
+    let value_column = if unit.is_empty() {
+        "value".to_owned()
+    } else {
+        format!("value_{unit}")
+    };
+    let mut csv = match buffered.timing {
+        Some(_) => format!("index,time_s,{value_column}\n"),
+        None => format!("index,{value_column}\n"),
+    };
+    for (index, value) in buffered.values.iter().enumerate() {
+        let value = value.as_ref().map(ToString::to_string).unwrap_or_default();
+        match buffered.timing {
+            Some(timing) => {
+                let time = timing.time_of(index).as_secs_f64();
+                csv.push_str(&format!("{index},{time},{value}\n"));
+            }
+            None => csv.push_str(&format!("{index},{value}\n")),
+        }
+    }
+    Ok(([(CONTENT_TYPE, "text/csv; charset=utf-8")], csv))
+}

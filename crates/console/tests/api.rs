@@ -1,0 +1,639 @@
+//! The console's JSON API, asked through its router: real values from a simulated bus, the
+//! register map from the spec, frames as they went, and every bad request refused with a 4xx
+//! and the tool's one-line message.
+
+use std::net::SocketAddr;
+use std::path::Path;
+use std::time::Duration;
+
+use axum::body::Body;
+use axum::http::{Request, StatusCode};
+use axum::Router;
+use optobus_bus::{Bus, BusFile, Catalogue, HttpConfig, Running};
+use optobus_console::Console;
+use serde_json::{json, Value};
+use tower::ServiceExt;
+
+const TWO: &str = "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms, poll: [{ read: measurements, every: 20ms }] }
+  - { name: confocal, model: ccs, slave: 2, timeout: 50ms, poll: [{ read: measurements, every: 20ms }] }
+";
+
+const ADDRESS: &str = "127.0.0.1:8080";
+
+pub(crate) fn start(text: &str) -> Running {
+    let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
+    let file = BusFile::parse("bus.yaml", text, Path::new("."), &catalogue)
+        .unwrap_or_else(|e| panic!("{}", e.render()));
+    Bus::new(file).start().unwrap()
+}
+
+fn console(running: &Running, config: &HttpConfig) -> Console {
+    Console::new(running, config, config.listen).unwrap()
+}
+
+fn loopback() -> HttpConfig {
+    HttpConfig::new(ADDRESS.parse::<SocketAddr>().unwrap())
+}
+
+/// Sends a request (to 127.0.0.1:8080 unless `host` says otherwise): its status and JSON body.
+async fn call(router: &Router, request: Request<Body>) -> (StatusCode, Value) {
+    let response = router.clone().oneshot(request).await.unwrap();
+    let status = response.status();
+    let bytes = axum::body::to_bytes(response.into_body(), 1 << 20)
+        .await
+        .unwrap();
+    let json = serde_json::from_slice(&bytes).unwrap_or(Value::Null);
+    (status, json)
+}
+
+fn get(path: &str) -> Request<Body> {
+    Request::get(path)
+        .header("host", ADDRESS)
+        .body(Body::empty())
+        .unwrap()
+}
+
+/// Waits until `path` gives what `ready` accepts.
+async fn until(router: &Router, path: &str, ready: impl Fn(&Value) -> bool) -> Value {
+    for _ in 0..200 {
+        let (status, json) = call(router, get(path)).await;
+        assert_eq!(status, StatusCode::OK, "{json}");
+        if ready(&json) {
+            return json;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    panic!("{path} never became ready");
+}
+
+#[tokio::test]
+async fn devices_come_with_model_line_slave_and_health() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let (status, json) = call(&router, get("/api/devices")).await;
+    assert_eq!(status, StatusCode::OK);
+    let devices = json["devices"].as_array().unwrap();
+    let names: Vec<&str> = devices
+        .iter()
+        .map(|d| d["device"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["head", "confocal"]);
+    assert_eq!(devices[0]["model"], "p-series");
+    assert_eq!(devices[1]["slave"], 2);
+    assert_eq!(devices[0]["line"], "rs485");
+    assert_eq!(devices[0]["health"], "online");
+    assert_eq!(json["needs_token"], false);
+}
+
+#[tokio::test]
+async fn latest_values_are_the_polled_samples_with_their_units() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let json = until(&router, "/api/values", |json| {
+        json["head"].as_array().is_some_and(|v| !v.is_empty())
+            && json["confocal"].as_array().is_some_and(|v| !v.is_empty())
+    })
+    .await;
+    let distance = json["head"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v["register"] == "distance_1")
+        .expect("distance_1 is polled");
+    let text = distance["text"].as_str().unwrap();
+    let (number, unit) = text.split_once(' ').unwrap();
+    assert_eq!(unit, "mm");
+    assert_eq!(distance["value"]["unit"], "mm");
+    assert_eq!(distance["value"]["value"], number);
+    assert_eq!(
+        distance["number"].as_f64().unwrap(),
+        number.parse::<f64>().unwrap()
+    );
+    assert!(
+        distance["time"].as_f64().unwrap() > 1.7e12,
+        "milliseconds since 1970"
+    );
+}
+
+#[tokio::test]
+async fn the_register_map_comes_from_the_spec() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let (status, json) = call(&router, get("/api/devices/head")).await;
+    assert_eq!(status, StatusCode::OK);
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    let row = json["registers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["name"] == "light_power")
+        .unwrap();
+    assert_eq!(row["address"], power.address);
+    assert_eq!(row["address_hex"], format!("0x{:04X}", power.address));
+    assert_eq!(row["unit"], "%");
+    assert_eq!(
+        row["range"],
+        optobus_inspect::range_text(power).unwrap().as_str()
+    );
+    assert_eq!(
+        row["writable"], false,
+        "nothing is writable unless the bus file lists it"
+    );
+    assert_eq!(row["section"], power.section);
+    let commands = json["commands"].as_array().unwrap();
+    for command in optobus_p_series::DEVICE.commands {
+        let shown = commands.iter().find(|c| c["name"] == command.name).unwrap();
+        assert_eq!(
+            shown["drastic"],
+            command.effect.is_drastic(),
+            "{}",
+            command.name
+        );
+    }
+    assert!(commands.iter().any(|c| c["drastic"] == true));
+}
+
+#[tokio::test]
+async fn frames_show_the_requests_and_replies_of_a_device() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let frames = until(&router, "/api/devices/confocal/frames", |json| {
+        json.as_array().is_some_and(|f| f.len() >= 2)
+    })
+    .await;
+    let request = &frames[0];
+    assert_eq!(request["direction"], "sent");
+    assert!(
+        request["hex"].as_str().unwrap().starts_with("02 04 "),
+        "{request}"
+    );
+    assert_eq!(frames[1]["direction"], "received");
+    assert!(frames[1]["hex"].as_str().unwrap().starts_with("02 04 "));
+    assert!(frames[1]["after_us"].as_u64().unwrap() > 0);
+}
+
+#[tokio::test]
+async fn a_register_is_read_on_demand_and_unknown_names_are_refused() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let (status, json) = call(&router, get("/api/devices/head/read/light_power")).await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    let simulator = running.simulator("head").unwrap();
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    let raw = simulator
+        .peek(optobus_device::Table::Holding, power.address)
+        .unwrap();
+    assert_eq!(
+        json["text"],
+        optobus_inspect::decode_value(power, &raw).to_string()
+    );
+    let (status, json) = call(&router, get("/api/devices/tail/frames")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert_eq!(json["error"], "the bus has no device `tail`");
+    let (status, json) = call(&router, get("/api/devices/head/read/lihgt_power")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert_eq!(json["error"], "p-series has no register `lihgt_power`");
+}
+
+#[tokio::test]
+async fn a_loopback_console_answers_its_own_host_and_origin_only() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let rebound = Request::get("/api/devices")
+        .header("host", "evil.example:8080")
+        .body(Body::empty())
+        .unwrap();
+    let (status, json) = call(&router, rebound).await;
+    assert_eq!(status, StatusCode::MISDIRECTED_REQUEST);
+    assert_eq!(
+        json["error"],
+        "the console answers requests to 127.0.0.1 or localhost only"
+    );
+    let foreign = Request::get("/api/stream")
+        .header("host", ADDRESS)
+        .header("origin", "http://evil.example")
+        .body(Body::empty())
+        .unwrap();
+    let (status, json) = call(&router, foreign).await;
+    assert_eq!(status, StatusCode::FORBIDDEN);
+    assert_eq!(
+        json["error"],
+        "pages of http://evil.example may not call this console"
+    );
+    let own = Request::get("/api/devices")
+        .header("host", "localhost:8080")
+        .header("origin", "http://localhost:8080")
+        .body(Body::empty())
+        .unwrap();
+    assert_eq!(call(&router, own).await.0, StatusCode::OK);
+}
+
+#[tokio::test]
+async fn a_listed_origin_may_call_and_is_told_so() {
+    let running = start(TWO);
+    let mut config = loopback();
+    config.origins = vec!["https://scada.example".into()];
+    let router = console(&running, &config).router();
+    let request = Request::get("/api/devices")
+        .header("host", ADDRESS)
+        .header("origin", "https://scada.example")
+        .body(Body::empty())
+        .unwrap();
+    let response = router.clone().oneshot(request).await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert_eq!(
+        response.headers()["access-control-allow-origin"],
+        "https://scada.example"
+    );
+}
+
+#[tokio::test]
+async fn the_page_and_its_assets_are_served_from_the_binary() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let mut total = 0;
+    for path in ["/", "/app.js", "/style.css"] {
+        let response = router.clone().oneshot(get(path)).await.unwrap();
+        assert_eq!(response.status(), StatusCode::OK, "{path}");
+        assert!(response.headers()["content-security-policy"]
+            .to_str()
+            .unwrap()
+            .starts_with("default-src 'self'"));
+        let body = axum::body::to_bytes(response.into_body(), 1 << 20)
+            .await
+            .unwrap();
+        total += body.len();
+    }
+    assert_eq!(total, optobus_console::PAGE_BYTES);
+}
+
+#[tokio::test]
+async fn the_stream_sends_batches_of_samples_health_and_line_statistics() {
+    use futures_util::StreamExt;
+    let running = start(TWO);
+    let console = console(&running, &loopback());
+    let response = console.router().oneshot(get("/api/stream")).await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert_eq!(response.headers()["content-type"], "text/event-stream");
+    let mut body = response.into_body().into_data_stream();
+    let mut devices = std::collections::BTreeSet::new();
+    let mut lines = 0;
+    while devices.len() < 2 || lines == 0 {
+        let chunk = tokio::time::timeout(Duration::from_secs(5), body.next())
+            .await
+            .expect("a batch within 5 s")
+            .unwrap()
+            .unwrap();
+        let text = std::str::from_utf8(&chunk).unwrap();
+        for data in text.lines().filter_map(|l| l.strip_prefix("data: ")) {
+            let batch: Value = serde_json::from_str(data).unwrap();
+            for sample in batch["samples"].as_array().unwrap() {
+                assert!(sample["text"].is_string() && sample["register"].is_string());
+                devices.insert(sample["device"].as_str().unwrap().to_owned());
+            }
+            lines += batch["lines"].as_array().unwrap().len();
+            assert_eq!(batch["overflow"], 0);
+        }
+    }
+    assert_eq!(console.dropped_batches(), 0);
+}
+
+const WRITABLE: &str = "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms, writable: [light_power, save_parameters], poll: [{ read: measurements, every: 20ms }] }
+";
+
+fn post(path: &str, body: impl Into<String>) -> Request<Body> {
+    Request::post(path)
+        .header("host", ADDRESS)
+        .header("content-type", "application/json")
+        .body(Body::from(body.into()))
+        .unwrap()
+}
+
+/// Whether the head's frames hold a write (FC06 or FC16).
+fn wrote(running: &Running) -> bool {
+    running
+        .handle()
+        .frames("head")
+        .unwrap()
+        .iter()
+        .any(|f| f.direction == optobus_bus::Direction::Sent && matches!(f.bytes[1], 6 | 16))
+}
+
+fn light_power(running: &Running) -> Option<Vec<u16>> {
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    running
+        .simulator("head")
+        .unwrap()
+        .peek(optobus_device::Table::Holding, power.address)
+}
+
+#[tokio::test]
+async fn a_set_is_read_as_optobus_set_reads_it_and_answers_the_value_read_back() {
+    let running = start(WRITABLE);
+    let router = console(&running, &loopback()).router();
+    let (status, json) = call(
+        &router,
+        post(
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": "12.5 %"}"#,
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    assert_eq!(json["text"], "12.5 %");
+    assert_eq!(json["value"], json!({"value": "12.5", "unit": "%"}));
+    assert_eq!(light_power(&running), Some(vec![125]));
+    // A number is its text.
+    let (status, json) = call(
+        &router,
+        post(
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": 50}"#,
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    assert_eq!(light_power(&running), Some(vec![500]));
+}
+
+#[tokio::test]
+async fn bad_input_gets_a_4xx_with_the_tools_message_and_nothing_reaches_the_line() {
+    let running = start(WRITABLE);
+    let router = console(&running, &loopback()).router();
+    let before = light_power(&running);
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    let refusal = |text: &str| {
+        let error = optobus_inspect::parse_value(power, text).unwrap_err();
+        optobus_inspect::Error::from(error).to_string()
+    };
+    let cases: Vec<(&str, String, StatusCode, String)> = vec![
+        (
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": "#.into(),
+            StatusCode::BAD_REQUEST,
+            "Failed to parse the request body as JSON".into(),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": "1", "force": true}"#.into(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "unknown field `force`".into(),
+        ),
+        (
+            "/api/devices/tail/set",
+            r#"{"register": "light_power", "value": "1"}"#.into(),
+            StatusCode::NOT_FOUND,
+            "the bus has no device `tail`".into(),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "lihgt_power", "value": "1"}"#.into(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "`lihgt_power`".into(),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": "12.5 mm"}"#.into(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            refusal("12.5 mm"),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": "150"}"#.into(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            refusal("150"),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "light_power", "value": [1]}"#.into(),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "`value` is text".into(),
+        ),
+        (
+            "/api/devices/head/set",
+            r#"{"register": "median_filter_width", "value": "1"}"#.into(),
+            StatusCode::FORBIDDEN,
+            "`median_filter_width` of `head` is not writable here".into(),
+        ),
+        (
+            "/api/devices/head/do",
+            r#"{"command": "reboot"}"#.into(),
+            StatusCode::FORBIDDEN,
+            "`reboot` of `head` is not writable here".into(),
+        ),
+        (
+            "/api/devices/head/set",
+            format!(
+                r#"{{"register": "light_power", "value": "{}"}}"#,
+                "1".repeat(5000)
+            ),
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!(
+                "the body is too large: at most {} bytes",
+                optobus_console::BODY_LIMIT
+            ),
+        ),
+    ];
+    for (path, body, status, message) in cases {
+        let (got, json) = call(&router, post(path, body.clone())).await;
+        assert_eq!(got, status, "{body:.80}: {json}");
+        let error = json["error"].as_str().unwrap();
+        assert!(
+            error.contains(&message),
+            "{body:.80}: {error} lacks {message}"
+        );
+        assert!(!error.contains('\n'), "one line: {error}");
+    }
+    assert_eq!(light_power(&running), before);
+    assert!(!wrote(&running), "nothing refused reaches the line");
+}
+
+#[tokio::test]
+async fn beyond_the_loopback_writes_need_the_token_from_the_file() {
+    let running = start(WRITABLE);
+    let body = r#"{"register": "light_power", "value": "20 %"}"#;
+    let open = HttpConfig::new("0.0.0.0:8080".parse().unwrap());
+    let router = console(&running, &open).router();
+    let (status, json) = call(&router, post("/api/devices/head/set", body)).await;
+    assert_eq!(status, StatusCode::FORBIDDEN);
+    assert!(json["error"]
+        .as_str()
+        .unwrap()
+        .starts_with("writes are off: the console listens beyond 127.0.0.1"));
+    let token = std::env::temp_dir().join(format!("optobus-console-{}.token", std::process::id()));
+    std::fs::write(&token, "correct-horse-battery-staple\n").unwrap();
+    let mut guarded = open.clone();
+    guarded.token_file = Some(token.clone());
+    let router = console(&running, &guarded).router();
+    let (status, json) = call(&router, post("/api/devices/head/set", body)).await;
+    assert_eq!(status, StatusCode::UNAUTHORIZED, "{json}");
+    let mut wrong = post("/api/devices/head/set", body);
+    wrong
+        .headers_mut()
+        .insert("authorization", "Bearer correct-horse".parse().unwrap());
+    assert_eq!(call(&router, wrong).await.0, StatusCode::UNAUTHORIZED);
+    assert!(!wrote(&running));
+    let mut right = post("/api/devices/head/set", body);
+    right.headers_mut().insert(
+        "authorization",
+        "Bearer correct-horse-battery-staple".parse().unwrap(),
+    );
+    let (status, json) = call(&router, right).await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    assert_eq!(light_power(&running), Some(vec![200]));
+    // Reads need no token.
+    assert_eq!(call(&router, get("/api/devices")).await.0, StatusCode::OK);
+    std::fs::write(&token, "short").unwrap();
+    let error = Console::new(&running, &guarded, guarded.listen).unwrap_err();
+    assert!(error.to_string().contains("at least 16"), "{error}");
+    let _ = std::fs::remove_file(token);
+}
+
+#[tokio::test]
+async fn a_command_listed_runs_and_the_map_says_what_may_be_written() {
+    let running = start(WRITABLE);
+    let router = console(&running, &loopback()).router();
+    let (_, map) = call(&router, get("/api/devices/head")).await;
+    let row = |name: &str| {
+        map["registers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["name"] == name)
+            .unwrap()
+            .clone()
+    };
+    assert_eq!(row("light_power")["writable"], true);
+    assert_eq!(row("median_filter_width")["writable"], false);
+    let command = |name: &str| {
+        map["commands"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["name"] == name)
+            .unwrap()
+            .clone()
+    };
+    assert_eq!(command("save_parameters")["allowed"], true);
+    assert_eq!(command("reboot")["allowed"], false);
+    let (status, json) = call(
+        &router,
+        post("/api/devices/head/do", r#"{"command": "save_parameters"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    assert_eq!(json["done"], true);
+    assert!(wrote(&running));
+}
+
+#[tokio::test]
+async fn the_data_buffer_is_read_out_as_csv_when_its_lock_and_unlock_are_listed() {
+    let running = start(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, writable: [buffer_report_count, lock_buffer, unlock_buffer] }
+  - { name: other, model: p-series, slave: 2 }
+",
+    );
+    let router = console(&running, &loopback()).router();
+    let (status, json) = call(
+        &router,
+        post(
+            "/api/devices/head/set",
+            r#"{"register": "buffer_report_count", "value": "100"}"#,
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    let (status, json) = call(
+        &router,
+        post("/api/devices/head/do", r#"{"command": "unlock_buffer"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let response = router
+        .clone()
+        .oneshot(post("/api/devices/head/buffer", ""))
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert_eq!(
+        response.headers()["content-type"],
+        "text/csv; charset=utf-8"
+    );
+    let csv = axum::body::to_bytes(response.into_body(), 1 << 20)
+        .await
+        .unwrap();
+    let csv = std::str::from_utf8(&csv).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("index,time_s,value_mm"));
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 100, "{csv}");
+    for (index, row) in rows.iter().enumerate() {
+        let cells: Vec<&str> = row.split(',').collect();
+        assert_eq!(cells[0], index.to_string());
+        assert!(
+            cells[1].parse::<f64>().is_ok() && cells[2].parse::<f64>().is_ok(),
+            "{row}"
+        );
+    }
+    let (status, json) = call(&router, post("/api/devices/other/buffer", "")).await;
+    assert_eq!(status, StatusCode::FORBIDDEN);
+    assert_eq!(
+        json["error"],
+        "`lock_buffer` of `other` is not writable here: the bus file's `writable` does not list it"
+    );
+}
+
+#[tokio::test]
+async fn a_device_going_offline_shows_in_the_stream_and_the_device_list_with_its_reason() {
+    use futures_util::StreamExt;
+    let running = start(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms, poll: [{ read: measurements, every: 50ms }] }
+  - { name: dead, model: p-series, slave: 2, timeout: 30ms, faults: 'drop=1', poll: [{ read: light_power, every: 50ms }] }
+",
+    );
+    let console = console(&running, &loopback());
+    let response = console.router().oneshot(get("/api/stream")).await.unwrap();
+    let mut body = response.into_body().into_data_stream();
+    let health = loop {
+        let chunk = tokio::time::timeout(Duration::from_secs(5), body.next())
+            .await
+            .expect("a batch within 5 s")
+            .unwrap()
+            .unwrap();
+        let text = std::str::from_utf8(&chunk).unwrap().to_owned();
+        let found = text
+            .lines()
+            .filter_map(|l| l.strip_prefix("data: "))
+            .map(|data| serde_json::from_str::<Value>(data).unwrap())
+            .flat_map(|batch| batch["health"].as_array().cloned().unwrap_or_default())
+            .find(|h| h["device"] == "dead");
+        if let Some(health) = found {
+            break health;
+        }
+    };
+    assert_eq!(health["health"], "offline");
+    assert!(
+        health["errors"]["timeouts"].as_u64().unwrap() >= 3,
+        "{health}"
+    );
+    let reason = health["reason"].as_str().unwrap();
+    assert!(reason.contains("no reply within 30 ms"), "{reason}");
+    let (_, json) = call(&console.router(), get("/api/devices")).await;
+    let devices = json["devices"].as_array().unwrap();
+    assert_eq!(devices[0]["health"], "online");
+    assert_eq!(devices[1]["health"], "offline");
+    assert_eq!(devices[1]["reason"], reason);
+}
