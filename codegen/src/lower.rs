@@ -11,7 +11,9 @@ use crate::model::{
 };
 use crate::rules::scale::parse_scale;
 use crate::source::Path;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::BTreeSet;
+
+use foldhash::{HashMap, HashMapExt};
 
 use crate::syntax::{CodeDecl, FieldDecl, OrderName, RegisterDecl, SpecFile, TypeName};
 
@@ -19,7 +21,7 @@ use crate::syntax::{CodeDecl, FieldDecl, OrderName, RegisterDecl, SpecFile, Type
 pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
     let mut lowering = Lowering {
         enums: Vec::new(),
-        enum_index: HashMap::new(),
+        enum_index: [HashMap::new(), HashMap::new()],
         diagnostics: Vec::new(),
     };
     let root = Path::root();
@@ -254,8 +256,9 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
 
 struct Lowering {
     enums: Vec<EnumDef>,
-    /// Where each enum of `enums` is, by (shared, name): the first of a name.
-    enum_index: HashMap<(bool, String), usize>,
+    /// Where each enum of `enums` is by name, inline ones (`[0]`) apart from shared ones
+    /// (`[1]`): the first of a name.
+    enum_index: [HashMap<String, usize>; 2],
     diagnostics: Vec<Diagnostic>,
 }
 
@@ -273,8 +276,8 @@ impl Lowering {
     /// Appends `def` and returns its index.
     fn add_enum(&mut self, def: EnumDef) -> usize {
         let index = self.enums.len();
-        self.enum_index
-            .entry((def.shared, def.name.clone()))
+        self.enum_index[usize::from(def.shared)]
+            .entry(def.name.clone())
             .or_insert(index);
         self.enums.push(def);
         index
@@ -282,7 +285,7 @@ impl Lowering {
 
     /// The index of the first shared (or inline) enum called `name`.
     fn find_enum(&self, shared: bool, name: &str) -> Option<usize> {
-        self.enum_index.get(&(shared, name.to_owned())).copied()
+        self.enum_index[usize::from(shared)].get(name).copied()
     }
 
     fn codes(&self, decls: &[CodeDecl], path: &Path) -> Vec<Code> {

@@ -8,7 +8,7 @@
 //! the parse refuses anchors and aliases as they stream by ([`ALIAS_RULE`]), so a small file
 //! can never expand into a large tree.
 
-use std::collections::HashMap;
+use foldhash::{HashMap, HashMapExt};
 use std::fmt;
 use std::io::{self, Read};
 use std::sync::OnceLock;
