@@ -9,6 +9,7 @@
 //! can never expand into a large tree.
 
 use foldhash::{HashMap, HashMapExt};
+use std::borrow::Cow;
 use std::fmt;
 use std::io::{self, Read};
 use std::sync::OnceLock;
@@ -19,8 +20,9 @@ use yaml_rust2::scanner::{Marker, Scanner, TScalarStyle, Token, TokenType};
 /// One step of a path into the YAML tree.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub enum Segment {
-    /// A mapping key.
-    Key(String),
+    /// A mapping key: borrowed for the keys of the spec language, so that the paths of a
+    /// model cost one allocation each.
+    Key(Cow<'static, str>),
     /// A sequence index.
     Index(usize),
 }
@@ -36,10 +38,16 @@ impl Path {
     }
 
     /// This path extended by a key.
-    pub fn key(&self, key: &str) -> Self {
-        let mut next = self.clone();
-        next.0.push(Segment::Key(key.to_owned()));
-        next
+    pub fn key(&self, key: impl Into<Cow<'static, str>>) -> Self {
+        self.then(Segment::Key(key.into()))
+    }
+
+    /// This path and one more step, in one allocation.
+    fn then(&self, step: Segment) -> Self {
+        let mut next = Vec::with_capacity(self.0.len() + 1);
+        next.extend_from_slice(&self.0);
+        next.push(step);
+        Self(next)
     }
 
     /// This path without its last step.
@@ -51,9 +59,7 @@ impl Path {
 
     /// This path extended by an index.
     pub fn index(&self, index: usize) -> Self {
-        let mut next = self.clone();
-        next.0.push(Segment::Index(index));
-        next
+        self.then(Segment::Index(index))
     }
 }
 
@@ -432,7 +438,7 @@ fn index(node: &Node, path: Path, key: Option<Span>, out: &mut HashMap<Path, Ent
         Value::Mapping(entries) => {
             for (k, v) in entries {
                 if let Some(text) = k.text() {
-                    index(v, path.key(text), Some(k.span), out);
+                    index(v, path.key(text.to_owned()), Some(k.span), out);
                 }
             }
         }

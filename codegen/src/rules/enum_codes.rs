@@ -57,7 +57,7 @@ pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
         let mut names = HashMap::new();
         for code in &def.codes {
             // The same `key` a second time: marked here, with the first use labelled.
-            let twice = |key: &str, first: &Path, what: String| {
+            let twice = |key: &'static str, first: &Path, what: String| {
                 Diagnostic::at(
                     RULE,
                     &code.path.key(key),
