@@ -12,7 +12,8 @@ use foldhash::{HashMap, HashMapExt};
 use std::borrow::Cow;
 use std::fmt;
 use std::io::{self, Read};
-use std::sync::OnceLock;
+use std::ops::Deref;
+use std::sync::{Arc, OnceLock};
 
 use yaml_rust2::parser::{Event, MarkedEventReceiver, Parser};
 use yaml_rust2::scanner::{Marker, Scanner, TScalarStyle, Token, TokenType};
@@ -105,6 +106,46 @@ pub struct Node {
     pub value: Value,
 }
 
+/// The text of a scalar: a range of the one buffer that holds the text of every scalar of a
+/// file, so that a scalar holds no allocation of its own (a spec's tree has millions of
+/// them). Reads as a `str`.
+#[derive(Clone)]
+pub struct Text {
+    /// Every scalar's text, set once the parse ends.
+    scalars: Arc<OnceLock<String>>,
+    start: usize,
+    end: usize,
+}
+
+impl Deref for Text {
+    type Target = str;
+
+    fn deref(&self) -> &str {
+        self.scalars
+            .get()
+            .and_then(|scalars| scalars.get(self.start..self.end))
+            .unwrap_or_default()
+    }
+}
+
+impl PartialEq<str> for Text {
+    fn eq(&self, other: &str) -> bool {
+        **self == *other
+    }
+}
+
+impl fmt::Debug for Text {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(&**self, f)
+    }
+}
+
+impl fmt::Display for Text {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self)
+    }
+}
+
 /// The content of a [`Node`].
 #[derive(Clone, Debug)]
 pub enum Value {
@@ -112,7 +153,7 @@ pub enum Value {
     /// booleans or null).
     Scalar {
         /// The text.
-        text: String,
+        text: Text,
         /// Written without quotes or block style.
         plain: bool,
     },
@@ -125,7 +166,7 @@ pub enum Value {
 impl Node {
     /// True for a plain `~`, `null` or empty scalar.
     pub fn is_null(&self) -> bool {
-        matches!(&self.value, Value::Scalar { text, plain: true } if matches!(text.as_str(), "" | "~" | "null" | "Null" | "NULL"))
+        matches!(&self.value, Value::Scalar { text, plain: true } if matches!(&**text, "" | "~" | "null" | "Null" | "NULL"))
     }
 
     /// The value under `key`, for a mapping.
@@ -133,7 +174,7 @@ impl Node {
         match &self.value {
             Value::Mapping(entries) => entries
                 .iter()
-                .find(|(k, _)| matches!(&k.value, Value::Scalar { text, .. } if text == key))
+                .find(|(k, _)| matches!(&k.value, Value::Scalar { text, .. } if **text == *key))
                 .map(|(_, v)| v),
             _ => None,
         }
@@ -193,6 +234,8 @@ pub struct SourceFile {
     pub root: Option<Node>,
     /// Why the text is not YAML.
     pub syntax_error: Option<SyntaxError>,
+    /// The text of every scalar of the tree, one after the other.
+    scalars: Arc<OnceLock<String>>,
     /// The positions by path, built at the first lookup: only diagnostics look places up, so
     /// a spec that passes never pays for the index.
     nodes: OnceLock<HashMap<Path, Entry>>,
@@ -206,6 +249,8 @@ impl SourceFile {
     pub fn new(name: impl Into<String>, text: impl Into<String>) -> Self {
         let text = text.into();
         let mut builder = Builder::default();
+        // The scalars of a spec take about a third of its text.
+        builder.scalars.reserve(text.len() / 2);
         let mut parser = Parser::new_from_str(&text);
         // Event by event rather than `Parser::load`, so that the first anchor or alias stops
         // the parse before anything is copied.
@@ -237,6 +282,7 @@ impl SourceFile {
                 column: second.span.column,
             })
         });
+        let _ = builder.shared.set(builder.scalars);
         let root = builder.documents.into_iter().next();
         let line_starts = std::iter::once(0)
             .chain(text.match_indices('\n').map(|(at, _)| at + 1))
@@ -246,9 +292,16 @@ impl SourceFile {
             text,
             root,
             syntax_error,
+            scalars: builder.shared,
             nodes: OnceLock::new(),
             line_starts,
         }
+    }
+
+    /// The text of every scalar of the tree (keys included), one after the other: a pass that
+    /// looks at every scalar's characters reads it in one sweep.
+    pub fn scalars(&self) -> &str {
+        self.scalars.get().map_or("", String::as_str)
     }
 
     /// Every node's place by path (built once, at the first lookup).
@@ -460,6 +513,10 @@ struct Builder {
     /// its own in one allocation of the right size when it ends.
     children: Vec<Node>,
     documents: Vec<Node>,
+    /// The text of every scalar so far: the nodes hold ranges of it.
+    scalars: String,
+    /// Where the nodes find `scalars` once the parse ends.
+    shared: Arc<OnceLock<String>>,
     /// The first anchor or alias, which ends the parse.
     problem: Option<SyntaxError>,
 }
@@ -549,6 +606,13 @@ impl MarkedEventReceiver for Builder {
                     TScalarStyle::SingleQuoted | TScalarStyle::DoubleQuoted
                 );
                 let width = text.chars().count() + if quoted { 2 } else { 0 };
+                let start = self.scalars.len();
+                self.scalars.push_str(&text);
+                let text = Text {
+                    scalars: Arc::clone(&self.shared),
+                    start,
+                    end: self.scalars.len(),
+                };
                 let node = Node {
                     span: span_at(mark, width),
                     value: Value::Scalar { text, plain },
