@@ -166,7 +166,9 @@ pub enum Value {
 impl Node {
     /// True for a plain `~`, `null` or empty scalar.
     pub fn is_null(&self) -> bool {
-        matches!(&self.value, Value::Scalar { text, plain: true } if matches!(&**text, "" | "~" | "null" | "Null" | "NULL"))
+        // By length first: most scalars are longer, and their text need not be looked up.
+        matches!(&self.value, Value::Scalar { text, plain: true }
+            if text.end - text.start <= 4 && matches!(&**text, "" | "~" | "null" | "Null" | "NULL"))
     }
 
     /// The value under `key`, for a mapping.
