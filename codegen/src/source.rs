@@ -8,13 +8,13 @@
 //! the parse refuses anchors and aliases as they stream by ([`ALIAS_RULE`]), so a small file
 //! can never expand into a large tree.
 
-use foldhash::{HashMap, HashMapExt};
 use std::borrow::Cow;
 use std::fmt;
 use std::io::{self, Read};
 use std::ops::Deref;
 use std::sync::{Arc, OnceLock};
 
+use foldhash::{HashMap, HashMapExt};
 use yaml_rust2::parser::{Event, MarkedEventReceiver, Parser};
 use yaml_rust2::scanner::{Marker, Scanner, TScalarStyle, Token, TokenType};
 
@@ -354,8 +354,8 @@ impl SourceFile {
 
 /// The most bytes a YAML file read by this crate (a spec, and the bus files to come) may
 /// hold: 16 MiB. The largest spec in `specs/` has 42 kB; a generated spec of 100,000
-/// registers has 15 MB. A file's tree takes some fifty times its size in memory, so the limit
-/// keeps a hostile file under a gigabyte.
+/// registers has 15 MB. The densest file (16 MiB of one-character scalars) makes a tree of
+/// under a gigabyte; a spec is checked in some twenty times its size.
 pub const YAML_LIMIT: u64 = 16 * 1024 * 1024;
 
 /// Why a file could not be read within its limit.
