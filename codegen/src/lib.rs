@@ -80,7 +80,7 @@ pub fn check_source(name: &str, text: &str) -> Result<Model, Box<Rejected>> {
         };
         return reject(source, vec![diagnostic]);
     }
-    let mut diagnostics = rules::text::check(source.root.as_ref());
+    let mut diagnostics = rules::text::check(&source);
     let mut reader = syntax::Reader::default();
     let spec = source
         .root

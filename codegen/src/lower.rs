@@ -11,21 +11,23 @@ use crate::model::{
 };
 use crate::rules::scale::parse_scale;
 use crate::source::Path;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::BTreeSet;
+
+use foldhash::{HashMap, HashMapExt};
 
 use crate::syntax::{CodeDecl, FieldDecl, OrderName, RegisterDecl, SpecFile, TypeName};
 
 /// Lowers `spec`; problems that stop lowering an item are reported, the rest is left to rules.
-pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
+pub(crate) fn lower(mut spec: SpecFile) -> (Model, Vec<Diagnostic>) {
     let mut lowering = Lowering {
         enums: Vec::new(),
-        enum_index: HashMap::new(),
+        enum_index: [HashMap::new(), HashMap::new()],
         diagnostics: Vec::new(),
     };
     let root = Path::root();
 
     for (name, decl) in spec.enums.entries() {
-        let path = root.key("enums").key(name);
+        let path = root.key("enums").key(name.clone());
         let codes = lowering.codes(&decl.codes, &path.key("codes"));
         lowering.add_enum(EnumDef {
             name: name.clone(),
@@ -38,9 +40,10 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
     }
 
     let mut registers = Vec::new();
-    for (i, decl) in spec.registers.iter() {
+    // Taken, so that their text moves into the model rather than being copied.
+    for (i, decl) in spec.registers.take() {
         let path = root.key("registers").index(i);
-        registers.push(lowering.register(decl, &decl.name, &path));
+        registers.push(lowering.register(decl, path));
     }
 
     let mut repeats = Vec::new();
@@ -55,7 +58,7 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
     .flatten()
     .cloned()
     .collect();
-    for (r, (index, block)) in spec.repeats.iter().enumerate() {
+    for (r, (index, block)) in spec.repeats.iter_mut().enumerate() {
         let block_path = root.key("repeats").index(index);
         // Copies are numbered by a byte; a larger count is not expanded (nor its copies checked).
         let copies = if block.count > u32::from(u8::MAX) {
@@ -86,7 +89,12 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
                     .map(|name| format!("{}_{number}_{name}", block.name)),
             );
         }
-        for (i, decl) in block.registers.iter() {
+        let members = block
+            .registers
+            .iter()
+            .map(|(_, d)| d.name.clone())
+            .collect();
+        for (i, decl) in block.registers.take() {
             let path = block_path.key("registers").index(i);
             let stride = decl.stride.or(match decl.table {
                 Table::Holding => block.stride.holding,
@@ -108,16 +116,17 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
                 );
             }
             // One enum for all copies of an inline-coded register.
-            let template = lowering.register(decl, &decl.name, &path);
+            let (base, address) = (decl.name.clone(), decl.address);
+            let template = lowering.register(decl, path);
             for number in 1..=copies {
                 let mut copy = template.clone();
-                copy.name = format!("{}_{}_{}", block.name, number, decl.name);
+                copy.name = format!("{}_{}_{}", block.name, number, base);
                 let offset = stride.unwrap_or(0).saturating_mul(number - 1);
-                copy.address = Address(decl.address.saturating_add(offset));
+                copy.address = Address(address.saturating_add(offset));
                 copy.repeat = Some(RepeatCopy {
                     repeat: r,
                     number,
-                    base: decl.name.clone(),
+                    base: base.clone(),
                     stride,
                 });
                 registers.push(copy);
@@ -129,11 +138,7 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
             holding_stride: block.stride.holding,
             input_stride: block.stride.input,
             doc: block.doc.clone(),
-            members: block
-                .registers
-                .iter()
-                .map(|(_, d)| d.name.clone())
-                .collect(),
+            members,
             path: block_path,
         });
     }
@@ -187,7 +192,7 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
 
     let buffer = spec.buffer.as_ref().map(|decl| {
         let path = root.key("buffer");
-        let name = |key: &str, name: &String| NameRef {
+        let name = |key: &'static str, name: &String| NameRef {
             name: name.clone(),
             path: path.key(key),
         };
@@ -254,8 +259,9 @@ pub(crate) fn lower(spec: SpecFile) -> (Model, Vec<Diagnostic>) {
 
 struct Lowering {
     enums: Vec<EnumDef>,
-    /// Where each enum of `enums` is, by (shared, name): the first of a name.
-    enum_index: HashMap<(bool, String), usize>,
+    /// Where each enum of `enums` is by name, inline ones (`[0]`) apart from shared ones
+    /// (`[1]`): the first of a name.
+    enum_index: [HashMap<String, usize>; 2],
     diagnostics: Vec<Diagnostic>,
 }
 
@@ -273,8 +279,8 @@ impl Lowering {
     /// Appends `def` and returns its index.
     fn add_enum(&mut self, def: EnumDef) -> usize {
         let index = self.enums.len();
-        self.enum_index
-            .entry((def.shared, def.name.clone()))
+        self.enum_index[usize::from(def.shared)]
+            .entry(def.name.clone())
             .or_insert(index);
         self.enums.push(def);
         index
@@ -282,7 +288,7 @@ impl Lowering {
 
     /// The index of the first shared (or inline) enum called `name`.
     fn find_enum(&self, shared: bool, name: &str) -> Option<usize> {
-        self.enum_index.get(&(shared, name.to_owned())).copied()
+        self.enum_index[usize::from(shared)].get(name).copied()
     }
 
     fn codes(&self, decls: &[CodeDecl], path: &Path) -> Vec<Code> {
@@ -375,7 +381,9 @@ impl Lowering {
             .collect()
     }
 
-    fn register(&mut self, decl: &RegisterDecl, name: &str, path: &Path) -> Register {
+    /// Lowers `decl`, declared at `at`: its text moves into the register.
+    fn register(&mut self, mut decl: RegisterDecl, at: Path) -> Register {
+        let (name, path) = (decl.name.as_str(), &at);
         let kind = match decl.kind {
             TypeName::Bool => Kind::Bool,
             TypeName::U16 | TypeName::I16 | TypeName::U32 | TypeName::I32 => {
@@ -404,10 +412,10 @@ impl Lowering {
                     }
                 }
             }
-            TypeName::Packed => Kind::Packed(self.fields(decl, path)),
-            TypeName::Record => Kind::Record(self.fields(decl, path)),
+            TypeName::Packed => Kind::Packed(self.fields(&decl, path)),
+            TypeName::Record => Kind::Record(self.fields(&decl, path)),
             TypeName::Ipv4 => Kind::Ipv4,
-            TypeName::Version => Kind::Version(decl.parts.clone().unwrap_or_default()),
+            TypeName::Version => Kind::Version(decl.parts.take().unwrap_or_default()),
         };
         let default_words = match &kind {
             Kind::Bool | Kind::Enum(_) | Kind::Packed(_) => 1,
@@ -419,25 +427,25 @@ impl Lowering {
                 .map(|f| f.scalar.map_or(1, Scalar::words))
                 .sum(),
         };
+        let scale = self.scale(decl.scale.as_ref(), path);
+        let allowed_values =
+            (decl.allowed_values.take()).map(|values| (values, path.key("allowed_values")));
         Register {
-            name: name.to_owned(),
+            name: decl.name,
             table: decl.table,
             address: Address(decl.address),
             access: decl.access,
             words: WordCount(decl.words.unwrap_or(default_words)),
             declared_words: decl.words,
             kind,
-            doc: decl.doc.clone(),
-            zh: decl.zh.clone(),
-            section: decl.section.clone(),
-            note: decl.note.clone(),
-            scale: self.scale(decl.scale.as_ref(), path),
-            unit: decl.unit.clone(),
+            doc: decl.doc,
+            zh: decl.zh,
+            section: decl.section,
+            note: decl.note,
+            scale,
+            unit: decl.unit,
             range: decl.range,
-            allowed_values: decl
-                .allowed_values
-                .clone()
-                .map(|values| (values, path.key("allowed_values"))),
+            allowed_values,
             sentinel: decl.sentinel,
             word_order: match decl.word_order {
                 Some(OrderName::LowFirst) => WordOrder::LowFirst,
@@ -447,11 +455,11 @@ impl Lowering {
                 OrderName::HighFirst => WriteOrder::HighWordFirst,
                 OrderName::LowFirst => WriteOrder::LowWordFirst,
             }),
-            alias_of: decl.alias_of.clone(),
-            read_side_effect: decl.read_side_effect.clone(),
+            alias_of: decl.alias_of,
+            read_side_effect: decl.read_side_effect,
             action: decl.action,
             repeat: None,
-            path: path.clone(),
+            path: at,
         }
     }
 

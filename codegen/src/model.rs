@@ -3,7 +3,9 @@
 //! Lowering is lenient (it keeps what was declared so that rules can judge it); a model that
 //! passed every rule is what the emitters and `dump --json` see.
 
-use std::collections::{BTreeSet, HashMap};
+use std::collections::BTreeSet;
+
+use foldhash::HashMap;
 use std::net::Ipv4Addr;
 
 use optobus_codec::value::{Scale, WordOrder, WriteOrder};

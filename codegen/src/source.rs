@@ -8,19 +8,22 @@
 //! the parse refuses anchors and aliases as they stream by ([`ALIAS_RULE`]), so a small file
 //! can never expand into a large tree.
 
-use std::collections::HashMap;
+use std::borrow::Cow;
 use std::fmt;
 use std::io::{self, Read};
-use std::sync::OnceLock;
+use std::ops::Deref;
+use std::sync::{Arc, OnceLock};
 
+use foldhash::{HashMap, HashMapExt};
 use yaml_rust2::parser::{Event, MarkedEventReceiver, Parser};
 use yaml_rust2::scanner::{Marker, Scanner, TScalarStyle, Token, TokenType};
 
 /// One step of a path into the YAML tree.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub enum Segment {
-    /// A mapping key.
-    Key(String),
+    /// A mapping key: borrowed for the keys of the spec language, so that the paths of a
+    /// model cost one allocation each.
+    Key(Cow<'static, str>),
     /// A sequence index.
     Index(usize),
 }
@@ -36,10 +39,16 @@ impl Path {
     }
 
     /// This path extended by a key.
-    pub fn key(&self, key: &str) -> Self {
-        let mut next = self.clone();
-        next.0.push(Segment::Key(key.to_owned()));
-        next
+    pub fn key(&self, key: impl Into<Cow<'static, str>>) -> Self {
+        self.then(Segment::Key(key.into()))
+    }
+
+    /// This path and one more step, in one allocation.
+    fn then(&self, step: Segment) -> Self {
+        let mut next = Vec::with_capacity(self.0.len() + 1);
+        next.extend_from_slice(&self.0);
+        next.push(step);
+        Self(next)
     }
 
     /// This path without its last step.
@@ -51,9 +60,7 @@ impl Path {
 
     /// This path extended by an index.
     pub fn index(&self, index: usize) -> Self {
-        let mut next = self.clone();
-        next.0.push(Segment::Index(index));
-        next
+        self.then(Segment::Index(index))
     }
 }
 
@@ -99,6 +106,46 @@ pub struct Node {
     pub value: Value,
 }
 
+/// The text of a scalar: a range of the one buffer that holds the text of every scalar of a
+/// file, so that a scalar holds no allocation of its own (a spec's tree has millions of
+/// them). Reads as a `str`.
+#[derive(Clone)]
+pub struct Text {
+    /// Every scalar's text, set once the parse ends.
+    scalars: Arc<OnceLock<String>>,
+    start: usize,
+    end: usize,
+}
+
+impl Deref for Text {
+    type Target = str;
+
+    fn deref(&self) -> &str {
+        self.scalars
+            .get()
+            .and_then(|scalars| scalars.get(self.start..self.end))
+            .unwrap_or_default()
+    }
+}
+
+impl PartialEq<str> for Text {
+    fn eq(&self, other: &str) -> bool {
+        **self == *other
+    }
+}
+
+impl fmt::Debug for Text {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(&**self, f)
+    }
+}
+
+impl fmt::Display for Text {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self)
+    }
+}
+
 /// The content of a [`Node`].
 #[derive(Clone, Debug)]
 pub enum Value {
@@ -106,7 +153,7 @@ pub enum Value {
     /// booleans or null).
     Scalar {
         /// The text.
-        text: String,
+        text: Text,
         /// Written without quotes or block style.
         plain: bool,
     },
@@ -119,7 +166,9 @@ pub enum Value {
 impl Node {
     /// True for a plain `~`, `null` or empty scalar.
     pub fn is_null(&self) -> bool {
-        matches!(&self.value, Value::Scalar { text, plain: true } if matches!(text.as_str(), "" | "~" | "null" | "Null" | "NULL"))
+        // By length first: most scalars are longer, and their text need not be looked up.
+        matches!(&self.value, Value::Scalar { text, plain: true }
+            if text.end - text.start <= 4 && matches!(&**text, "" | "~" | "null" | "Null" | "NULL"))
     }
 
     /// The value under `key`, for a mapping.
@@ -127,7 +176,7 @@ impl Node {
         match &self.value {
             Value::Mapping(entries) => entries
                 .iter()
-                .find(|(k, _)| matches!(&k.value, Value::Scalar { text, .. } if text == key))
+                .find(|(k, _)| matches!(&k.value, Value::Scalar { text, .. } if **text == *key))
                 .map(|(_, v)| v),
             _ => None,
         }
@@ -187,6 +236,8 @@ pub struct SourceFile {
     pub root: Option<Node>,
     /// Why the text is not YAML.
     pub syntax_error: Option<SyntaxError>,
+    /// The text of every scalar of the tree, one after the other.
+    scalars: Arc<OnceLock<String>>,
     /// The positions by path, built at the first lookup: only diagnostics look places up, so
     /// a spec that passes never pays for the index.
     nodes: OnceLock<HashMap<Path, Entry>>,
@@ -200,6 +251,8 @@ impl SourceFile {
     pub fn new(name: impl Into<String>, text: impl Into<String>) -> Self {
         let text = text.into();
         let mut builder = Builder::default();
+        // The scalars of a spec take about a third of its text.
+        builder.scalars.reserve(text.len() / 2);
         let mut parser = Parser::new_from_str(&text);
         // Event by event rather than `Parser::load`, so that the first anchor or alias stops
         // the parse before anything is copied.
@@ -231,6 +284,7 @@ impl SourceFile {
                 column: second.span.column,
             })
         });
+        let _ = builder.shared.set(builder.scalars);
         let root = builder.documents.into_iter().next();
         let line_starts = std::iter::once(0)
             .chain(text.match_indices('\n').map(|(at, _)| at + 1))
@@ -240,9 +294,16 @@ impl SourceFile {
             text,
             root,
             syntax_error,
+            scalars: builder.shared,
             nodes: OnceLock::new(),
             line_starts,
         }
+    }
+
+    /// The text of every scalar of the tree (keys included), one after the other: a pass that
+    /// looks at every scalar's characters reads it in one sweep.
+    pub fn scalars(&self) -> &str {
+        self.scalars.get().map_or("", String::as_str)
     }
 
     /// Every node's place by path (built once, at the first lookup).
@@ -293,8 +354,8 @@ impl SourceFile {
 
 /// The most bytes a YAML file read by this crate (a spec, and the bus files to come) may
 /// hold: 16 MiB. The largest spec in `specs/` has 42 kB; a generated spec of 100,000
-/// registers has 15 MB. A file's tree takes some fifty times its size in memory, so the limit
-/// keeps a hostile file under a gigabyte.
+/// registers has 15 MB. The densest file (16 MiB of one-character scalars) makes a tree of
+/// under a gigabyte; a spec is checked in some twenty times its size.
 pub const YAML_LIMIT: u64 = 16 * 1024 * 1024;
 
 /// Why a file could not be read within its limit.
@@ -432,7 +493,7 @@ fn index(node: &Node, path: Path, key: Option<Span>, out: &mut HashMap<Path, Ent
         Value::Mapping(entries) => {
             for (k, v) in entries {
                 if let Some(text) = k.text() {
-                    index(v, path.key(text), Some(k.span), out);
+                    index(v, path.key(text.to_owned()), Some(k.span), out);
                 }
             }
         }
@@ -454,6 +515,10 @@ struct Builder {
     /// its own in one allocation of the right size when it ends.
     children: Vec<Node>,
     documents: Vec<Node>,
+    /// The text of every scalar so far: the nodes hold ranges of it.
+    scalars: String,
+    /// Where the nodes find `scalars` once the parse ends.
+    shared: Arc<OnceLock<String>>,
     /// The first anchor or alias, which ends the parse.
     problem: Option<SyntaxError>,
 }
@@ -543,6 +608,13 @@ impl MarkedEventReceiver for Builder {
                     TScalarStyle::SingleQuoted | TScalarStyle::DoubleQuoted
                 );
                 let width = text.chars().count() + if quoted { 2 } else { 0 };
+                let start = self.scalars.len();
+                self.scalars.push_str(&text);
+                let text = Text {
+                    scalars: Arc::clone(&self.shared),
+                    start,
+                    end: self.scalars.len(),
+                };
                 let node = Node {
                     span: span_at(mark, width),
                     value: Value::Scalar { text, plain },

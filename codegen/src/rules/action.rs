@@ -3,13 +3,13 @@
 //! continuous-send switch.
 
 use crate::diagnostic::Diagnostic;
-use crate::model::Model;
+use crate::model::{Model, RegisterNames};
 
 /// Rule name.
 pub const RULE: &str = "action";
 
 /// Checks action registers.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, names: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for register in super::declared(model) {
         if register.action && !register.access.writable() {
             out.push(
@@ -23,7 +23,6 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             );
         }
     }
-    let names = model.register_names();
     for group in &model.groups {
         for (name, path) in &group.registers {
             let Some(register) = names.resolve(name) else {

@@ -1,16 +1,16 @@
 //! `allowed-values`: a list of allowed values belongs to an integer register, is not empty,
 //! and holds distinct values that the register's type and range can hold.
 
-use std::collections::HashMap;
+use foldhash::{HashMap, HashMapExt};
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{Kind, Model};
+use crate::model::{Kind, Model, RegisterNames};
 
 /// Rule name.
 pub const RULE: &str = "allowed-values";
 
 /// Checks allowed-value lists.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for register in super::declared(model) {
         let Some((values, path)) = &register.allowed_values else {
             continue;
@@ -51,12 +51,11 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         };
         let mut first_of = HashMap::new();
         for (i, &value) in values.iter().enumerate() {
-            let at = path.index(i);
             if !scalar.holds(value) || value < min || value > max {
                 out.push(
                     Diagnostic::at(
                         RULE,
-                        &at,
+                        &path.index(i),
                         format!(
                             "allowed value {value} of `{}` is outside its {limit} ({min}..={max})",
                             register.name
@@ -70,7 +69,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 out.push(
                     Diagnostic::at(
                         RULE,
-                        &at,
+                        &path.index(i),
                         format!("`{}` allows {value} twice", register.name),
                     )
                     .label("repeated")

@@ -7,7 +7,7 @@
 use optobus_device::parse_duration;
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{Kind, Model, NameRef, Register, Scalar};
+use crate::model::{Kind, Model, NameRef, Register, RegisterNames, Scalar};
 
 /// Rule name.
 pub const RULE: &str = "buffer";
@@ -99,7 +99,7 @@ fn is_writable_count(
 }
 
 /// Checks the buffer section.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     let Some(buffer) = &model.buffer else {
         return;
     };

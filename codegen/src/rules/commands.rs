@@ -1,10 +1,10 @@
 //! `command`: a command writes an existing, writable register with a value it accepts, and its
 //! targets exist; the continuous-send code is a value its register accepts.
 
-use std::collections::HashSet;
+use foldhash::HashSet;
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{Kind, Model, Register};
+use crate::model::{Kind, Model, Register, RegisterNames};
 
 /// Rule name.
 pub const RULE: &str = "command";
@@ -40,7 +40,7 @@ fn accepts(codes: &[HashSet<i64>], register: &Register, value: i64) -> bool {
 }
 
 /// Checks commands.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, names: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     let codes = code_sets(model);
     if let Some((name, code, path)) = &model.protocol.continuous_send {
         let code_path = path.parent().key("code");
@@ -61,7 +61,6 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             _ => {}
         }
     }
-    let names = model.register_names();
     for command in &model.commands {
         let register_path = command.path.key("register");
         match names.resolve(&command.register) {

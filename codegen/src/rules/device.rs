@@ -4,14 +4,14 @@
 use crate::diagnostic::Diagnostic;
 use optobus_codec::LineFormatError;
 
-use crate::model::{Model, Table};
+use crate::model::{Model, RegisterNames, Table};
 use crate::source::Path;
 
 /// Rule name.
 pub const RULE: &str = "device";
 
 /// Checks device facts.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     let device = &model.device;
     let path = Path::root().key("device");
     if !(device.min_slave..=device.max_slave).contains(&device.default_slave)

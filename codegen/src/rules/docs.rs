@@ -2,7 +2,7 @@
 //! every register cites the manual (`zh`, `section`).
 
 use crate::diagnostic::Diagnostic;
-use crate::model::Model;
+use crate::model::{Model, RegisterNames};
 use crate::source::Path;
 
 /// Rule name.
@@ -25,21 +25,21 @@ fn report(what: String, key: &str, path: Path, out: &mut Vec<Diagnostic>) {
 }
 
 /// Checks docs.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for register in super::declared(model) {
         let name = register
             .repeat
             .as_ref()
             .map_or(register.name.as_str(), |c| c.base.as_str());
-        let at = register.path.key("name");
-        if missing(register.doc.as_ref()) {
-            report(format!("register `{name}`"), "doc", at.clone(), out);
-        }
-        if missing(register.zh.as_ref()) {
-            report(format!("register `{name}`"), "zh", at.clone(), out);
-        }
-        if missing(register.section.as_ref()) {
-            report(format!("register `{name}`"), "section", at, out);
+        for (key, text) in [
+            ("doc", &register.doc),
+            ("zh", &register.zh),
+            ("section", &register.section),
+        ] {
+            if missing(text.as_ref()) {
+                let at = register.path.key("name");
+                report(format!("register `{name}`"), key, at, out);
+            }
         }
     }
     for def in &model.enums {

@@ -2,17 +2,36 @@
 //! they are stored in: 0 to 2^32 - 1 for any enum, and the bits of each register, field or
 //! exception reply that uses it.
 
-use std::collections::{HashMap, HashSet};
+use std::fmt;
+
+use foldhash::{HashMap, HashMapExt, HashSet, HashSetExt};
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{ExceptionStyle, Kind, Model};
+use crate::model::{ExceptionStyle, Kind, Model, RegisterNames};
 use crate::source::Path;
 
 /// Rule name.
 pub const RULE: &str = "enum-codes";
 
+/// What stores an enum's codes, written out only in a report.
+enum User<'m> {
+    Exceptions,
+    Register(&'m str),
+    Field(&'m str, &'m str),
+}
+
+impl fmt::Display for User<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Exceptions => f.write_str("exception replies"),
+            Self::Register(name) => write!(f, "`{name}`"),
+            Self::Field(name, field) => write!(f, "`{name}.{field}`"),
+        }
+    }
+}
+
 /// Checks enums.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for def in &model.enums {
         if def.codes.is_empty() {
             out.push(
@@ -38,7 +57,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
         let mut names = HashMap::new();
         for code in &def.codes {
             // The same `key` a second time: marked here, with the first use labelled.
-            let twice = |key: &str, first: Path, what: String| {
+            let twice = |key: &'static str, first: &Path, what: String| {
                 Diagnostic::at(
                     RULE,
                     &code.path.key(key),
@@ -47,10 +66,10 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 .label(format!("duplicate {key}"))
                 .also(&first.key(key), "first used here")
             };
-            if let Some(first) = codes.insert(code.code, code.path.clone()) {
+            if let Some(first) = codes.insert(code.code, &code.path) {
                 out.push(twice("code", first, format!("code {} twice", code.code)));
             }
-            if let Some(first) = names.insert(code.name.as_str(), code.path.clone()) {
+            if let Some(first) = names.insert(code.name.as_str(), &code.path) {
                 out.push(twice(
                     "name",
                     first,
@@ -66,23 +85,19 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
             ExceptionStyle::Standard => 8,
             ExceptionStyle::CountedWord => 16,
         };
-        users.push((reference, bits, "exception replies".to_owned()));
+        users.push((reference, bits, User::Exceptions));
     }
     for register in super::declared(model) {
         let name = &register.name;
         match &register.kind {
             Kind::Enum(reference) => {
                 let bits = 16 * register.words.0.min(2);
-                users.push((reference, bits, format!("`{name}`")));
+                users.push((reference, bits, User::Register(name)));
             }
             Kind::Packed(fields) => {
                 for field in fields {
                     if let (Some(reference), Some(width)) = (&field.enum_ref, field.width) {
-                        users.push((
-                            reference,
-                            u32::from(width),
-                            format!("`{name}.{}`", field.name),
-                        ));
+                        users.push((reference, u32::from(width), User::Field(name, &field.name)));
                     }
                 }
             }
@@ -90,7 +105,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                 for field in fields {
                     if let Some(reference) = &field.enum_ref {
                         let bits = 16 * field.scalar.map_or(1, |s| s.words());
-                        users.push((reference, bits, format!("`{name}.{}`", field.name)));
+                        users.push((reference, bits, User::Field(name, &field.name)));
                     }
                 }
             }

@@ -1,14 +1,13 @@
 //! `group`: a group names existing, readable registers of one table.
 
 use crate::diagnostic::Diagnostic;
-use crate::model::Model;
+use crate::model::{Model, RegisterNames};
 
 /// Rule name.
 pub const RULE: &str = "group";
 
 /// Checks groups.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
-    let names = model.register_names();
+pub fn check(model: &Model, names: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for group in &model.groups {
         if group.registers.is_empty() {
             out.push(

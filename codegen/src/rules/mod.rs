@@ -2,7 +2,7 @@
 //! problem it finds; `check` runs them all.
 
 use crate::diagnostic::Diagnostic;
-use crate::model::Model;
+use crate::model::{Model, RegisterNames};
 
 pub mod action;
 pub mod allowed_values;
@@ -29,8 +29,9 @@ pub mod write_order;
 pub struct Rule {
     /// The rule's name.
     pub name: &'static str,
-    /// Appends a diagnostic for each problem found.
-    pub check: fn(&Model, &mut Vec<Diagnostic>),
+    /// Appends a diagnostic for each problem found; the registers by name are built once for
+    /// every rule.
+    pub check: fn(&Model, &RegisterNames<'_>, &mut Vec<Diagnostic>),
 }
 
 /// Every rule, in the order their diagnostics are reported.
@@ -120,8 +121,9 @@ pub const RULES: &[Rule] = &[
 /// Runs every rule.
 pub fn check(model: &Model) -> Vec<Diagnostic> {
     let mut diagnostics = Vec::new();
+    let names = model.register_names();
     for rule in RULES {
-        (rule.check)(model, &mut diagnostics);
+        (rule.check)(model, &names, &mut diagnostics);
     }
     diagnostics
 }

@@ -2,30 +2,18 @@
 //! <name>`), so a group, a register, a repeat block's member and its copies never share a
 //! name.
 
-use std::collections::HashMap;
-
 use crate::diagnostic::Diagnostic;
-use crate::model::Model;
-use crate::source::Path;
+use crate::model::{Model, RegisterNames};
 
 /// Rule name.
 pub const RULE: &str = "name-clash";
 
 /// Checks the names tools resolve.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
-    let mut registers: HashMap<&str, (&str, &Path)> = HashMap::new();
-    for register in &model.registers {
-        registers
-            .entry(register.name.as_str())
-            .or_insert(("register", &register.path));
-        if let Some(copy) = &register.repeat {
-            registers
-                .entry(copy.base.as_str())
-                .or_insert(("repeat member", &register.path));
-        }
-    }
+pub fn check(model: &Model, names: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for group in &model.groups {
-        if let Some((what, path)) = registers.get(group.name.as_str()) {
+        let named = names.register(&group.name).map(|r| ("register", r));
+        let named = named.or_else(|| names.resolve(&group.name).map(|r| ("repeat member", r)));
+        if let Some((what, register)) = named {
             out.push(
                 Diagnostic::at(
                     RULE,
@@ -33,7 +21,7 @@ pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
                     format!("group `{}` has the name of a {what}", group.name),
                 )
                 .label("also a register name")
-                .also(&path.key("name"), format!("{what} named here"))
+                .also(&register.path.key("name"), format!("{what} named here"))
                 .help("tools resolve a name to a register or a group: rename the group"),
             );
         }

@@ -1,10 +1,10 @@
 //! `duplicate-name`: names are unique per kind (registers, enums, commands, groups, repeats);
 //! `name-format`: names are snake_case.
 
-use std::collections::HashMap;
+use foldhash::{HashMap, HashMapExt};
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{Kind, Model};
+use crate::model::{Kind, Model, RegisterNames};
 use crate::source::Path;
 
 /// Rule name of the uniqueness check.
@@ -20,6 +20,24 @@ fn unique<'a>(
     items: impl Iterator<Item = (&'a str, &'a Path)>,
     out: &mut Vec<Diagnostic>,
 ) {
+    let mut seen: HashMap<&str, &Path> = HashMap::new();
+    let repeated = items.filter_map(|(name, path)| match seen.get(name) {
+        Some(first) => Some((name, *first, path)),
+        None => {
+            seen.insert(name, path);
+            None
+        }
+    });
+    report(kind, keyed, repeated, out);
+}
+
+/// Reports each name given again: the name, where it was first given, and where again.
+fn report<'a>(
+    kind: &str,
+    keyed: bool,
+    repeated: impl Iterator<Item = (&'a str, &'a Path, &'a Path)>,
+    out: &mut Vec<Diagnostic>,
+) {
     let at = |path: &Path| {
         if keyed {
             path.key("name")
@@ -27,33 +45,37 @@ fn unique<'a>(
             path.clone()
         }
     };
-    let mut seen: HashMap<&str, &Path> = HashMap::new();
-    for (name, path) in items {
-        match seen.get(name) {
-            Some(first) => out.push(
-                Diagnostic::at(RULE, &at(path), format!("{kind} `{name}` is defined twice"))
-                    .label("defined again here")
-                    .also(&at(first), "first defined here")
-                    .help(format!(
-                        "rename one of them{}",
-                        if kind == "register" {
-                            ", or declare the second with `alias_of:` if both views are meant"
-                        } else {
-                            ""
-                        }
-                    )),
-            ),
-            None => {
-                seen.insert(name, path);
-            }
-        }
+    for (name, first, again) in repeated {
+        out.push(
+            Diagnostic::at(
+                RULE,
+                &at(again),
+                format!("{kind} `{name}` is defined twice"),
+            )
+            .label("defined again here")
+            .also(&at(first), "first defined here")
+            .help(format!(
+                "rename one of them{}",
+                if kind == "register" {
+                    ", or declare the second with `alias_of:` if both views are meant"
+                } else {
+                    ""
+                }
+            )),
+        );
     }
 }
 
 /// Checks uniqueness.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
-    let registers = model.registers.iter().map(|r| (r.name.as_str(), &r.path));
-    unique("register", true, registers, out);
+pub fn check(model: &Model, names: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
+    // The registers by name hold the first of each name: any other is a repeat.
+    let registers = model.registers.iter().filter_map(|r| {
+        let first = names
+            .register(&r.name)
+            .filter(|first| !std::ptr::eq(*first, r))?;
+        Some((r.name.as_str(), &first.path, &r.path))
+    });
+    report("register", true, registers, out);
     let enums = model.enums.iter().filter(|e| e.shared);
     unique(
         "enum",
@@ -92,7 +114,7 @@ fn keyed<'a>(name: &'a str, path: &'a Path) -> (&'a str, Place<'a>) {
 }
 
 /// Checks that every name becomes a clean Rust identifier.
-pub fn check_format(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check_format(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     let root = Path::root();
     let mut names: Vec<(&str, Place<'_>)> = Vec::new();
     names.push((&model.family, (&root, Some("family"), None)));

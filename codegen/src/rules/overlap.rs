@@ -5,7 +5,7 @@ use std::cmp::Reverse;
 use std::collections::{BTreeSet, BinaryHeap};
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{Model, Register, Reserved, Table};
+use crate::model::{Model, Register, RegisterNames, Reserved, Table};
 
 /// Rule name.
 pub const RULE: &str = "address-overlap";
@@ -21,7 +21,7 @@ fn aliased(a: &Register, b: &Register) -> bool {
 /// Checks overlaps: each register against the nearest earlier one that covers its address,
 /// each register against the reserved ranges. Sorting and a sweep: n log n, and one report per
 /// overlapping register, however many others it overlaps.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     let mut sorted: Vec<&Register> = model.registers.iter().collect();
     sorted.sort_by_key(|r| (r.table, r.address));
     // Registers whose words reach the address being looked at: by start (nearest last, the

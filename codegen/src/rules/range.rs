@@ -1,7 +1,7 @@
 //! `range`: a valid range has min <= max and lies within the value's type.
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{Kind, Model, Scalar};
+use crate::model::{Kind, Model, RegisterNames, Scalar};
 use crate::source::Path;
 
 /// Rule name.
@@ -43,7 +43,7 @@ fn check_one(
 }
 
 /// Checks ranges.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for register in super::declared(model) {
         if let (Some(range), Some(scalar)) = (register.range, register.scalar()) {
             check_one(

@@ -2,7 +2,7 @@
 //! continuous-send register).
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{EnumRef, Kind, Model};
+use crate::model::{EnumRef, Kind, Model, RegisterNames};
 
 /// Rule name.
 pub const RULE: &str = "unknown-reference";
@@ -40,8 +40,7 @@ fn check_enum(model: &Model, reference: &EnumRef, known: &str, out: &mut Vec<Dia
 }
 
 /// Checks references.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
-    let names = model.register_names();
+pub fn check(model: &Model, names: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     let known = known_enums(model);
     for register in super::declared(model) {
         match &register.kind {

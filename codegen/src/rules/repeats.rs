@@ -2,13 +2,13 @@
 //! positive count.
 
 use crate::diagnostic::Diagnostic;
-use crate::model::Model;
+use crate::model::{Model, RegisterNames};
 
 /// Rule name.
 pub const RULE: &str = "repeat-stride";
 
 /// Checks repeat arithmetic.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for repeat in &model.repeats {
         if repeat.count < 2 {
             out.push(

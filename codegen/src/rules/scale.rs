@@ -4,7 +4,7 @@
 use optobus_codec::value::Scale;
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{Kind, Model, ScaleSpec};
+use crate::model::{Kind, Model, RegisterNames, ScaleSpec};
 
 /// Rule name.
 pub const RULE: &str = "scale";
@@ -94,7 +94,7 @@ fn report(owner: &str, scale: &ScaleSpec, out: &mut Vec<Diagnostic>) {
 }
 
 /// Checks scales.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for register in super::declared(model) {
         if let Some(scale) = &register.scale {
             report(&register.name, scale, out);

@@ -1,13 +1,13 @@
 //! `sentinel`: an invalid-reading value fits the register's raw bits.
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{Kind, Model};
+use crate::model::{Kind, Model, RegisterNames};
 
 /// Rule name.
 pub const RULE: &str = "sentinel";
 
 /// Checks sentinels.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for register in super::declared(model) {
         if let Some(sentinel) = register.sentinel {
             let bits = 16 * register.words.0.min(2);

@@ -1,13 +1,13 @@
 //! `address-bounds`: registers and reserved ranges lie inside their table.
 
 use crate::diagnostic::Diagnostic;
-use crate::model::Model;
+use crate::model::{Model, RegisterNames};
 
 /// Rule name.
 pub const RULE: &str = "address-bounds";
 
 /// Checks bounds.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for register in &model.registers {
         let size = model.device.table_size(register.table);
         let end = register.address.0.saturating_add(model.extent(register));

@@ -6,7 +6,7 @@
 //! value, including ones added to the spec language later.
 
 use crate::diagnostic::{Diagnostic, Label, Location};
-use crate::source::{Node, Span, Value};
+use crate::source::{Node, SourceFile, Span, Value};
 
 /// Rule name.
 pub const RULE: &str = "text";
@@ -25,13 +25,24 @@ pub fn forbidden(c: char) -> Option<&'static str> {
     }
 }
 
-/// Checks every scalar of the tree.
-pub fn check(root: Option<&Node>) -> Vec<Diagnostic> {
+/// Checks every scalar of the tree: first all their text in one sweep, and only when that
+/// finds a forbidden character, scalar by scalar to place it.
+pub fn check(source: &SourceFile) -> Vec<Diagnostic> {
     let mut out = Vec::new();
-    if let Some(root) = root {
+    if let Some(root) = source.root.as_ref().filter(|_| !clean(source.scalars())) {
         walk(root, &mut out);
     }
     out
+}
+
+/// True when `text` holds no character [`forbidden`] refuses. One sweep over the bytes that
+/// decodes only the characters that may be refused: ASCII controls, and those whose UTF-8
+/// starts like U+0080–U+00BF (`C2`), U+061C (`D8`) or U+2000–U+20BF (`E2`).
+fn clean(text: &str) -> bool {
+    text.bytes().enumerate().all(|(at, byte)| {
+        let suspect = byte < b' ' || byte == 0x7F || matches!(byte, 0xC2 | 0xD8 | 0xE2);
+        !suspect || text[at..].chars().next().and_then(forbidden).is_none()
+    })
 }
 
 fn walk(node: &Node, out: &mut Vec<Diagnostic>) {
@@ -72,4 +83,30 @@ fn scalar(text: &str, span: Span, out: &mut Vec<Diagnostic>) {
                 .into(),
         ),
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_sweep_passes_what_the_walk_passes_and_stops_at_what_it_refuses() {
+        // Lead bytes C2 and E2 that start allowed characters: `°`, `–`, `€`; and CJK text.
+        assert!(clean("寄存器 20 °C – 5 € line\nnext\ttab"));
+        for refused in [
+            "a\u{202E}b",
+            "\u{85}",
+            "x\ry",
+            "\u{7F}",
+            "\u{061C}",
+            "\u{2066}",
+            "\0",
+        ] {
+            assert!(!clean(refused), "{refused:?}");
+            assert!(
+                refused.chars().any(|c| forbidden(c).is_some()),
+                "{refused:?}"
+            );
+        }
+    }
 }

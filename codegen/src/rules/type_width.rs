@@ -2,13 +2,13 @@
 //! inside the value.
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{Kind, Model, Scalar};
+use crate::model::{Kind, Model, RegisterNames, Scalar};
 
 /// Rule name.
 pub const RULE: &str = "type-width";
 
 /// Checks widths.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for register in super::declared(model) {
         let words = register.words.0;
         let needed = match &register.kind {

@@ -2,13 +2,13 @@
 //! as two single-register writes.
 
 use crate::diagnostic::Diagnostic;
-use crate::model::{LongWrites, Model};
+use crate::model::{LongWrites, Model, RegisterNames};
 
 /// Rule name.
 pub const RULE: &str = "write-order";
 
 /// Checks write orders.
-pub fn check(model: &Model, out: &mut Vec<Diagnostic>) {
+pub fn check(model: &Model, _: &RegisterNames<'_>, out: &mut Vec<Diagnostic>) {
     for register in super::declared(model) {
         if register.write_order.is_none() {
             continue;

@@ -395,6 +395,17 @@ impl<T> Items<T> {
     pub(crate) fn iter(&self) -> impl Iterator<Item = (usize, &T)> {
         self.found.iter().map(|(i, item)| (*i, item))
     }
+
+    /// The items read, with their index in the file, taken out (the names of those left out
+    /// stay).
+    pub(crate) fn take(&mut self) -> Vec<(usize, T)> {
+        std::mem::take(&mut self.found)
+    }
+
+    /// The items read, mutable, with their index in the file.
+    pub(crate) fn iter_mut(&mut self) -> impl Iterator<Item = (usize, &mut T)> {
+        self.found.iter_mut().map(|(i, item)| (*i, item))
+    }
 }
 
 impl<T: FromNode> FromNode for Items<T> {
