@@ -15,8 +15,6 @@ use std::time::{Duration, SystemTime};
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::time::Instant;
 
-use crate::link::Stream;
-
 /// Frames kept per device; older ones are dropped.
 pub const FRAMES_KEPT: usize = 256;
 
@@ -134,12 +132,12 @@ impl LineFrames {
 }
 
 /// A line's stream, its bytes both ways added to the frame rings.
-pub(crate) struct TracedStream {
-    pub(crate) inner: Box<dyn Stream>,
+pub(crate) struct TracedStream<S> {
+    pub(crate) inner: S,
     pub(crate) frames: Arc<LineFrames>,
 }
 
-impl AsyncRead for TracedStream {
+impl<S: AsyncRead + Unpin> AsyncRead for TracedStream<S> {
     fn poll_read(
         mut self: Pin<&mut Self>,
         cx: &mut Context<'_>,
@@ -155,7 +153,7 @@ impl AsyncRead for TracedStream {
     }
 }
 
-impl AsyncWrite for TracedStream {
+impl<S: AsyncWrite + Unpin> AsyncWrite for TracedStream<S> {
     fn poll_write(
         mut self: Pin<&mut Self>,
         cx: &mut Context<'_>,

@@ -31,15 +31,11 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
         .route("/api/devices/{device}/do", post(write::run))
         .route("/api/devices/{device}/buffer", post(write::buffer))
         .layer(axum::middleware::from_fn_with_state(
-            Arc::clone(&shared),
+            Arc::clone(&shared.guard),
             guard::check,
         ))
         .layer(DefaultBodyLimit::max(BODY_LIMIT))
         .with_state(shared)
-}
-
-pub(crate) fn unknown_device(name: &str) -> ApiError {
-    ApiError::not_found(format!("the bus has no device `{name}`"))
 }
 
 /// `GET /api/devices`: each device with its health, and each line's statistics.
@@ -99,7 +95,7 @@ async fn device_map(
     let info = shared
         .handle
         .device_info(&device)
-        .ok_or_else(|| unknown_device(&device))?;
+        .ok_or_else(|| ApiError::unknown_device(&device))?;
     let writable = shared.handle.writable(&device).cloned().unwrap_or_default();
     Ok(Json(map::device_map(&device, info, &writable)))
 }
@@ -112,7 +108,7 @@ async fn frames(
     let frames = shared
         .handle
         .frames(&device)
-        .map_err(|_| unknown_device(&device))?;
+        .map_err(|_| ApiError::unknown_device(&device))?;
     let frames: Vec<Json_> = frames
         .iter()
         .map(|frame| {
@@ -140,7 +136,7 @@ async fn read(
     let info = shared
         .handle
         .device_info(&device)
-        .ok_or_else(|| unknown_device(&device))?;
+        .ok_or_else(|| ApiError::unknown_device(&device))?;
     let found = info.register(&register).ok_or_else(|| {
         ApiError::not_found(format!(
             "{} has no register `{register}`",

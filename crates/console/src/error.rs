@@ -23,6 +23,11 @@ impl ApiError {
         Self::new(StatusCode::NOT_FOUND, message)
     }
 
+    /// A device the bus does not have.
+    pub(crate) fn unknown_device(name: &str) -> Self {
+        Self::not_found(format!("the bus has no device `{name}`"))
+    }
+
     pub(crate) fn bad_request(message: impl Into<String>) -> Self {
         Self::new(StatusCode::BAD_REQUEST, message)
     }

@@ -16,7 +16,6 @@ use axum::response::{IntoResponse, Response};
 use optobus_bus::HttpConfig;
 
 use crate::error::ApiError;
-use crate::state::Shared;
 use crate::ConsoleError;
 
 /// The shortest token accepted.
@@ -118,11 +117,10 @@ fn read_token(path: &std::path::Path) -> Result<String, ConsoleError> {
 /// Checks every request: its `Host` (on the loopback), its `Origin`, a write's token; answers
 /// a listed origin's preflight and marks its replies.
 pub(crate) async fn check(
-    State(shared): State<Arc<Shared>>,
+    State(guard): State<Arc<Guard>>,
     request: Request,
     next: Next,
 ) -> Response {
-    let guard = &shared.guard;
     let headers = request.headers();
     let host = headers.get(HOST).and_then(|v| v.to_str().ok());
     if guard.loopback && !host.is_some_and(|h| guard.hosts.iter().any(|known| known == h)) {

@@ -39,6 +39,7 @@
 #![forbid(unsafe_code)]
 
 mod api;
+mod batch;
 mod error;
 mod guard;
 mod map;
@@ -55,8 +56,8 @@ use axum::Router;
 use optobus_bus::{HttpConfig, Running};
 use tokio::task::JoinHandle;
 
+pub use batch::{BATCH_EVERY, BATCH_QUEUE};
 pub use page::PAGE_BYTES;
-pub use stream::{BATCH_EVERY, BATCH_QUEUE};
 
 /// The largest request body accepted, in bytes.
 pub const BODY_LIMIT: usize = 4096;

@@ -14,14 +14,14 @@ use serde_json::{json, Value as Json};
 use tokio::sync::broadcast::error::RecvError;
 use tokio::sync::{broadcast, watch};
 
+use crate::batch::{Batch, Kind, BATCH_EVERY, BATCH_QUEUE};
 use crate::guard::Guard;
-use crate::stream::{Batch, BATCH_EVERY, BATCH_QUEUE};
 
 /// Everything the handlers share.
 #[derive(Debug)]
 pub(crate) struct Shared {
     pub(crate) handle: Handle,
-    pub(crate) guard: Guard,
+    pub(crate) guard: Arc<Guard>,
     pub(crate) board: Mutex<Board>,
     /// The live stream's batches, as JSON text.
     pub(crate) batches: broadcast::Sender<Arc<str>>,
@@ -71,7 +71,7 @@ impl Shared {
             .collect();
         Self {
             handle,
-            guard,
+            guard: Arc::new(guard),
             board: Mutex::new(Board {
                 devices,
                 lines: Vec::new(),
@@ -179,14 +179,6 @@ impl Board {
             }
         }
     }
-}
-
-/// What a stream entry is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Kind {
-    Sample,
-    Health,
-    Line,
 }
 
 /// Follows the bus's events until the bus stops or nothing serves the console any more: the

@@ -13,7 +13,6 @@ use optobus_bus::JobError;
 use serde::Deserialize;
 use serde_json::{json, Value as Json_};
 
-use crate::api::unknown_device;
 use crate::error::ApiError;
 use crate::state::Shared;
 
@@ -48,7 +47,7 @@ fn body_error(rejection: JsonRejection) -> ApiError {
 /// The status of a job's refusal or failure; its message is the bus's.
 fn job_error(device: &str, error: JobError) -> ApiError {
     let status = match &error {
-        JobError::UnknownDevice(_) => return unknown_device(device),
+        JobError::UnknownDevice(_) => return ApiError::unknown_device(device),
         JobError::NotListed { .. } => StatusCode::FORBIDDEN,
         JobError::Stopped => StatusCode::SERVICE_UNAVAILABLE,
         JobError::Device(_) => StatusCode::BAD_GATEWAY,
