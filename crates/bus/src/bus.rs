@@ -186,6 +186,7 @@ impl Bus {
                 polls,
                 schedule,
                 events: self.events.clone(),
+                finishing: Vec::new(),
             };
             tasks.push(tokio::spawn(task.run()));
         }

@@ -196,18 +196,12 @@ impl BusFile {
             .enumerate()
             .filter(move |(_, device)| device.line == line)
     }
-
-    /// The simulated line a `simulated: true` line runs: the simulators of every device on
-    /// line `line` ([`DeviceConfig::simulator`]) behind one RTU line, each answering its own
-    /// slave address only. `optobus simulate --bus` serves it on a pty or a port.
-    pub fn simulated_line(&self, line: usize) -> optobus_simulator::Bus {
-        optobus_simulator::Bus::new(self.devices_on(line).map(|(_, device)| device.simulator()))
-    }
 }
 
 impl DeviceConfig {
     /// The simulated device a `simulated: true` line puts in this device's place: its model
     /// at its slave address, with its `faults` (a late reply lands after its `timeout`).
+    /// `optobus simulate --bus` serves a line of them on a pty or a port.
     pub fn simulator(&self) -> optobus_simulator::Simulator {
         let simulator = optobus_simulator::Simulator::new(self.device).slave(self.slave);
         match &self.faults {
