@@ -134,12 +134,52 @@ fn two_devices_at_one_slave_or_a_bad_address_are_refused() {
         assert_eq!(code, Some(common::REFUSED), "{args:?}: {stderr}");
         assert!(stderr.contains(message), "{args:?}: {stderr}");
     }
-    let (code, _, stderr) = outcome(&["simulate", "p-series@1", "ccs@3", "--tcp", "127.0.0.1:0"]);
-    assert_eq!(code, Some(common::REFUSED), "{stderr}");
-    assert!(
-        stderr.contains("several devices share an RTU line"),
-        "{stderr}"
-    );
+}
+
+/// Over Modbus TCP the line is served as a gateway in front of it would: the unit id picks the
+/// device, and a unit id no device has is answered with exception 0B.
+#[test]
+fn over_tcp_the_unit_id_picks_the_device() {
+    let mut child = optobus()
+        .args([
+            "simulate",
+            "p-series@1",
+            "p-series@2",
+            "--tcp",
+            "127.0.0.1:0",
+        ])
+        .args(["--duration", "60s"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start optobus simulate");
+    let address = common::serves_at(&mut child);
+    let read = |slave: &str| {
+        outcome(&[
+            "read",
+            "slave_address",
+            "--tcp",
+            &address,
+            "--model",
+            "p-series",
+            "--slave",
+            slave,
+            "--timeout",
+            "500ms",
+            "--json",
+        ])
+    };
+    for slave in [1, 2] {
+        let (code, stdout, stderr) = read(&slave.to_string());
+        assert_eq!(code, Some(0), "{stderr}");
+        let values: serde_json::Value = serde_json::from_str(&stdout).expect("JSON");
+        assert_eq!(values["slave_address"], slave);
+    }
+    let (code, _, stderr) = read("3");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("exception 0B"), "{stderr}");
+    let _ = child.kill();
+    let _ = child.wait();
 }
 
 /// A simulated line of three devices; `faults` per device by name.

@@ -380,12 +380,10 @@ async fn serve_line_of(
     several: Several,
     line_faults: Option<Faults>,
 ) -> Result<(), CliError> {
-    if global.target.tcp.is_some() || (!args.pty && global.target.serial.is_none()) {
-        return Err(CliError::new(
-            "several devices share an RTU line; a Modbus TCP server is one device",
-        )
-        .hint("serve the line with --pty or --serial PORT"));
+    if args.line_timing {
+        check_rtu(global, args)?;
     }
+    let rtu = args.pty || global.target.serial.is_some();
     let needs_format = args.line_timing || global.target.serial.is_some();
     let format = match several.format {
         Some(format) => Some(format),
@@ -412,6 +410,9 @@ async fn serve_line_of(
         .iter()
         .map(|(_, sim, _)| sim.address())
         .collect();
+    // On RTU `--faults` go into every reply on the line; over TCP each device's replies.
+    let each_faults = line_faults.clone().filter(|_| !rtu);
+    let line_faults = line_faults.filter(|_| rtu);
     let members: Vec<(String, Simulator, Option<Faults>)> = several
         .members
         .into_iter()
@@ -420,17 +421,36 @@ async fn serve_line_of(
             let own = sim.address();
             let addresses = addresses.clone();
             let logs = move |slave| slave == own || (index == 0 && !addresses.contains(&slave));
-            (name, logged(sim, log, logs), faults)
+            let sim = logged(sim, log, logs);
+            match &each_faults {
+                Some(each) => (name, sim.faults(each.clone()), Some(each.clone())),
+                None => (name, sim, faults),
+            }
         })
         .collect();
     let mut bus = Bus::new(members.iter().map(|(_, sim, _)| sim.clone()));
     if let Some(faults) = &line_faults {
         bus = bus.faults(faults.clone());
     }
+    let extras = line_faults.as_ref().or(each_faults.as_ref());
+    let extras = extras.map(|f| format!(", faults {f}"));
     let line_stats = line.as_ref().map(Line::stats);
-    let extras = line_faults.as_ref().map(|f| format!(", faults {f}"));
     let extras = extras.unwrap_or_default() + &timed_text(line.as_ref(), args);
     let (server, place) = match (&global.target.serial, format) {
+        _ if !rtu => {
+            let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
+            let address = link::resolve_tcp(address, 5020).await?;
+            let server = bus.serve_tcp(address).await.map_err(|e| {
+                CliError::failed(format!("cannot listen on {address}: {e}"))
+                    .hint("is another server using the port? try --tcp 127.0.0.1:0")
+            })?;
+            let address = server.local_addr();
+            print(&address.to_string());
+            (
+                Box::new(server) as Box<dyn std::any::Any>,
+                format!("Modbus TCP at {address} (the unit id picks the device)"),
+            )
+        }
         (Some(path), Some(format)) => {
             let settings = optobus_driver::transport::SerialSettings {
                 path: path.clone(),
