@@ -49,7 +49,9 @@ const TARGET_FAILED: u16 = 0x0B;
 
 impl Bus {
     /// Listens on `addr` and serves the line's devices over Modbus TCP on a spawned task, as
-    /// a TCP-to-RTU gateway in front of them would (see the [module](self)).
+    /// a TCP-to-RTU gateway in front of them would: the unit id picks the device (by its
+    /// address), and a unit id no device has is answered with exception 0B (gateway target
+    /// device failed to respond). Each device's own faults apply to its replies.
     pub async fn serve_tcp(&self, addr: impl ToSocketAddrs) -> io::Result<TcpServer> {
         let members = self.members().to_vec();
         listen(addr, move |stream| {
