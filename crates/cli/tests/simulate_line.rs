@@ -326,19 +326,10 @@ fn mbpoll_reads_two_slaves_of_one_simulated_line() {
     let line = Line::start(&["p-series@1", "rangefinder@5"], 2);
     let mbpoll = |slave: &str, register: &str| -> Vec<i64> {
         // -0: PDU addresses; -t 4: holding; -1: poll once.
-        let output = Command::new("mbpoll")
-            .args(["-m", "rtu", "-b", "115200", "-P", "none", "-a", slave])
-            .args(["-0", "-r", register, "-c", "1", "-t", "4", "-1", &line.path])
-            .output()
-            .expect("run mbpoll");
-        let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
-        assert!(output.status.success(), "mbpoll: {stdout}");
-        stdout
-            .lines()
-            .filter_map(|line| line.trim().strip_prefix('['))
-            .filter_map(|rest| rest.split_once("]:"))
-            .filter_map(|(_, value)| value.trim().parse().ok())
-            .collect()
+        common::mbpoll(&[
+            "-m", "rtu", "-b", "115200", "-P", "none", "-a", slave, "-0", "-r", register, "-c",
+            "1", "-t", "4", "-1", &line.path,
+        ])
     };
     // Each device's slave-address register (P series 31, rangefinder 0x0003).
     assert_eq!(mbpoll("1", "31"), [1]);

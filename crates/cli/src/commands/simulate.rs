@@ -9,7 +9,6 @@ use std::time::Duration;
 use clap::Args;
 use optobus_codec::LineFormat;
 use optobus_device::DeviceInfo;
-use optobus_driver::serial_settings;
 use optobus_simulator::{Bus, Faults, FaultsError, Line, Reply, Simulator};
 
 use crate::connect::{DeviceArgs, Global};
@@ -183,7 +182,13 @@ async fn serve_one(global: &Global, args: &SimulateArgs, log: &Log) -> Result<()
         sim = sim.faults(faults.clone());
     }
     let line_stats = line.as_ref().map(Line::stats);
-    let (server, place) = serve(device, global, args.pty, line, &sim).await?;
+    let (server, place) = if args.pty || global.target.serial.is_some() {
+        let format = global.target.line_format(device);
+        let serial = global.target.serial.as_deref();
+        serve_rtu(&Bus::new([sim.clone()]), serial, Some(format), line)?
+    } else {
+        serve_tcp(global, |address| sim.serve_tcp(address)).await?
+    };
     log.line(format!(
         "optobus: simulating {} (slave {slave}) on {place}{extras}",
         crate::models::name(device)
@@ -436,55 +441,11 @@ async fn serve_line_of(
     let extras = extras.map(|f| format!(", faults {f}"));
     let line_stats = line.as_ref().map(Line::stats);
     let extras = extras.unwrap_or_default() + &timed_text(line.as_ref(), args);
-    let (server, place) = match (&global.target.serial, format) {
-        _ if !rtu => {
-            let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
-            let address = link::resolve_tcp(address, 5020).await?;
-            let server = bus.serve_tcp(address).await.map_err(|e| {
-                CliError::failed(format!("cannot listen on {address}: {e}"))
-                    .hint("is another server using the port? try --tcp 127.0.0.1:0")
-            })?;
-            let address = server.local_addr();
-            print(&address.to_string());
-            (
-                Box::new(server) as Box<dyn std::any::Any>,
-                format!("Modbus TCP at {address} (the unit id picks the device)"),
-            )
-        }
-        (Some(path), Some(format)) => {
-            let settings = optobus_driver::transport::SerialSettings {
-                path: path.clone(),
-                line: format,
-            };
-            let port = settings
-                .open()
-                .map_err(|e| CliError::failed(format!("cannot open {path}: {e}")))?;
-            print(path);
-            let served = bus.clone();
-            let task = tokio::spawn(async move {
-                match line {
-                    Some(line) => served.serve_line(port, &line).await,
-                    None => served.serve(port).await,
-                }
-            });
-            (
-                Box::new(task) as Box<dyn std::any::Any>,
-                format!("RTU at {path}"),
-            )
-        }
-        _ => {
-            let pty = match line {
-                Some(line) => bus.serve_pty_line(line),
-                None => bus.serve_pty(),
-            }
-            .map_err(|e| CliError::failed(format!("cannot open a pty: {e}")))?;
-            let path = pty.path().display().to_string();
-            print(&path);
-            (
-                Box::new(pty) as Box<dyn std::any::Any>,
-                format!("RTU at {path}"),
-            )
-        }
+    let (server, place) = if rtu {
+        serve_rtu(&bus, global.target.serial.as_deref(), format, line)?
+    } else {
+        let (server, place) = serve_tcp(global, |address| bus.serve_tcp(address)).await?;
+        (server, place + " (the unit id picks the device)")
     };
     let who: Vec<String> = members
         .iter()
@@ -513,48 +474,59 @@ async fn serve_line_of(
     Ok(())
 }
 
-/// Starts serving `sim`: on a new pty, on `--serial` or on `--tcp`, RTU timed as `line` says;
-/// prints where on stdout and gives what must be kept alive, and where it serves for the log.
-async fn serve(
-    device: &'static DeviceInfo,
-    global: &Global,
-    pty: bool,
+/// What keeps a simulation served while it runs, and where it is served, for the log.
+type Served = (Box<dyn std::any::Any>, String);
+
+/// Serves `bus` as RTU on a new pty, or on the serial port `serial` in `format`, timed as
+/// `line` says; prints where on stdout.
+fn serve_rtu(
+    bus: &Bus,
+    serial: Option<&str>,
+    format: Option<LineFormat>,
     line: Option<Line>,
-    sim: &Simulator,
-) -> Result<(Box<dyn std::any::Any>, String), CliError> {
-    Ok(if pty {
+) -> Result<Served, CliError> {
+    let (Some(path), Some(format)) = (serial, format) else {
         let pty = match line {
-            Some(line) => sim.serve_pty_line(line),
-            None => sim.serve_pty(),
+            Some(line) => bus.serve_pty_line(line),
+            None => bus.serve_pty(),
         }
         .map_err(|e| CliError::failed(format!("cannot open a pty: {e}")))?;
         let path = pty.path().display().to_string();
         print(&path);
-        (Box::new(pty), format!("RTU at {path}"))
-    } else if let Some(path) = &global.target.serial {
-        let mut settings = serial_settings(device, path.as_str());
-        settings.line = global.target.line_format(device);
-        let port = settings
-            .open()
-            .map_err(|e| CliError::failed(format!("cannot open {path}: {e}")))?;
-        print(path);
-        let sim = sim.clone();
-        let task = tokio::spawn(async move {
-            match line {
-                Some(line) => sim.serve_line(port, &line).await,
-                None => sim.serve_rtu(port).await,
-            }
-        });
-        (Box::new(task), format!("RTU at {path}"))
-    } else {
-        let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
-        let address = link::resolve_tcp(address, 5020).await?;
-        let server = sim.serve_tcp(address).await.map_err(|e| {
-            CliError::failed(format!("cannot listen on {address}: {e}"))
-                .hint("is another server using the port? try --tcp 127.0.0.1:0")
-        })?;
-        let address = server.local_addr();
-        print(&address.to_string());
-        (Box::new(server), format!("Modbus TCP at {address}"))
-    })
+        return Ok((Box::new(pty), format!("RTU at {path}")));
+    };
+    let settings = optobus_driver::transport::SerialSettings {
+        path: path.to_owned(),
+        line: format,
+    };
+    let port = settings
+        .open()
+        .map_err(|e| CliError::failed(format!("cannot open {path}: {e}")))?;
+    print(path);
+    let bus = bus.clone();
+    let task = tokio::spawn(async move {
+        match line {
+            Some(line) => bus.serve_line(port, &line).await,
+            None => bus.serve(port).await,
+        }
+    });
+    Ok((Box::new(task), format!("RTU at {path}")))
+}
+
+/// Serves Modbus TCP on `--tcp` (127.0.0.1:5020 by default) with `listen`; prints where on
+/// stdout.
+async fn serve_tcp<F, Fut>(global: &Global, listen: F) -> Result<Served, CliError>
+where
+    F: FnOnce(std::net::SocketAddr) -> Fut,
+    Fut: std::future::Future<Output = std::io::Result<optobus_simulator::TcpServer>>,
+{
+    let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
+    let address = link::resolve_tcp(address, 5020).await?;
+    let server = listen(address).await.map_err(|e| {
+        CliError::failed(format!("cannot listen on {address}: {e}"))
+            .hint("is another server using the port? try --tcp 127.0.0.1:0")
+    })?;
+    let address = server.local_addr();
+    print(&address.to_string());
+    Ok((Box::new(server), format!("Modbus TCP at {address}")))
 }
