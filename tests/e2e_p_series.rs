@@ -2,13 +2,16 @@
 //! client on an in-memory line and over Modbus TCP (tokio-modbus) on 127.0.0.1.
 
 use std::net::Ipv4Addr;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
+
+use optobus_codec::Request;
 
 use optobus_driver::transport::Error as WireError;
 use optobus_driver::units::Percent;
 use optobus_driver::{DownloadProgress, Error, Fixed, Transport};
 use optobus_p_series::{MeasurementSource, MedianFilterWidth, PSeries, DEVICE};
-use optobus_simulator::Simulator;
+use optobus_simulator::{Reply, Simulator};
 use optobus_tests::e2e;
 
 async fn every_register_and_group<T: Transport>(sensor: &mut PSeries<T>) {
@@ -200,4 +203,83 @@ async fn wait_ready_after_a_power_cycle() {
         .await
         .unwrap_err();
     assert!(matches!(error, Error::NotReady { .. }), "{error}");
+}
+
+/// The words each read of the save flag (holding 20) got, and the writes to it, in order
+/// (`W` for a write).
+fn save_flag_log(sim: Simulator) -> (Simulator, Arc<Mutex<Vec<String>>>) {
+    let log = Arc::new(Mutex::new(Vec::new()));
+    let seen = Arc::clone(&log);
+    let sim = sim.observe(move |exchange| {
+        let entry = match (exchange.request, exchange.reply) {
+            (Some(Request::Read { address: 20, .. }), Reply::Read { words, .. }) => {
+                format!("{words:?}")
+            }
+            (Some(Request::Write { address: 20, .. }), _) => "W".to_owned(),
+            _ => return,
+        };
+        seen.lock().unwrap().push(entry);
+    });
+    (sim, log)
+}
+
+/// 4.1.2 (0020): the save flag "returns to 0 automatically when storing is over": the command
+/// is done only once a read of the register shows 0, never at the echo.
+#[tokio::test(start_paused = true)]
+async fn save_parameters_is_done_only_once_its_flag_reads_0_again() {
+    let (sim, log) = save_flag_log(Simulator::new(&DEVICE).finish_time(Duration::from_millis(300)));
+    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    let started = tokio::time::Instant::now();
+    sensor.save_parameters().await.unwrap();
+    assert!(started.elapsed() >= Duration::from_millis(300));
+    let log = log.lock().unwrap().clone();
+    // The write, reads of 1 while the flash write goes on, and the read of 0 that ended it.
+    assert_eq!(log.first().map(String::as_str), Some("W"), "{log:?}");
+    assert_eq!(log.last().map(String::as_str), Some("[0]"), "{log:?}");
+    let busy = &log[1..log.len() - 1];
+    assert!(busy.len() >= 2, "{log:?}");
+    assert!(busy.iter().all(|read| read == "[1]"), "{log:?}");
+}
+
+/// A device whose save flag never clears: the typed error once the spec's bound (2 s) has
+/// passed, never "done".
+#[tokio::test(start_paused = true)]
+async fn a_save_that_never_finishes_is_a_typed_error_within_the_bound() {
+    let (sim, log) = save_flag_log(Simulator::new(&DEVICE).finish_time(Duration::MAX));
+    let mut sensor = PSeries::with_default_slave(e2e::rtu(&sim));
+    let started = tokio::time::Instant::now();
+    let error = sensor.save_parameters().await.unwrap_err();
+    let waited = started.elapsed();
+    match &error {
+        Error::CommandNotFinished {
+            command,
+            register,
+            expected,
+            last_read,
+            last_error,
+            ..
+        } => {
+            assert_eq!(
+                (*command, *register),
+                ("save_parameters", "save_parameters")
+            );
+            assert_eq!((*expected, *last_read), (0, Some(1)));
+            assert!(last_error.is_none(), "{error}");
+        }
+        other => panic!("expected CommandNotFinished, got {other:?}"),
+    }
+    assert_eq!(
+        error.to_string(),
+        format!(
+            "`save_parameters` did not finish within {} ms: `save_parameters` still reads 1, not 0",
+            waited.as_millis()
+        )
+    );
+    let bound = Duration::from_millis(2000);
+    assert!(
+        waited <= bound && waited + optobus_driver::COMPLETION_POLL > bound,
+        "{waited:?}"
+    );
+    let reads = log.lock().unwrap().len() - 1;
+    assert!(reads >= 30, "polled {reads} times");
 }

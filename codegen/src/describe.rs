@@ -164,6 +164,7 @@ impl<'m> Describer<'m> {
                 busy_ms: c.busy_ms.unwrap_or(0),
                 effect: c.effect,
                 targets: leak_each(&c.targets, |t| text(t)),
+                done_when: c.completion(),
             }),
             groups: leak_each(&model.groups, |g| GroupInfo {
                 name: text(&g.name),

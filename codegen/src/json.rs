@@ -95,6 +95,8 @@ pub fn dump(model: &Model) -> Value {
             "register": c.register,
             "value": c.value,
             "busy_ms": c.busy_ms,
+            "done_when": c.done_when,
+            "within_ms": c.within_ms,
             "doc": c.doc,
         })).collect::<Vec<_>>(),
         "groups": model.groups.iter().map(|g| json!({

@@ -163,6 +163,8 @@ pub(crate) fn lower(mut spec: SpecFile) -> (Model, Vec<Diagnostic>) {
             register: decl.register.clone(),
             value: decl.value,
             busy_ms: decl.busy_ms,
+            done_when: decl.done_when,
+            within_ms: decl.within_ms,
             effect: decl.effect.unwrap_or(Effect::None),
             targets: decl.targets.clone(),
             doc: decl.doc.clone(),

@@ -264,6 +264,10 @@ pub struct Command {
     pub value: i64,
     /// How long the device is busy afterwards.
     pub busy_ms: Option<u32>,
+    /// The value the register reads once the device has finished (`done_when`).
+    pub done_when: Option<i64>,
+    /// How long after the write the device may take to finish (`within_ms`).
+    pub within_ms: Option<u32>,
     /// What the device does.
     pub effect: Effect,
     /// Registers the effect concerns.
@@ -274,6 +278,17 @@ pub struct Command {
     pub section: Option<String>,
     /// Where it is declared.
     pub path: Path,
+}
+
+impl Command {
+    /// How the device shows it finished: `done_when` read back within `within_ms` (both
+    /// given, the value a `u32`; the `command` rule reports anything else).
+    pub fn completion(&self) -> Option<optobus_device::Completion> {
+        Some(optobus_device::Completion {
+            value: u32::try_from(self.done_when?).ok()?,
+            within_ms: self.within_ms?,
+        })
+    }
 }
 
 /// Registers read together.

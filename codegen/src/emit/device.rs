@@ -153,6 +153,15 @@ fn commands_module(model: &Model, imports: &Imports) -> TokenStream {
         let busy_ms = lit(c.busy_ms.unwrap_or(0));
         let effect = variant(imports, "optobus_device::Effect", c.effect);
         let targets = &c.targets;
+        let done_when = match c.completion() {
+            Some(completion) => {
+                let type_ = imports.get("optobus_device::Completion");
+                let value = lit(completion.value);
+                let within_ms = lit(completion.within_ms);
+                quote!(Some(#type_ { value: #value, within_ms: #within_ms }))
+            }
+            None => quote!(None),
+        };
         quote! {
             #[doc = #const_doc]
             pub const #ident: #command_info = #command_info {
@@ -163,6 +172,7 @@ fn commands_module(model: &Model, imports: &Imports) -> TokenStream {
                 busy_ms: #busy_ms,
                 effect: #effect,
                 targets: &[#(#targets),*],
+                done_when: #done_when,
             };
         }
     });

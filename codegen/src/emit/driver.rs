@@ -473,6 +473,13 @@ pub(super) fn driver(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
                 _ => String::new(),
             }
         ));
+        if let Some(completion) = command.completion() {
+            doc.push(String::new());
+            doc.push(format!(
+                "Done only once `{}` reads {} again (the device has finished), polled for at most {} ms from the write; otherwise the error is `CommandNotFinished`.",
+                command.register, completion.value, completion.within_ms
+            ));
+        }
         if let Some(section) = &command.section {
             doc.push(String::new());
             doc.push(format!("Manual: {section}."));

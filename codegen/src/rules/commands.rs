@@ -1,5 +1,8 @@
 //! `command`: a command writes an existing, writable register with a value it accepts, and its
-//! targets exist; the continuous-send code is a value its register accepts.
+//! targets exist; the continuous-send code is a value its register accepts; a command that
+//! waits for its register to show it finished (`done_when`) reads a readable register for a
+//! value it can hold, other than the one written, within a bound (`within_ms`, longer than
+//! `busy_ms`).
 
 use foldhash::HashSet;
 
@@ -26,6 +29,12 @@ fn accepts(codes: &[HashSet<i64>], register: &Register, value: i64) -> bool {
             return false;
         }
     }
+    shows(codes, register, value)
+}
+
+/// True when `register` can hold `value` (enum codes, type bounds; the range bounds writes
+/// only: a device may show a code nobody may write, as a save flag clearing itself).
+fn shows(codes: &[HashSet<i64>], register: &Register, value: i64) -> bool {
     match &register.kind {
         Kind::Enum(reference) => reference
             .index
@@ -114,6 +123,9 @@ pub fn check(model: &Model, names: &RegisterNames<'_>, out: &mut Vec<Diagnostic>
             ),
             Some(_) => {}
         }
+        if let Some(register) = names.resolve(&command.register) {
+            check_completion(&codes, command, register, out);
+        }
         for (i, target) in command.targets.iter().enumerate() {
             if names.resolve(target).is_none() && !model.is_unread(target) {
                 out.push(
@@ -129,5 +141,109 @@ pub fn check(model: &Model, names: &RegisterNames<'_>, out: &mut Vec<Diagnostic>
                 );
             }
         }
+    }
+}
+
+/// The longest `within_ms`: a day, as for every other duration.
+const MAX_WITHIN_MS: u32 = 24 * 60 * 60 * 1000;
+
+/// Checks `done_when` and `within_ms` of `command`, which writes `register`.
+fn check_completion(
+    codes: &[HashSet<i64>],
+    command: &crate::model::Command,
+    register: &Register,
+    out: &mut Vec<Diagnostic>,
+) {
+    let done_path = command.path.key("done_when");
+    let within_path = command.path.key("within_ms");
+    let (value, within) = match (command.done_when, command.within_ms) {
+        (None, None) => return,
+        (Some(_), None) => {
+            out.push(
+                Diagnostic::at(
+                    RULE,
+                    &done_path,
+                    format!(
+                        "command `{}` waits for `done_when` without a bound",
+                        command.name
+                    ),
+                )
+                .label("for how long?")
+                .help("give `within_ms`: the longest time from the write until the register reads this value"),
+            );
+            return;
+        }
+        (None, Some(_)) => {
+            out.push(
+                Diagnostic::at(
+                    RULE,
+                    &within_path,
+                    format!(
+                        "`within_ms` bounds `done_when`, which command `{}` does not give",
+                        command.name
+                    ),
+                )
+                .label("bounds nothing"),
+            );
+            return;
+        }
+        (Some(value), Some(within)) => (value, within),
+    };
+    let busy = command.busy_ms.unwrap_or(0);
+    if within == 0 || within > MAX_WITHIN_MS || within <= busy {
+        out.push(
+            Diagnostic::at(
+                RULE,
+                &within_path,
+                format!(
+                    "command `{}` waits {within} ms for `done_when`; a bound is longer than its busy time ({busy} ms) and at most {MAX_WITHIN_MS} ms (24 h)",
+                    command.name
+                ),
+            )
+            .label(format!("outside {}..={MAX_WITHIN_MS}", busy + 1)),
+        );
+    }
+    if !register.readable() {
+        out.push(
+            Diagnostic::at(
+                RULE,
+                &done_path,
+                format!(
+                    "command `{}` waits for `{}` to read {value}, which cannot be read",
+                    command.name, command.register
+                ),
+            )
+            .label("cannot be read back")
+            .also(
+                &register.path.key("access"),
+                "write-only or an action register",
+            ),
+        );
+    } else if u32::try_from(value).is_err() || !shows(codes, register, value) {
+        out.push(
+            Diagnostic::at(
+                RULE,
+                &done_path,
+                format!(
+                    "command `{}` waits for `{}` to read {value}, which it cannot hold",
+                    command.name, command.register
+                ),
+            )
+            .label("outside the register's codes or type")
+            .also(&register.path.key("name"), "register defined here"),
+        );
+    } else if value == command.value {
+        out.push(
+            Diagnostic::at(
+                RULE,
+                &done_path,
+                format!(
+                    "command `{}` writes {value} and waits for `{}` to read {value}: done at once",
+                    command.name, command.register
+                ),
+            )
+            .label("the value written")
+            .help("`done_when` is what the device shows once it has finished, e.g. a flag cleared to 0"),
+        );
     }
 }

@@ -321,6 +321,8 @@ record! {
         value: i64,
         busy_ms: Option<u32>,
         effect: Option<Effect>,
+        done_when: Option<i64>,
+        within_ms: Option<u32>,
         targets: Vec<String> = default,
         doc: Option<String>,
         section: Option<String>,

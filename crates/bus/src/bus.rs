@@ -145,10 +145,7 @@ impl Bus {
                     errors,
                 });
                 if line.port == Port::Simulated {
-                    let mut simulator = Simulator::new(config.device).slave(config.slave);
-                    if let Some(faults) = config.faults.clone() {
-                        simulator = simulator.faults(faults.client_timeout(config.timeout));
-                    }
+                    let simulator = config.simulator();
                     line_simulators.push(simulator.clone());
                     simulators.push((config.name.clone(), simulator));
                 }
@@ -196,6 +193,7 @@ impl Bus {
                 polls,
                 schedule,
                 events: self.events.clone(),
+                finishing: Vec::new(),
             };
             tasks.push(tokio::spawn(task.run()));
         }

@@ -8,7 +8,7 @@ use optobus_codec::passthrough::PassPdu;
 use optobus_codec::LineFormat;
 use optobus_codec::{FrameShape, BROADCAST};
 use optobus_device::RegisterInfo;
-use optobus_driver::{Core, Error as DriverError};
+use optobus_driver::{CommandWait, Core, Error as DriverError, Finish};
 use optobus_inspect::decode_value;
 use optobus_transport::{Error, RtuClient, RtuConfig};
 use tokio::sync::{broadcast, mpsc, Mutex};
@@ -163,6 +163,18 @@ pub(crate) struct LineTask {
     pub(crate) jobs: mpsc::Receiver<Job>,
     /// The silence owed after a broadcast.
     pub(crate) broadcast_turnaround: Duration,
+    /// Commands waiting for their device to show it finished (`done_when`).
+    pub(crate) finishing: Vec<Finishing>,
+}
+
+/// A command whose register the line reads, between other requests, until it shows the
+/// device finished; the device is held from polls meanwhile.
+pub(crate) struct Finishing {
+    device: usize,
+    /// When to read its register next.
+    at: Instant,
+    wait: CommandWait,
+    done: tokio::sync::oneshot::Sender<Result<(), DriverError>>,
 }
 
 /// The next request of the gateway, or never when the line has none.
@@ -219,6 +231,10 @@ impl LineTask {
                 self.do_job(job).await;
                 continue;
             }
+            if let Some(index) = self.finishing.iter().position(|f| f.at <= now) {
+                self.check_finished(index).await;
+                continue;
+            }
             if gateway_round > 0 || !matches!(next, Next::Run(_)) {
                 if let Some(request) = self
                     .gateway
@@ -240,6 +256,11 @@ impl LineTask {
                 Next::Wait(until) => until.min(next_stats),
                 Next::Idle => next_stats,
             };
+            let until = self
+                .finishing
+                .iter()
+                .map(|f| f.at)
+                .fold(until, Instant::min);
             tokio::select! {
                 () = tokio::time::sleep_until(until) => {}
                 Some(job) = self.jobs.recv() => self.do_job(job).await,
@@ -280,18 +301,32 @@ impl LineTask {
                 done,
             } => {
                 let core = &mut self.devices[device].core;
+                let written = Instant::now();
                 let result =
                     match optobus_driver::encode_integer(register, i64::from(command.value)) {
                         Ok(words) => core.write(register, &Checked(words)).await,
                         Err(error) => Err(error),
                     };
+                let busy = Duration::from_millis(u64::from(command.busy_ms));
+                if result.is_ok() && command.done_when.is_some() {
+                    // Its register is read between other requests once the busy time is
+                    // over, until it shows the device finished.
+                    let at = Instant::now() + busy;
+                    self.schedule.hold(device, at);
+                    self.finishing.push(Finishing {
+                        device,
+                        at,
+                        wait: CommandWait::new(command, register, written),
+                        done,
+                    });
+                    return;
+                }
                 if result.is_err() || command.busy_ms == 0 {
                     let _ = done.send(result);
                     return;
                 }
                 // The device is busy: the line serves the others meanwhile, and the caller
                 // hears back when the busy time is over.
-                let busy = Duration::from_millis(u64::from(command.busy_ms));
                 self.schedule.hold(device, Instant::now() + busy);
                 tokio::spawn(async move {
                     tokio::time::sleep(busy).await;
@@ -308,6 +343,29 @@ impl LineTask {
             }
             Job::Buffer { device, done } => {
                 let _ = done.send(handle::download(&mut self.devices[device].core).await);
+            }
+        }
+    }
+
+    /// Reads the register of the `index`th command waiting to finish, once.
+    async fn check_finished(&mut self, index: usize) {
+        let Some(finishing) = self.finishing.get_mut(index) else {
+            return;
+        };
+        let device = finishing.device;
+        let step = finishing.wait.poll(&mut self.devices[device].core).await;
+        match step {
+            Finish::Again(at) => {
+                finishing.at = at;
+                self.schedule.hold(device, at);
+            }
+            Finish::Done => {
+                let finishing = self.finishing.swap_remove(index);
+                let _ = finishing.done.send(Ok(()));
+            }
+            Finish::Failed(error) => {
+                let finishing = self.finishing.swap_remove(index);
+                let _ = finishing.done.send(Err(error));
             }
         }
     }

@@ -221,3 +221,37 @@ devices:
     );
     assert_eq!(head.peek(Table::Holding, power.address), Some(vec![125]));
 }
+
+/// The bus runs a command through the driver's own completion wait: P series
+/// `save_parameters` is done only once its flag reads 0 again (4.1.2, 0020), and the line
+/// goes on with the other devices meanwhile.
+#[tokio::test(start_paused = true)]
+async fn a_save_is_done_through_the_bus_only_once_its_flag_reads_0() {
+    let running = Bus::new(file(TWO)).start().unwrap();
+    let handle = running.handle();
+    let head = running.simulator("head").unwrap().clone();
+    let head = head.finish_time(Duration::from_millis(300));
+    let save = optobus_p_series::DEVICE.command("save_parameters").unwrap();
+    let register = optobus_p_series::DEVICE.register(save.register).unwrap();
+    let started = tokio::time::Instant::now();
+    handle.run("head", save, register).await.unwrap();
+    assert!(started.elapsed() >= Duration::from_millis(300));
+    assert_eq!(head.peek(Table::Holding, register.address), Some(vec![0]));
+    // One that never finishes: the driver's typed error, within the spec's bound.
+    let head = head.finish_time(Duration::MAX);
+    let started = tokio::time::Instant::now();
+    let error = handle.run("head", save, register).await.unwrap_err();
+    assert!(
+        matches!(
+            error,
+            JobError::Device(optobus_driver::Error::CommandNotFinished {
+                expected: 0,
+                last_read: Some(1),
+                ..
+            })
+        ),
+        "{error}"
+    );
+    assert!(started.elapsed() <= Duration::from_millis(2000));
+    assert_eq!(head.peek(Table::Holding, register.address), Some(vec![1]));
+}

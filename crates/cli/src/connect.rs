@@ -306,6 +306,20 @@ impl FailedRead {
     }
 }
 
+/// When the next of a series of reads every `interval` may start, the last one having
+/// started at `started`: one interval after it, or after its last request went out if the line
+/// held that back (the client recovering from a fault waits for a quiet line, up to a
+/// timeout). Ticks missed meanwhile are skipped: two reads never go out closer than
+/// `interval`.
+pub(crate) fn next_read(
+    core: &mut Core<Link>,
+    started: tokio::time::Instant,
+    interval: std::time::Duration,
+) -> tokio::time::Instant {
+    let sent = core.transport_mut().last_request().unwrap_or(started);
+    optobus_driver::transport::timing::deadline_from(started.max(sent), interval)
+}
+
 /// Reads `registers` request by request, as [`optobus_driver::plan_reads`] plans them (the
 /// fewest requests), so that a failure names the registers of its request; gives each
 /// request's readings (the device's answers, around reserved rows where it refuses them).

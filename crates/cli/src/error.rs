@@ -111,6 +111,9 @@ fn exit_of(error: &optobus_driver::Error) -> Exit {
             Exit::Refused
         }
         optobus_driver::Error::Transport(_) => Exit::Failed,
+        // Sent, and the device did not show it had finished (or did not answer): its failure.
+        optobus_driver::Error::CommandNotFinished { .. }
+        | optobus_driver::Error::NotReady { .. } => Exit::Failed,
         _ => Exit::Refused,
     }
 }

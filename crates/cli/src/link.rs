@@ -36,6 +36,17 @@ macro_rules! each_client {
     };
 }
 
+impl Link {
+    /// When the last request began to leave, once the line was ready (recovered, silent).
+    pub(crate) fn last_request(&self) -> Option<tokio::time::Instant> {
+        match self {
+            Link::Serial(client) => client.last_request(),
+            Link::Simulator(client) => client.last_request(),
+            Link::Tcp(client) => client.last_request(),
+        }
+    }
+}
+
 impl Transport for Link {
     async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, WireError> {
         each_client!(self, c => c.read_words(slave, read))

@@ -9,23 +9,7 @@ mod common;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{json, ok, tool, Served};
-
-/// `mbpoll args…` once; the values it printed (`[3]: 425` lines).
-fn mbpoll(args: &[&str]) -> Vec<i64> {
-    let output = Command::new("mbpoll")
-        .args(args)
-        .output()
-        .expect("run mbpoll");
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    assert!(output.status.success(), "mbpoll {args:?}: {stdout}");
-    stdout
-        .lines()
-        .filter_map(|line| line.trim().strip_prefix('['))
-        .filter_map(|rest| rest.split_once("]:"))
-        .filter_map(|(_, value)| value.trim().parse().ok())
-        .collect()
-}
+use common::{json, mbpoll, ok, tool, Served};
 
 /// `mbpoll` with the connection options, `options`, the target and values to write.
 fn mbpoll_at(connection: &[&str], target: &str, options: &[&str], values: &[&str]) -> Vec<i64> {

@@ -446,6 +446,21 @@ pub struct CommandInfo {
     pub effect: Effect,
     /// Registers the effect concerns.
     pub targets: &'static [&'static str],
+    /// How the device shows the command finished, where its manual says so (the spec's
+    /// `done_when` and `within_ms`): the command is done only once its register reads this.
+    pub done_when: Option<Completion>,
+}
+
+/// A command's register reading back a value once the device has finished (P series, CCS
+/// and CCF `save_parameters`: the flag clears itself when the flash write is over).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+pub struct Completion {
+    /// The raw value the command's register reads once the device has finished.
+    pub value: u32,
+    /// How long after the write (busy time included) the device may take; past it the
+    /// command counts as not finished.
+    pub within_ms: u32,
 }
 
 /// Registers read together.
@@ -761,10 +776,14 @@ mod tests {
             busy_ms: 0,
             effect: Effect::Zero,
             targets: &["distance_1"],
+            done_when: Some(Completion {
+                value: 0,
+                within_ms: 2000,
+            }),
         };
         assert_eq!(
             serde_json::to_string(&command).unwrap(),
-            r#"{"name":"zero_position","doc":"Zeroes.","register":"position_zero","value":1,"busy_ms":0,"effect":"zero","targets":["distance_1"]}"#
+            r#"{"name":"zero_position","doc":"Zeroes.","register":"position_zero","value":1,"busy_ms":0,"effect":"zero","targets":["distance_1"],"done_when":{"value":0,"within_ms":2000}}"#
         );
         assert_eq!(
             serde_json::to_string(&Access::ReadWrite).unwrap(),

@@ -468,7 +468,9 @@ impl<T: Transport> Core<T> {
     }
 
     /// Runs `command` (writes its value to `register`, the command's register or the chosen
-    /// copy of it) and waits out the time the device is busy afterwards.
+    /// copy of it) and waits out the time the device is busy afterwards; for a command whose
+    /// spec says how the device shows it finished (`done_when`), polls `register` until it
+    /// does, or fails with [`Error::CommandNotFinished`] once the spec's bound has passed.
     pub async fn run(
         &mut self,
         command: &'static CommandInfo,
@@ -476,11 +478,19 @@ impl<T: Transport> Core<T> {
     ) -> Result<(), Error> {
         let words = crate::convert::encode_integer(register, i64::from(command.value))?;
         tracing::debug!(target: TRACE_TARGET, command = command.name, "run {}", command.name);
+        let written = tokio::time::Instant::now();
         self.write_words(register, &words).await?;
         if command.busy_ms > 0 {
             tokio::time::sleep(Duration::from_millis(u64::from(command.busy_ms))).await;
         }
-        Ok(())
+        let mut wait = CommandWait::new(command, register, written);
+        loop {
+            match wait.poll(self).await {
+                Finish::Done => return Ok(()),
+                Finish::Again(at) => tokio::time::sleep_until(at).await,
+                Finish::Failed(error) => return Err(error),
+            }
+        }
     }
 
     /// Polls until the device answers, for at most `limit`; gives the time it took.
@@ -509,5 +519,82 @@ impl<T: Transport> Core<T> {
                 Err(other) => return Err(other),
             }
         }
+    }
+}
+
+/// How often a command's register is read while the device finishes it.
+pub const COMPLETION_POLL: Duration = Duration::from_millis(50);
+
+/// Waiting for a command to finish, where its spec says how the device shows it
+/// ([`CommandInfo::done_when`]): one read of its register per [`CommandWait::poll`]. The bus
+/// polls the same way between other devices' requests.
+#[derive(Debug)]
+pub struct CommandWait {
+    command: &'static CommandInfo,
+    register: &'static RegisterInfo,
+    written: tokio::time::Instant,
+    last_read: Option<u32>,
+    last_error: Option<Box<optobus_transport::Error>>,
+}
+
+/// What a [`CommandWait::poll`] found.
+#[derive(Debug)]
+pub enum Finish {
+    /// The device has finished (or the command shows no completion).
+    Done,
+    /// Not yet: poll again at this instant.
+    Again(tokio::time::Instant),
+    /// It did not finish within its bound, or the read failed otherwise than on the wire.
+    Failed(Error),
+}
+
+impl CommandWait {
+    /// The wait for `command`, written to `register` at `written`.
+    pub fn new(
+        command: &'static CommandInfo,
+        register: &'static RegisterInfo,
+        written: tokio::time::Instant,
+    ) -> Self {
+        Self {
+            command,
+            register,
+            written,
+            last_read: None,
+            last_error: None,
+        }
+    }
+
+    /// Reads the register once through `core` (nothing for a command without `done_when`):
+    /// finished only when it reads the value that says so. A failed read (the device may not
+    /// answer while it writes its flash) counts as not yet, until the bound has passed.
+    pub async fn poll<T: Transport>(&mut self, core: &mut Core<T>) -> Finish {
+        let Some(done) = self.command.done_when else {
+            return Finish::Done;
+        };
+        match core.read_words(self.register).await {
+            Ok(words) if self.register.raw(&words) == done.value => return Finish::Done,
+            Ok(words) => {
+                self.last_read = Some(self.register.raw(&words));
+                self.last_error = None;
+            }
+            Err(Error::Transport(error)) => self.last_error = Some(Box::new(error)),
+            Err(other) => return Finish::Failed(other),
+        }
+        let bound = crate::transport::timing::deadline_from(
+            self.written,
+            Duration::from_millis(u64::from(done.within_ms)),
+        );
+        let next = tokio::time::Instant::now() + COMPLETION_POLL;
+        if next <= bound {
+            return Finish::Again(next);
+        }
+        Finish::Failed(Error::CommandNotFinished {
+            command: self.command.name,
+            register: self.register.name,
+            expected: done.value,
+            last_read: self.last_read,
+            waited: self.written.elapsed(),
+            last_error: self.last_error.take(),
+        })
     }
 }

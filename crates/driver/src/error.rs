@@ -99,6 +99,23 @@ pub enum Error {
         /// The last failure.
         last: Box<optobus_transport::Error>,
     },
+    /// A command was written and acknowledged, but its register did not read back the value
+    /// that shows the device finished (its spec's `done_when`) within the time the spec
+    /// allows: the command may not have taken effect (a flash write still going on, or lost).
+    CommandNotFinished {
+        /// The command.
+        command: &'static str,
+        /// The register polled.
+        register: &'static str,
+        /// The raw value that means finished.
+        expected: u32,
+        /// What the register read last, if a read was answered.
+        last_read: Option<u32>,
+        /// How long after the write we gave up.
+        waited: Duration,
+        /// The last poll's failure, if it failed.
+        last_error: Option<Box<optobus_transport::Error>>,
+    },
 }
 
 /// `raw` steps of `scale` in `unit`: `5000.1 us`.
@@ -189,6 +206,26 @@ impl fmt::Display for Error {
                 "the device did not answer within {} ms (last error: {last})",
                 waited.as_millis()
             ),
+            Self::CommandNotFinished {
+                command,
+                register,
+                expected,
+                last_read,
+                waited,
+                last_error,
+            } => {
+                write!(
+                    f,
+                    "`{command}` did not finish within {} ms: `{register}` ",
+                    waited.as_millis()
+                )?;
+                match (last_error, last_read) {
+                    (Some(error), _) => write!(f, "could not be read ({error})"),
+                    (None, Some(raw)) => write!(f, "still reads {raw}"),
+                    (None, None) => f.write_str("was not read"),
+                }?;
+                write!(f, ", not {expected}")
+            }
         }
     }
 }
@@ -198,6 +235,10 @@ impl std::error::Error for Error {
         match self {
             Self::Transport(error) => Some(error),
             Self::NotReady { last, .. } => Some(last.as_ref()),
+            Self::CommandNotFinished {
+                last_error: Some(last),
+                ..
+            } => Some(last.as_ref()),
             _ => None,
         }
     }
@@ -293,6 +334,10 @@ impl Error {
         let wire = match self {
             Self::Transport(wire) => Some(wire),
             Self::NotReady { last, .. } => Some(last.as_ref()),
+            Self::CommandNotFinished {
+                last_error: Some(last),
+                ..
+            } => Some(last.as_ref()),
             _ => None,
         };
         let detail = match wire {

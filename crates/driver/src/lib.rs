@@ -45,7 +45,9 @@ pub use crate::buffer::{BufferTiming, DownloadProgress};
 #[cfg_attr(docsrs, doc(cfg(feature = "tcp")))]
 pub use crate::connect::tcp_config;
 pub use crate::connect::{line_format, rtu_config, serial_settings};
-pub use crate::core::{Core, PartialRead, Readings, TRACE_TARGET};
+pub use crate::core::{
+    CommandWait, Core, Finish, PartialRead, Readings, COMPLETION_POLL, TRACE_TARGET,
+};
 pub use convert::{
     encode_code, encode_integer, encode_packed, raw_bits, word_array, CodeEnum, Decode, Encode,
     RawValue,

@@ -7,7 +7,11 @@
 //! their flag": they read 0 again); other command registers keep the value written (a run
 //! state, a lock flag, a zero switch). A command with `busy_ms` is answered, then the device
 //! ignores every request for that long (CCS/CCF 4.1.2: about 400 ms of flash writing during
-//! which requests time out; P series soft reboot).
+//! which requests time out; P series soft reboot). A command whose spec says how the device
+//! shows it finished (`done_when`: P series, CCS and CCF save "clear their flag when the flash
+//! write is done") keeps the value written in its register until then: for its busy time, or
+//! as long as [`Simulator::finish_time`](crate::Simulator::finish_time) says (the P series
+//! manual gives no save time).
 //!
 //! Effects:
 //! - `zero`: each target's current reading becomes its zero (reads about 0 right after);
@@ -72,7 +76,22 @@ impl Device {
             .filter(|command| command_copy(command, register).is_some())
             .map(|command| command.value)
             .collect();
-        if let Some(idle) = register
+        let busy = fired
+            .iter()
+            .map(|(command, _)| command.busy_ms)
+            .max()
+            .unwrap_or(0);
+        let busy = Duration::from_millis(u64::from(busy));
+        let done = fired.iter().find_map(|(command, _)| command.done_when);
+        if let Some(done) = done {
+            // The register shows the value written until the device has finished, then the
+            // value the spec says it shows.
+            let words = stored_words(register, done.value);
+            let at = now.checked_add(self.finish_time.unwrap_or(busy));
+            self.finishing.retain(|(i, ..)| *i != index);
+            self.finishing.push((index, at, words));
+            self.settle(now);
+        } else if let Some(idle) = register
             .codes
             .iter()
             .map(|code| code.code)
@@ -81,14 +100,26 @@ impl Device {
         {
             self.words[index] = stored_words(register, idle);
         }
-        let mut busy = 0;
         for (command, prefix) in fired {
             self.run(command, prefix.as_deref(), t);
-            busy = busy.max(command.busy_ms);
         }
-        if busy > 0 {
-            self.busy_until = Some(now + Duration::from_millis(u64::from(busy)));
+        if !busy.is_zero() {
+            self.busy_until = Some(now + busy);
         }
+    }
+
+    /// Registers of commands that have finished by `now` show the value that says so.
+    pub(crate) fn settle(&mut self, now: Instant) {
+        let words = &mut self.words;
+        self.finishing.retain(|(index, at, done)| {
+            if at.is_none_or(|at| at > now) {
+                return true;
+            }
+            if let Some(slot) = words.get_mut(*index) {
+                slot.clone_from(done);
+            }
+            false
+        });
     }
 
     /// The registers `command` acts on, in the copy `prefix` names if it has them.

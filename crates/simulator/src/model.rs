@@ -8,6 +8,8 @@ use optobus_codec::{
 use optobus_device::{
     Addressing, DeviceInfo, LongWrites, RegisterInfo, Scalar, Table, ValueKind, WriteOrder,
 };
+use std::time::Duration;
+
 use tokio::time::Instant;
 
 use crate::buffer::{Buffer, BufferLayout, Role};
@@ -145,6 +147,11 @@ pub(crate) struct Device {
     pub(crate) address: u8,
     pub(crate) silent: bool,
     pub(crate) busy_until: Option<Instant>,
+    /// Command registers still showing the value written: index, when the command finishes
+    /// (`None`: never), and the words it shows then.
+    pub(crate) finishing: Vec<(usize, Option<Instant>, Vec<u16>)>,
+    /// How long a command with `done_when` takes to finish, instead of its busy time.
+    pub(crate) finish_time: Option<Duration>,
     /// Faults injected into replies, shared by every server of the device.
     pub(crate) faults: Option<Injector>,
 }
@@ -180,6 +187,8 @@ impl Device {
             address,
             silent: false,
             busy_until: None,
+            finishing: Vec::new(),
+            finish_time: None,
             faults: None,
         }
     }
@@ -227,6 +236,7 @@ impl Device {
         incoming: Incoming<'_>,
         now: Instant,
     ) -> Reply {
+        self.settle(now);
         if self.silent || self.busy_until.is_some_and(|until| now < until) {
             return Reply::Silent;
         }

@@ -221,6 +221,14 @@ impl Simulator {
         self.lock().silent
     }
 
+    /// How long a command whose spec says how the device shows it finished (`done_when`)
+    /// keeps the value written in its register before it shows that, instead of the
+    /// command's busy time (all clones share it); `Duration::MAX` never finishes.
+    pub fn finish_time(self, time: Duration) -> Self {
+        self.lock().finish_time = Some(time);
+        self
+    }
+
     /// Whether the device ignores requests now (silent, or busy after a command).
     pub fn is_busy(&self) -> bool {
         let device = self.lock();

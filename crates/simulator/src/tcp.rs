@@ -1,10 +1,12 @@
-//! Modbus TCP serving: every connection gets the same device.
+//! Modbus TCP serving: every connection gets the same device, or the same line of devices.
 //!
 //! The device is addressed by its IP, so it answers every unit id and echoes it with the
 //! transaction id (P series 5.1.2 .. 5.3.2). A frame with a protocol id other than 0 or an
 //! impossible length is skipped by its MBAP length; a connection that cannot be framed any
 //! more is closed. Devices without a `tcp` transport can be served too, like an RTU-to-TCP
-//! gateway would.
+//! gateway would. A [`Bus`] served over TCP is such a gateway in front of its line: the unit
+//! id picks the device, and a unit id no device has gets exception 0B (gateway target device
+//! failed to respond), as mbusd and the bus's own gateway answer.
 
 use std::io;
 use std::net::SocketAddr;
@@ -15,9 +17,77 @@ use tokio::net::{TcpListener, ToSocketAddrs};
 use tokio::task::{JoinHandle, JoinSet};
 
 use crate::faults::{self, Framing, Plan};
-use crate::model::{Envelope, Incoming};
+use crate::model::{Envelope, Incoming, Reply};
 use crate::names;
+use crate::rtu::Bus;
 use crate::sim::Simulator;
+
+/// Who answers a Modbus TCP request.
+#[derive(Clone, Copy)]
+enum Answerer<'a> {
+    /// One device, whatever the unit id.
+    Device(&'a Simulator),
+    /// The device of a line whose address is the unit id.
+    Line(&'a [Simulator]),
+}
+
+impl<'a> Answerer<'a> {
+    /// The device for unit id `unit`, and the slave address it is asked as (`None`: any).
+    fn pick(self, unit: u8) -> Option<(&'a Simulator, Option<u8>)> {
+        match self {
+            Self::Device(sim) => Some((sim, None)),
+            Self::Line(members) => members
+                .iter()
+                .find(|member| unit != 0 && member.address() == unit)
+                .map(|member| (member, Some(unit))),
+        }
+    }
+}
+
+/// Exception 0B, gateway target device failed to respond.
+const TARGET_FAILED: u16 = 0x0B;
+
+impl Bus {
+    /// Listens on `addr` and serves the line's devices over Modbus TCP on a spawned task, as
+    /// a TCP-to-RTU gateway in front of them would: the unit id picks the device (by its
+    /// address), and a unit id no device has is answered with exception 0B (gateway target
+    /// device failed to respond). Each device's own faults apply to its replies.
+    pub async fn serve_tcp(&self, addr: impl ToSocketAddrs) -> io::Result<TcpServer> {
+        let members = self.members().to_vec();
+        listen(addr, move |stream| {
+            let members = members.clone();
+            async move { serve_stream(Answerer::Line(&members), stream).await }
+        })
+        .await
+    }
+}
+
+/// Accepts connections on `addr` and serves each with `serve` on a task of its own.
+async fn listen<F, Fut>(addr: impl ToSocketAddrs, serve: F) -> io::Result<TcpServer>
+where
+    F: Fn(tokio::net::TcpStream) -> Fut + Send + 'static,
+    Fut: std::future::Future<Output = io::Result<()>> + Send + 'static,
+{
+    let listener = TcpListener::bind(addr).await?;
+    let local_addr = listener.local_addr()?;
+    let task = tokio::spawn(async move {
+        let mut connections = JoinSet::new();
+        loop {
+            tokio::select! {
+                accepted = listener.accept() => {
+                    let Ok((stream, _)) = accepted else { continue };
+                    // A broken connection ends only itself.
+                    let served = serve(stream);
+                    connections.spawn(async move {
+                        let _ = served.await;
+                    });
+                }
+                Some(_) = connections.join_next(), if !connections.is_empty() => {}
+            }
+        }
+    });
+    Ok(TcpServer { local_addr, task })
+}
 
 /// A running Modbus TCP server; dropping it stops the server and closes its connections.
 #[derive(Debug)]
@@ -48,27 +118,15 @@ impl Simulator {
     /// Listens on `addr` (e.g. `"127.0.0.1:0"`) and serves Modbus TCP to any number of
     /// connections on a spawned task.
     pub async fn serve_tcp(&self, addr: impl ToSocketAddrs) -> io::Result<TcpServer> {
-        let listener = TcpListener::bind(addr).await?;
-        let local_addr = listener.local_addr()?;
         let sim = self.clone();
-        let task = tokio::spawn(async move {
-            let mut connections = JoinSet::new();
-            loop {
-                tokio::select! {
-                    accepted = listener.accept() => {
-                        let Ok((stream, peer)) = accepted else { continue };
-                        sim.note_host_port(peer.port());
-                        let sim = sim.clone();
-                        connections.spawn(async move {
-                            // A broken connection ends only itself.
-                            let _ = sim.serve_tcp_stream(stream).await;
-                        });
-                    }
-                    Some(_) = connections.join_next(), if !connections.is_empty() => {}
-                }
+        listen(addr, move |stream| {
+            if let Ok(peer) = stream.peer_addr() {
+                sim.note_host_port(peer.port());
             }
-        });
-        Ok(TcpServer { local_addr, task })
+            let sim = sim.clone();
+            async move { sim.serve_tcp_stream(stream).await }
+        })
+        .await
     }
 
     /// The P series shows the bound host's port (input 0154).
@@ -85,63 +143,96 @@ impl Simulator {
 
     /// Serves Modbus TCP on one connection (a `TcpStream`, or any byte stream carrying MBAP
     /// frames) until the peer closes it.
-    pub async fn serve_tcp_stream<IO>(&self, mut stream: IO) -> io::Result<()>
+    pub async fn serve_tcp_stream<IO>(&self, stream: IO) -> io::Result<()>
     where
         IO: AsyncRead + AsyncWrite + Unpin,
     {
-        let shape = self.device().frame_shape;
-        let mut pending: Vec<u8> = Vec::with_capacity(tcp::MAX_FRAME_LEN);
-        let mut chunk = [0u8; tcp::MAX_FRAME_LEN];
-        loop {
-            loop {
-                match tcp::decode_request(&pending, &shape) {
-                    Ok(Decoded::NeedMore { .. }) => break,
-                    Ok(Decoded::Frame { frame, consumed }) => {
-                        pending.drain(..consumed.min(pending.len()));
-                        let reply = self.respond(None, Incoming::Request(&frame.pdu));
-                        if let Some(bytes) =
-                            reply.encode(Envelope::Tcp(frame.header), shape.exception)
-                        {
-                            if !self.send_tcp(&mut stream, bytes).await? {
-                                return Ok(());
-                            }
-                        }
-                    }
-                    Err(DecodeError::UnsupportedFunction { function }) => {
-                        let Some(len) = tcp::frame_len(&pending) else {
-                            break;
-                        };
-                        if pending.len() < len {
-                            break;
-                        }
-                        let header = header_of(&pending);
-                        pending.drain(..len);
-                        let reply = self.respond(None, Incoming::Unsupported(function));
-                        if let Some(bytes) = reply.encode(Envelope::Tcp(header), shape.exception) {
-                            if !self.send_tcp(&mut stream, bytes).await? {
-                                return Ok(());
-                            }
-                        }
-                    }
-                    Err(DecodeError::BadProtocolId { .. }) => {
-                        match tcp::frame_len(&pending).filter(|&len| len <= tcp::MAX_FRAME_LEN) {
-                            Some(len) if pending.len() >= len => {
-                                pending.drain(..len);
-                            }
-                            Some(_) => break,
-                            None => return Ok(()),
-                        }
-                    }
-                    // The stream cannot be framed any more.
-                    Err(_) => return Ok(()),
+        serve_stream(Answerer::Device(self), stream).await
+    }
+}
+
+/// Serves Modbus TCP on one connection until the peer closes it, each request answered by
+/// the device `who` picks for its unit id.
+async fn serve_stream<IO>(who: Answerer<'_>, mut stream: IO) -> io::Result<()>
+where
+    IO: AsyncRead + AsyncWrite + Unpin,
+{
+    let mut pending: Vec<u8> = Vec::with_capacity(tcp::MAX_FRAME_LEN);
+    let mut chunk = [0u8; tcp::MAX_FRAME_LEN];
+    loop {
+        // The unit id (MBAP byte 6) says who decodes the frame.
+        while let Some(&unit) = pending.get(6) {
+            let Some((sim, slave)) = who.pick(unit) else {
+                // No device at that unit id: the frame is skipped whole and answered 0B.
+                let Some(len) = tcp::frame_len(&pending).filter(|&l| l <= tcp::MAX_FRAME_LEN)
+                else {
+                    return Ok(());
+                };
+                if pending.len() < len {
+                    break;
                 }
+                let header = header_of(&pending);
+                let function = pending.get(7).copied().unwrap_or(0) & 0x7F;
+                pending.drain(..len);
+                let reply = Reply::Exception {
+                    function,
+                    code: optobus_codec::ExceptionCode(TARGET_FAILED),
+                };
+                if let Some(bytes) = reply.encode(
+                    Envelope::Tcp(header),
+                    optobus_codec::ExceptionShape::Standard,
+                ) {
+                    stream.write_all(&bytes).await?;
+                }
+                continue;
+            };
+            let shape = sim.device().frame_shape;
+            match tcp::decode_request(&pending, &shape) {
+                Ok(Decoded::NeedMore { .. }) => break,
+                Ok(Decoded::Frame { frame, consumed }) => {
+                    pending.drain(..consumed.min(pending.len()));
+                    let reply = sim.respond(slave, Incoming::Request(&frame.pdu));
+                    if let Some(bytes) = reply.encode(Envelope::Tcp(frame.header), shape.exception)
+                    {
+                        if !sim.send_tcp(&mut stream, bytes).await? {
+                            return Ok(());
+                        }
+                    }
+                }
+                Err(DecodeError::UnsupportedFunction { function }) => {
+                    let Some(len) = tcp::frame_len(&pending) else {
+                        break;
+                    };
+                    if pending.len() < len {
+                        break;
+                    }
+                    let header = header_of(&pending);
+                    pending.drain(..len);
+                    let reply = sim.respond(slave, Incoming::Unsupported(function));
+                    if let Some(bytes) = reply.encode(Envelope::Tcp(header), shape.exception) {
+                        if !sim.send_tcp(&mut stream, bytes).await? {
+                            return Ok(());
+                        }
+                    }
+                }
+                Err(DecodeError::BadProtocolId { .. }) => {
+                    match tcp::frame_len(&pending).filter(|&len| len <= tcp::MAX_FRAME_LEN) {
+                        Some(len) if pending.len() >= len => {
+                            pending.drain(..len);
+                        }
+                        Some(_) => break,
+                        None => return Ok(()),
+                    }
+                }
+                // The stream cannot be framed any more.
+                Err(_) => return Ok(()),
             }
-            let read = stream.read(&mut chunk).await?;
-            if read == 0 {
-                return Ok(());
-            }
-            pending.extend_from_slice(chunk.get(..read).unwrap_or_default());
         }
+        let read = stream.read(&mut chunk).await?;
+        if read == 0 {
+            return Ok(());
+        }
+        pending.extend_from_slice(chunk.get(..read).unwrap_or_default());
     }
 }
 

@@ -105,6 +105,8 @@ pub struct RtuClient<S> {
     /// cleared when it completes cleanly, so a dropped transaction leaves it set. Recovery
     /// waits for quiet counted from `since`.
     unsettled: Option<Instant>,
+    /// When the last request began to leave, once the line was ready.
+    last_request: Option<Instant>,
     buffer: Box<[u8; rtu::MAX_FRAME_LEN + 4]>,
 }
 
@@ -122,6 +124,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             config,
             last_activity: None,
             unsettled: None,
+            last_request: None,
             buffer: Box::new([0; rtu::MAX_FRAME_LEN + 4]),
         }
     }
@@ -139,6 +142,12 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
     /// Gives the stream back.
     pub fn into_inner(self) -> S {
         self.stream
+    }
+
+    /// When the last request began to leave: after the recovery from a fault and the t3.5
+    /// silence before it, which can hold a request back well past the call that made it.
+    pub fn last_request(&self) -> Option<Instant> {
+        self.last_request
     }
 
     /// Takes in bytes already waiting, without waiting for more; `true` if there were any.
@@ -245,7 +254,9 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         self.prepare().await?;
         // From here until the reply is complete the line state is unknown, also if this
         // future is dropped: the next transaction then recovers first.
-        let sent = Instant::now() + self.config.transmit_time(frame.len());
+        let now = Instant::now();
+        self.last_request = Some(now);
+        let sent = now + self.config.transmit_time(frame.len());
         let deadline = deadline_from(sent, self.config.timeout);
         self.unsettled = Some(deadline_from(
             sent,

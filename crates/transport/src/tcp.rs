@@ -123,6 +123,8 @@ pub struct TcpClient<C: Connect = SocketAddr> {
     /// off by a dropped future is still skipped whole.
     pending: Vec<u8>,
     backoff: Option<Backoff>,
+    /// When the last request began to leave, once connected.
+    last_request: Option<Instant>,
 }
 
 impl TcpClient<SocketAddr> {
@@ -145,7 +147,14 @@ impl<C: Connect> TcpClient<C> {
             next_transaction: 0,
             pending: Vec::with_capacity(tcp::MAX_FRAME_LEN),
             backoff: None,
+            last_request: None,
         }
+    }
+
+    /// When the last request began to leave: after connecting, which can hold a request
+    /// back past the call that made it.
+    pub fn last_request(&self) -> Option<Instant> {
+        self.last_request
     }
 
     /// The settings.
@@ -257,6 +266,7 @@ impl<C: Connect> TcpClient<C> {
             return Err(Error::Closed);
         };
         self.writing = true;
+        self.last_request = Some(Instant::now());
         let written = async {
             stream.write_all(&frame[..len]).await?;
             stream.flush().await

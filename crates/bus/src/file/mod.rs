@@ -237,6 +237,19 @@ impl BusFile {
     }
 }
 
+impl DeviceConfig {
+    /// The simulated device a `simulated: true` line puts in this device's place: its model
+    /// at its slave address, with its `faults` (a late reply lands after its `timeout`).
+    /// `optobus simulate --bus` serves a line of them on a pty or a port.
+    pub fn simulator(&self) -> optobus_simulator::Simulator {
+        let simulator = optobus_simulator::Simulator::new(self.device).slave(self.slave);
+        match &self.faults {
+            Some(faults) => simulator.faults(faults.clone().client_timeout(self.timeout)),
+            None => simulator,
+        }
+    }
+}
+
 /// Why a bus file could not be used.
 #[derive(Debug)]
 pub enum LoadError {

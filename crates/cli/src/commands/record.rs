@@ -10,7 +10,7 @@ use clap::Args;
 use optobus_driver::transport::timing::deadline_from;
 use tokio::time::Instant;
 
-use crate::connect::{read_values, DeviceArgs, Global, Names};
+use crate::connect::{next_read, read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::inputs;
 use crate::log::note;
@@ -88,7 +88,7 @@ pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliErr
         }
         if let Some(interval) = args.interval {
             tokio::select! {
-                () = tokio::time::sleep_until(deadline_from(sample_started, interval)) => {}
+                () = tokio::time::sleep_until(next_read(&mut core, sample_started, interval)) => {}
                 _ = &mut ctrl_c => break,
             }
         }

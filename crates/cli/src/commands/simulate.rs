@@ -1,24 +1,37 @@
-//! `optobus simulate`: a virtual device served over Modbus TCP, a pty or a serial port, with
-//! seeded faults and RS-485 line timing on request; every exchange logged on stderr.
+//! `optobus simulate`: a virtual device served over Modbus TCP, a pty or a serial port, or
+//! several on one RTU line (`p-series@1 ccs@3`, or a line of a bus file), with seeded faults
+//! and RS-485 line timing on request; every exchange logged on stderr.
 
+use std::collections::BTreeSet;
+use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
+use optobus_codec::LineFormat;
 use optobus_device::DeviceInfo;
-use optobus_driver::serial_settings;
-use optobus_simulator::{Faults, FaultsError, Line, Simulator};
+use optobus_simulator::{Bus, Faults, FaultsError, Line, Reply, Simulator};
 
 use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
 use crate::log::Log;
 use crate::render::print;
-use crate::{inputs, link};
+use crate::{inputs, link, models};
 
 /// `optobus simulate`'s arguments.
 #[derive(Debug, Args)]
 pub(crate) struct SimulateArgs {
-    /// The model (default: --model).
-    model: Option<String>,
+    /// The model (default: --model); or several devices on one RTU line, each as MODEL@SLAVE
+    /// (`p-series@1 ccs@3 rangefinder@5`).
+    #[arg(value_name = "MODEL[@SLAVE]")]
+    models: Vec<String>,
+    /// Serve the devices of a line of this bus file on one RTU line, each at its slave with
+    /// its `faults:` (see crates/bus/README.md).
+    #[arg(long, value_name = "FILE", conflicts_with = "models")]
+    bus: Option<PathBuf>,
+    /// With --bus, the line whose devices to serve (default: the file's only line, or its
+    /// only `simulated: true` line).
+    #[arg(long, value_name = "NAME", requires = "bus")]
+    line: Option<String>,
     /// Serve RTU on a new pseudo-terminal and print its path.
     #[arg(long)]
     pty: bool,
@@ -68,17 +81,85 @@ fn line(device: &DeviceInfo, global: &Global, args: &SimulateArgs) -> Result<Lin
     Ok(Line::new(format).turnaround(args.turnaround))
 }
 
-/// `optobus simulate`: serves a virtual device until Ctrl-C or `--duration`, with `--faults`
-/// in its replies and, on RTU, `--line-timing`. Every exchange is logged on stderr by a
-/// thread of its own ([`Log`]), so a slow or closed stderr never holds up a reply.
+/// `optobus simulate`: serves a virtual device, or a line of several, until Ctrl-C or
+/// `--duration`, with `--faults` in its replies and, on RTU, `--line-timing`. Every exchange
+/// is logged on stderr by a thread of its own ([`Log`]), so a slow or closed stderr never
+/// holds up a reply.
 pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliError> {
-    let device = global.device_or(args.model.as_deref())?;
     if global.target.sim_speed.is_some() {
         return Err(CliError::new(
             "--sim-speed sets how fast a device command's own simulator answers (no --serial or --tcp)",
         )
         .hint("time a served RTU line with --line-timing"));
     }
+    let several = args.bus.is_some() || args.models.len() > 1;
+    let log = Log::start();
+    let served = if several {
+        serve_several(global, args, &log).await
+    } else {
+        serve_one(global, args, &log).await
+    };
+    // The summary and whether lines were dropped, if stderr takes them.
+    log.finish(Duration::from_millis(200));
+    served
+}
+
+/// `sim` logging each exchange it sees on `log`, but a request it leaves unanswered only when
+/// `logs_silence_to` its slave address (on a line of several, each device logs what it was
+/// asked, not every other device's traffic).
+fn logged(
+    sim: Simulator,
+    log: &Log,
+    logs_silence_to: impl Fn(u8) -> bool + Send + Sync + 'static,
+) -> Simulator {
+    let log = log.clone();
+    sim.observe(move |exchange| {
+        let silent = matches!(exchange.reply, Reply::Silent);
+        if !silent || exchange.slave.is_none_or(&logs_silence_to) {
+            log.line(format!("{} {exchange}", crate::render::time_of_day()));
+        }
+    })
+}
+
+/// Waits for `--duration` or Ctrl-C.
+async fn until_stopped(duration: Option<Duration>) {
+    match duration {
+        Some(duration) => tokio::select! {
+            () = tokio::time::sleep(duration) => {}
+            _ = tokio::signal::ctrl_c() => {}
+        },
+        None => {
+            let _ = tokio::signal::ctrl_c().await;
+        }
+    }
+}
+
+/// `--line-timing`'s description for the log.
+fn timed_text(line: Option<&Line>, args: &SimulateArgs) -> String {
+    line.map(|line| {
+        let turnaround = args.turnaround;
+        format!(
+            ", line timed at {}, turnaround {turnaround:?}",
+            line.format()
+        )
+    })
+    .unwrap_or_default()
+}
+
+/// One device, at `--slave` or its factory address, over TCP, a pty or a serial port.
+async fn serve_one(global: &Global, args: &SimulateArgs, log: &Log) -> Result<(), CliError> {
+    let named = args.models.first().map(String::as_str);
+    if let Some((model, slave)) = named.and_then(|n| n.rsplit_once('@')) {
+        // One MODEL@SLAVE is one device at that slave.
+        return serve_list(
+            global,
+            args,
+            log,
+            &[(models::find(model)?, slave_of(model, slave)?)],
+        )
+        .await;
+    }
+    let device = global.device_or(named)?;
     global.check_line(device)?;
     let slave = global.slave.unwrap_or(device.default_slave);
     if slave == 0 {
@@ -88,109 +169,364 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
         .hint("serve at 1 to 247 with --slave"));
     }
     let faults = faults(args)?;
-    let rtu = args.pty || global.target.serial.is_some();
     let line = if args.line_timing {
-        if !rtu {
-            return Err(CliError::new(
-                "--line-timing times an RTU serial line; Modbus TCP has no line to time",
-            )
-            .hint("serve RTU with --pty or --serial PORT"));
-        }
+        check_rtu(global, args)?;
         Some(line(device, global, args)?)
     } else {
         None
     };
     let faulty = faults.as_ref().map(|f| format!(", faults {f}"));
-    let timed = line.as_ref().map(|line| {
-        let turnaround = args.turnaround;
-        format!(
-            ", line timed at {}, turnaround {turnaround:?}",
-            line.format()
-        )
-    });
-    let extras = faulty.unwrap_or_default() + &timed.unwrap_or_default();
-    let log = Log::start();
-    let mut sim = Simulator::new(device).slave(slave).observe({
-        let log = log.clone();
-        move |exchange| log.line(format!("{} {exchange}", crate::render::time_of_day()))
-    });
+    let extras = faulty.unwrap_or_default() + &timed_text(line.as_ref(), args);
+    let mut sim = logged(Simulator::new(device).slave(slave), log, |_| true);
     if let Some(faults) = &faults {
         sim = sim.faults(faults.clone());
     }
     let line_stats = line.as_ref().map(Line::stats);
-    let served = async {
-        let (server, place) = serve(device, global, args.pty, line, &sim).await?;
-        log.line(format!(
-            "optobus: simulating {} (slave {slave}) on {place}{extras}",
-            crate::models::name(device)
-        ));
-        let _ = std::io::Write::flush(&mut std::io::stdout());
-        match args.duration {
-            Some(duration) => tokio::select! {
-                () = tokio::time::sleep(duration) => {}
-                _ = tokio::signal::ctrl_c() => {}
-            },
-            None => {
-                let _ = tokio::signal::ctrl_c().await;
-            }
-        }
-        drop(server);
-        if let (Some(faults), Some(stats)) = (&faults, sim.fault_stats()) {
-            log.line(format!("optobus: {}", stats.summary(faults)));
-        }
-        if let Some(stats) = line_stats {
-            log.line(format!("optobus: {stats}"));
-        }
-        Ok(())
+    let (server, place) = if args.pty || global.target.serial.is_some() {
+        let format = global.target.line_format(device);
+        let serial = global.target.serial.as_deref();
+        serve_rtu(&Bus::new([sim.clone()]), serial, Some(format), line)?
+    } else {
+        serve_tcp(global, |address| sim.serve_tcp(address)).await?
+    };
+    log.line(format!(
+        "optobus: simulating {} (slave {slave}) on {place}{extras}",
+        crate::models::name(device)
+    ));
+    let _ = std::io::Write::flush(&mut std::io::stdout());
+    until_stopped(args.duration).await;
+    drop(server);
+    if let (Some(faults), Some(stats)) = (&faults, sim.fault_stats()) {
+        log.line(format!("optobus: {}", stats.summary(faults)));
     }
-    .await;
-    // The summary and whether lines were dropped, if stderr takes them.
-    log.finish(Duration::from_millis(200));
-    served
+    if let Some(stats) = line_stats {
+        log.line(format!("optobus: {stats}"));
+    }
+    Ok(())
 }
 
-/// Starts serving `sim`: on a new pty, on `--serial` or on `--tcp`, RTU timed as `line` says;
-/// prints where on stdout and gives what must be kept alive, and where it serves for the log.
-async fn serve(
-    device: &'static DeviceInfo,
+/// `--line-timing` needs an RTU line: a pty or a serial port.
+fn check_rtu(global: &Global, args: &SimulateArgs) -> Result<(), CliError> {
+    if args.pty || global.target.serial.is_some() {
+        return Ok(());
+    }
+    Err(
+        CliError::new("--line-timing times an RTU serial line; Modbus TCP has no line to time")
+            .hint("serve RTU with --pty or --serial PORT"),
+    )
+}
+
+/// The slave address of `MODEL@SLAVE`: 1 to 247.
+fn slave_of(model: &str, slave: &str) -> Result<u8, CliError> {
+    slave
+        .parse::<u8>()
+        .ok()
+        .filter(|slave| (1..=247).contains(slave))
+        .ok_or_else(|| {
+            CliError::new(format!(
+                "`{model}@{slave}`: a device's slave address is 1 to 247"
+            ))
+            .hint("e.g. p-series@1 ccs@3")
+        })
+}
+
+/// Several devices on one RTU line: the `MODEL@SLAVE` list or a line of `--bus`.
+async fn serve_several(global: &Global, args: &SimulateArgs, log: &Log) -> Result<(), CliError> {
+    if global.slave.is_some() {
+        return Err(CliError::new(
+            "--slave serves one device; on a line of several each has its own address",
+        )
+        .hint("name each as MODEL@SLAVE, or give `slave:` in the bus file"));
+    }
+    if let Some(path) = &args.bus {
+        return serve_bus_line(global, args, log, path).await;
+    }
+    let mut devices = Vec::new();
+    for item in &args.models {
+        let (model, slave) = item.rsplit_once('@').ok_or_else(|| {
+            CliError::new(format!(
+                "`{item}`: devices sharing a line are each named MODEL@SLAVE"
+            ))
+            .hint("e.g. p-series@1 ccs@3 rangefinder@5")
+        })?;
+        devices.push((models::find(model)?, slave_of(model, slave)?));
+    }
+    serve_list(global, args, log, &devices).await
+}
+
+/// The `MODEL@SLAVE` devices on one line, `--faults` in every reply on it.
+async fn serve_list(
     global: &Global,
-    pty: bool,
+    args: &SimulateArgs,
+    log: &Log,
+    devices: &[(&'static DeviceInfo, u8)],
+) -> Result<(), CliError> {
+    let mut slaves = BTreeSet::new();
+    for &(device, slave) in devices {
+        global.check_line(device)?;
+        if !slaves.insert(slave) {
+            return Err(CliError::new(format!(
+                "two devices at slave {slave}: each answers its own address"
+            )));
+        }
+    }
+    let formats: BTreeSet<String> = devices
+        .iter()
+        .map(|(device, _)| global.target.line_format(device).to_string())
+        .collect();
+    let format = match devices.first() {
+        Some((device, _)) if formats.len() == 1 => Some(global.target.line_format(device)),
+        _ => None,
+    };
+    let members = devices
+        .iter()
+        .map(|&(device, slave)| {
+            (
+                models::name(device),
+                Simulator::new(device).slave(slave),
+                None,
+            )
+        })
+        .collect();
+    let line = Several { members, format };
+    serve_line_of(global, args, log, line, faults(args)?).await
+}
+
+/// The devices of one line of the bus file at `path`, each with its own faults.
+async fn serve_bus_line(
+    global: &Global,
+    args: &SimulateArgs,
+    log: &Log,
+    path: &std::path::Path,
+) -> Result<(), CliError> {
+    let target = &global.target;
+    if target.baud.is_some()
+        || target.parity.is_some()
+        || target.data_bits.is_some()
+        || target.stop_bits.is_some()
+    {
+        return Err(CliError::new(
+            "the bus file sets its line's format; --baud, --parity, --data-bits and --stop-bits do not apply",
+        ));
+    }
+    if args.faults.is_some() {
+        return Err(
+            CliError::new("--faults does not apply to a bus file's line")
+                .hint("give each simulated device its `faults:` in the bus file"),
+        );
+    }
+    let file = crate::commands::bus::load(path)?;
+    let index = bus_line(&file, args.line.as_deref(), path)?;
+    let members = file
+        .devices_on(index)
+        .map(|(_, config)| {
+            let who = format!("{} {}", models::name(config.device), config.name);
+            (who, config.simulator(), config.faults.clone())
+        })
+        .collect();
+    let line = Several {
+        members,
+        format: file.lines.get(index).and_then(|line| line.format),
+    };
+    serve_line_of(global, args, log, line, None).await
+}
+
+/// The line of the bus file `--line` names, or its only line, or its only simulated line.
+fn bus_line(
+    file: &optobus_bus::BusFile,
+    named: Option<&str>,
+    path: &std::path::Path,
+) -> Result<usize, CliError> {
+    let names = || {
+        let names: Vec<&str> = file.lines.iter().map(|l| l.name.as_str()).collect();
+        names.join(", ")
+    };
+    if let Some(name) = named {
+        return file
+            .lines
+            .iter()
+            .position(|line| line.name == name)
+            .ok_or_else(|| {
+                CliError::new(format!("{} has no line `{name}`", path.display()))
+                    .hint(format!("its lines: {}", names()))
+            });
+    }
+    let simulated: Vec<usize> = (0..file.lines.len())
+        .filter(|&i| {
+            file.lines
+                .get(i)
+                .is_some_and(|l| l.port == optobus_bus::Port::Simulated)
+        })
+        .collect();
+    match (file.lines.len(), simulated.as_slice()) {
+        (1, _) => Ok(0),
+        (_, [only]) => Ok(*only),
+        _ => Err(
+            CliError::new(format!("{} has several lines", path.display()))
+                .hint(format!("name the one to serve with --line ({})", names())),
+        ),
+    }
+}
+
+/// Devices sharing one simulated RTU line.
+struct Several {
+    /// Each device as the log names it (`p-series`, or the model and the bus file's name),
+    /// its simulator and the faults in its own replies.
+    members: Vec<(String, Simulator, Option<Faults>)>,
+    /// The line's format, when the devices agree on one (or the bus file gives it).
+    format: Option<LineFormat>,
+}
+
+/// Serves `several` on one RTU line (a pty or `--serial`), `line_faults` in every reply.
+async fn serve_line_of(
+    global: &Global,
+    args: &SimulateArgs,
+    log: &Log,
+    several: Several,
+    line_faults: Option<Faults>,
+) -> Result<(), CliError> {
+    if args.line_timing {
+        check_rtu(global, args)?;
+    }
+    let rtu = args.pty || global.target.serial.is_some();
+    let needs_format = args.line_timing || global.target.serial.is_some();
+    let format = match several.format {
+        Some(format) => Some(format),
+        None if needs_format => {
+            return Err(CliError::new(
+                "the devices' factory serial formats differ: the line needs one",
+            )
+            .hint("give --baud, --parity, --data-bits and --stop-bits"))
+        }
+        None => None,
+    };
+    let line = match format.filter(|_| args.line_timing) {
+        Some(format) => {
+            format
+                .check()
+                .map_err(|e| CliError::new(format!("--line-timing cannot time this line: {e}")))?;
+            Some(Line::new(format).turnaround(args.turnaround))
+        }
+        None => None,
+    };
+    // Each device logs the requests to itself; the first also those to no device.
+    let addresses: BTreeSet<u8> = several
+        .members
+        .iter()
+        .map(|(_, sim, _)| sim.address())
+        .collect();
+    // On RTU `--faults` go into every reply on the line; over TCP each device's replies.
+    let each_faults = line_faults.clone().filter(|_| !rtu);
+    let line_faults = line_faults.filter(|_| rtu);
+    let members: Vec<(String, Simulator, Option<Faults>)> = several
+        .members
+        .into_iter()
+        .enumerate()
+        .map(|(index, (name, sim, faults))| {
+            let own = sim.address();
+            let addresses = addresses.clone();
+            let logs = move |slave| slave == own || (index == 0 && !addresses.contains(&slave));
+            let sim = logged(sim, log, logs);
+            match &each_faults {
+                Some(each) => (name, sim.faults(each.clone()), Some(each.clone())),
+                None => (name, sim, faults),
+            }
+        })
+        .collect();
+    let mut bus = Bus::new(members.iter().map(|(_, sim, _)| sim.clone()));
+    if let Some(faults) = &line_faults {
+        bus = bus.faults(faults.clone());
+    }
+    let extras = line_faults.as_ref().or(each_faults.as_ref());
+    let extras = extras.map(|f| format!(", faults {f}"));
+    let line_stats = line.as_ref().map(Line::stats);
+    let extras = extras.unwrap_or_default() + &timed_text(line.as_ref(), args);
+    let (server, place) = if rtu {
+        serve_rtu(&bus, global.target.serial.as_deref(), format, line)?
+    } else {
+        let (server, place) = serve_tcp(global, |address| bus.serve_tcp(address)).await?;
+        (server, place + " (the unit id picks the device)")
+    };
+    let who: Vec<String> = members
+        .iter()
+        .map(|(name, sim, _)| format!("slave {}: {name}", sim.address()))
+        .collect();
+    print(&who.join("\n"));
+    log.line(format!(
+        "optobus: simulating {} devices ({}) on {place}{extras}",
+        who.len(),
+        who.join(", ")
+    ));
+    let _ = std::io::Write::flush(&mut std::io::stdout());
+    until_stopped(args.duration).await;
+    drop(server);
+    if let (Some(faults), Some(stats)) = (&line_faults, bus.fault_stats()) {
+        log.line(format!("optobus: {}", stats.summary(faults)));
+    }
+    for (name, sim, faults) in &members {
+        if let (Some(faults), Some(stats)) = (faults, sim.fault_stats()) {
+            log.line(format!("optobus: {name}: {}", stats.summary(faults)));
+        }
+    }
+    if let Some(stats) = line_stats {
+        log.line(format!("optobus: {stats}"));
+    }
+    Ok(())
+}
+
+/// What keeps a simulation served while it runs, and where it is served, for the log.
+type Served = (Box<dyn std::any::Any>, String);
+
+/// Serves `bus` as RTU on a new pty, or on the serial port `serial` in `format`, timed as
+/// `line` says; prints where on stdout.
+fn serve_rtu(
+    bus: &Bus,
+    serial: Option<&str>,
+    format: Option<LineFormat>,
     line: Option<Line>,
-    sim: &Simulator,
-) -> Result<(Box<dyn std::any::Any>, String), CliError> {
-    Ok(if pty {
+) -> Result<Served, CliError> {
+    let (Some(path), Some(format)) = (serial, format) else {
         let pty = match line {
-            Some(line) => sim.serve_pty_line(line),
-            None => sim.serve_pty(),
+            Some(line) => bus.serve_pty_line(line),
+            None => bus.serve_pty(),
         }
         .map_err(|e| CliError::failed(format!("cannot open a pty: {e}")))?;
         let path = pty.path().display().to_string();
         print(&path);
-        (Box::new(pty), format!("RTU at {path}"))
-    } else if let Some(path) = &global.target.serial {
-        let mut settings = serial_settings(device, path.as_str());
-        settings.line = global.target.line_format(device);
-        let port = settings
-            .open()
-            .map_err(|e| CliError::failed(format!("cannot open {path}: {e}")))?;
-        print(path);
-        let sim = sim.clone();
-        let task = tokio::spawn(async move {
-            match line {
-                Some(line) => sim.serve_line(port, &line).await,
-                None => sim.serve_rtu(port).await,
-            }
-        });
-        (Box::new(task), format!("RTU at {path}"))
-    } else {
-        let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
-        let address = link::resolve_tcp(address, 5020).await?;
-        let server = sim.serve_tcp(address).await.map_err(|e| {
-            CliError::failed(format!("cannot listen on {address}: {e}"))
-                .hint("is another server using the port? try --tcp 127.0.0.1:0")
-        })?;
-        let address = server.local_addr();
-        print(&address.to_string());
-        (Box::new(server), format!("Modbus TCP at {address}"))
-    })
+        return Ok((Box::new(pty), format!("RTU at {path}")));
+    };
+    let settings = optobus_driver::transport::SerialSettings {
+        path: path.to_owned(),
+        line: format,
+    };
+    let port = settings
+        .open()
+        .map_err(|e| CliError::failed(format!("cannot open {path}: {e}")))?;
+    print(path);
+    let bus = bus.clone();
+    let task = tokio::spawn(async move {
+        match line {
+            Some(line) => bus.serve_line(port, &line).await,
+            None => bus.serve(port).await,
+        }
+    });
+    Ok((Box::new(task), format!("RTU at {path}")))
+}
+
+/// Serves Modbus TCP on `--tcp` (127.0.0.1:5020 by default) with `listen`; prints where on
+/// stdout.
+async fn serve_tcp<F, Fut>(global: &Global, listen: F) -> Result<Served, CliError>
+where
+    F: FnOnce(std::net::SocketAddr) -> Fut,
+    Fut: std::future::Future<Output = std::io::Result<optobus_simulator::TcpServer>>,
+{
+    let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
+    let address = link::resolve_tcp(address, 5020).await?;
+    let server = listen(address).await.map_err(|e| {
+        CliError::failed(format!("cannot listen on {address}: {e}"))
+            .hint("is another server using the port? try --tcp 127.0.0.1:0")
+    })?;
+    let address = server.local_addr();
+    print(&address.to_string());
+    Ok((Box::new(server), format!("Modbus TCP at {address}")))
 }

@@ -9,7 +9,7 @@ use clap::Args;
 use crossterm::terminal;
 use serde_json::json;
 
-use crate::connect::{decode_values, read_each_request, DeviceArgs, Global, Names};
+use crate::connect::{decode_values, next_read, read_each_request, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{redraw, screen, time_of_day, timestamp, values_json, values_text};
@@ -124,7 +124,7 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
             break;
         }
         tokio::select! {
-            () = tokio::time::sleep_until(started + args.interval) => {}
+            () = tokio::time::sleep_until(next_read(&mut core, started, args.interval)) => {}
             _ = &mut ctrl_c => break,
         }
     }

@@ -184,3 +184,20 @@ pub fn tool(name: &str) -> bool {
     }
     found
 }
+
+/// `mbpoll args…` once; the values it printed (`[3]: 425` lines).
+#[allow(dead_code)]
+pub fn mbpoll(args: &[&str]) -> Vec<i64> {
+    let output = std::process::Command::new("mbpoll")
+        .args(args)
+        .output()
+        .expect("run mbpoll");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "mbpoll {args:?}: {stdout}");
+    stdout
+        .lines()
+        .filter_map(|line| line.trim().strip_prefix('['))
+        .filter_map(|rest| rest.split_once("]:"))
+        .filter_map(|(_, value)| value.trim().parse().ok())
+        .collect()
+}
