@@ -58,7 +58,10 @@ pub mod schedule;
 pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
 pub use catalogue::Catalogue;
 pub use event::{rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
-pub use file::{BusFile, DeviceConfig, LineConfig, LoadError, PollConfig, Port, Rejected};
+pub use file::{
+    BusFile, DeviceConfig, LineConfig, LoadError, MetricsConfig, MqttConfig, Outputs, PollConfig,
+    Port, Rejected, SecretSource,
+};
 pub use handle::{Handle, JobError};
 pub use link::Stream;
 pub use schedule::Health;

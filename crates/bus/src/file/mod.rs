@@ -5,8 +5,10 @@
 //! whole file passes. The schema and a tour are in the crate's README.
 
 mod check;
+pub mod outputs;
 mod read;
 
+pub use outputs::{MetricsConfig, MqttConfig, Outputs, SecretSource};
 pub use read::resolve;
 
 use std::net::SocketAddr;
@@ -30,6 +32,8 @@ pub struct BusFile {
     pub lines: Vec<LineConfig>,
     /// The devices, in file order.
     pub devices: Vec<DeviceConfig>,
+    /// Where the bus sends what it reads, besides its events.
+    pub outputs: Outputs,
 }
 
 /// One line: a port and the character format on it.

@@ -10,6 +10,7 @@ use optobus_codegen::source::{Node, Span, SyntaxError, Value};
 use optobus_codegen::Diagnostic;
 use optobus_device::{DeviceInfo, RegisterInfo};
 
+use super::outputs::Outputs;
 use super::{
     BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, DEFAULT_GATEWAY_CLIENTS,
     MAX_DURATION,
@@ -17,8 +18,8 @@ use super::{
 use crate::catalogue::Catalogue;
 
 /// Rule name of reading errors.
-const RULE: &str = "bus-file";
-const HELP: &str = "see crates/bus/README.md for the keys a bus file takes";
+pub(super) const RULE: &str = "bus-file";
+pub(super) const HELP: &str = "see crates/bus/README.md for the keys a bus file takes";
 
 /// The Modbus serial-line specification's turnaround delay after a broadcast.
 pub(crate) const DEFAULT_BROADCAST_TURNAROUND: Duration = Duration::from_millis(100);
@@ -90,7 +91,7 @@ pub(super) struct DevicePlaces {
 
 /// Reads the bus file's tree, collecting every problem.
 pub(super) struct Reader<'a> {
-    base: &'a Path,
+    pub(super) base: &'a Path,
     catalogue: &'a Catalogue,
     pub(super) diagnostics: Vec<Diagnostic>,
 }
@@ -127,7 +128,7 @@ pub(super) fn empty() -> Diagnostic {
 }
 
 /// The entries of a mapping.
-fn entries(node: &Node) -> Option<&[(Node, Node)]> {
+pub(super) fn entries(node: &Node) -> Option<&[(Node, Node)]> {
     match &node.value {
         Value::Mapping(entries) => Some(entries),
         _ => None,
@@ -135,7 +136,7 @@ fn entries(node: &Node) -> Option<&[(Node, Node)]> {
 }
 
 /// A plain or quoted scalar's text.
-fn scalar(node: &Node) -> Option<&str> {
+pub(super) fn scalar(node: &Node) -> Option<&str> {
     match &node.value {
         Value::Scalar { text, .. } if !node.is_null() => Some(text),
         _ => None,
@@ -151,7 +152,12 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn error(&mut self, span: Span, message: impl Into<String>, help: impl Into<String>) {
+    pub(super) fn error(
+        &mut self,
+        span: Span,
+        message: impl Into<String>,
+        help: impl Into<String>,
+    ) {
         self.diagnostics.push(Diagnostic {
             rule: RULE,
             message: message.into(),
@@ -166,7 +172,7 @@ impl<'a> Reader<'a> {
 
     /// The entries of `node`, checked against `allowed` keys (each unknown or repeated key
     /// reported), or an error saying `what` must be a mapping.
-    fn mapping<'n>(
+    pub(super) fn mapping<'n>(
         &mut self,
         node: &'n Node,
         what: &str,
@@ -214,7 +220,7 @@ impl<'a> Reader<'a> {
     }
 
     /// The items of a list, or an error.
-    fn list<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n [Node]> {
+    pub(super) fn list<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n [Node]> {
         match &node.value {
             Value::Sequence(items) => Some(items),
             _ => {
@@ -228,7 +234,7 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn text<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n str> {
+    pub(super) fn text<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n str> {
         let text = scalar(node);
         if text.is_none() {
             self.error(
@@ -240,7 +246,12 @@ impl<'a> Reader<'a> {
         text
     }
 
-    fn number<T: TryFrom<u64>>(&mut self, node: &Node, what: &str, range: (u64, u64)) -> Option<T> {
+    pub(super) fn number<T: TryFrom<u64>>(
+        &mut self,
+        node: &Node,
+        what: &str,
+        range: (u64, u64),
+    ) -> Option<T> {
         let text = self.text(node, what)?;
         let value = parse_integer(text).filter(|v| (range.0..=range.1).contains(v));
         match value.and_then(|v| T::try_from(v).ok()) {
@@ -259,7 +270,7 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn boolean(&mut self, node: &Node, what: &str) -> Option<bool> {
+    pub(super) fn boolean(&mut self, node: &Node, what: &str) -> Option<bool> {
         match scalar(node) {
             Some("true") => Some(true),
             Some("false") => Some(false),
@@ -271,7 +282,7 @@ impl<'a> Reader<'a> {
     }
 
     /// A duration like `200ms`, `1.5s`, `1s 500ms`, within `min ..= MAX_DURATION`.
-    fn duration(&mut self, node: &Node, what: &str, min: Duration) -> Option<Duration> {
+    pub(super) fn duration(&mut self, node: &Node, what: &str, min: Duration) -> Option<Duration> {
         let text = self.text(node, what)?;
         match parse_duration(text) {
             Ok(duration) if duration < min => {
@@ -336,13 +347,25 @@ impl<'a> Reader<'a> {
             }
             None => self.error(root.span, "the bus file has no `devices`", HELP),
         }
-        if let Some((_, outputs)) = top.iter().find(|(k, _)| scalar(k) == Some("outputs")) {
-            if !outputs.is_null() {
-                self.mapping(outputs, "`outputs`", &[]);
+        let outputs = match top.iter().find(|(k, _)| scalar(k) == Some("outputs")) {
+            Some((_, outputs)) if !outputs.is_null() => {
+                let names: Vec<(&str, Span)> = devices
+                    .iter()
+                    .zip(&device_places)
+                    .map(|(device, places): (&DeviceConfig, &DevicePlaces)| {
+                        (device.name.as_str(), places.name)
+                    })
+                    .collect();
+                self.outputs(outputs, &names)
             }
-        }
+            _ => Outputs::default(),
+        };
         Some(Parsed {
-            file: BusFile { lines, devices },
+            file: BusFile {
+                lines,
+                devices,
+                outputs,
+            },
             places: Places {
                 lines: line_places,
                 devices: device_places,
@@ -862,7 +885,7 @@ pub fn resolve(
 }
 
 /// `a`, `b` and `c` in backquotes.
-fn quoted(names: &[&str]) -> String {
+pub(super) fn quoted(names: &[&str]) -> String {
     names
         .iter()
         .map(|n| format!("`{n}`"))
@@ -871,7 +894,7 @@ fn quoted(names: &[&str]) -> String {
 }
 
 /// A port alone (on 127.0.0.1), `localhost:PORT`, or `IP:PORT`.
-fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
+pub(super) fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
     let text = text.trim();
     if let Ok(port) = text.parse::<u16>() {
         return Some(std::net::SocketAddr::from(([127, 0, 0, 1], port)));
@@ -885,7 +908,7 @@ fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
     text.parse().ok()
 }
 
-fn has_port(address: &str) -> bool {
+pub(super) fn has_port(address: &str) -> bool {
     address
         .rsplit_once(':')
         .is_some_and(|(host, port)| !host.is_empty() && port.parse::<u16>().is_ok_and(|p| p > 0))

@@ -1,0 +1,38 @@
+//! The `outputs` of a bus file: where a running bus sends what it reads, besides its events.
+//! Plain settings, checked with the rest of the file; the crates that publish read them.
+
+mod metrics;
+mod mqtt;
+
+pub use metrics::MetricsConfig;
+pub use mqtt::{MqttConfig, SecretSource, DEFAULT_MQTT_QUEUE};
+
+use optobus_codegen::source::{Node, Span};
+
+use super::read::{scalar, Reader};
+
+/// Where a running bus sends what it reads; nothing unless the file says so.
+#[derive(Clone, Debug, Default, PartialEq)]
+#[non_exhaustive]
+pub struct Outputs {
+    /// An MQTT broker to publish to (and take writes from).
+    pub mqtt: Option<MqttConfig>,
+    /// A Prometheus `/metrics` endpoint.
+    pub metrics: Option<MetricsConfig>,
+}
+
+const OUTPUT_KEYS: &[&str] = &["mqtt", "metrics"];
+
+impl Reader<'_> {
+    /// `outputs:`; a problem is reported and leaves its output out.
+    pub(in crate::file) fn outputs(&mut self, node: &Node, devices: &[(&str, Span)]) -> Outputs {
+        let Some(pairs) = self.mapping(node, "`outputs`", OUTPUT_KEYS) else {
+            return Outputs::default();
+        };
+        let get = |key: &str| pairs.iter().find(|(k, _)| scalar(k) == Some(key));
+        Outputs {
+            mqtt: get("mqtt").and_then(|(k, v)| self.mqtt(v, k.span, devices)),
+            metrics: get("metrics").and_then(|(_, v)| self.metrics(v)),
+        }
+    }
+}
