@@ -102,6 +102,7 @@ impl Bus {
                     line: index,
                     index: devices.len(),
                     device: config.device,
+                    writable: config.writable.clone(),
                 });
                 let errors = Arc::new(std::sync::Mutex::new(ErrorCounts::default()));
                 let settings = DeviceSettings {

@@ -10,8 +10,10 @@ use std::sync::Arc;
 
 use optobus_device::{CommandInfo, DeviceInfo, Invalid, RegisterInfo};
 use optobus_driver::Encode;
-use optobus_inspect::{decode_value, Value};
+use optobus_inspect::{decode_value, parse_value, resolve_one, Value};
 use tokio::sync::{mpsc, oneshot};
+
+use crate::file::Writable;
 
 /// Jobs a line keeps queued for its API callers.
 pub(crate) const JOB_QUEUE: usize = 64;
@@ -59,6 +61,8 @@ pub(crate) struct Entry {
     /// Its index among its line's devices.
     pub(crate) index: usize,
     pub(crate) device: &'static DeviceInfo,
+    /// What writes from the network may change.
+    pub(crate) writable: Writable,
 }
 
 /// Why a job was not done.
@@ -76,6 +80,17 @@ pub enum JobError {
         /// Why.
         why: Invalid,
     },
+    /// The register or command is not one the bus file's `writable` lists for the device;
+    /// nothing was sent.
+    NotListed {
+        /// The device.
+        device: String,
+        /// The register or command as asked for.
+        name: String,
+    },
+    /// The name or the value was refused as `optobus set` and `optobus do` refuse it (unknown
+    /// name, a value out of range or off its steps, a unit that does not fit); nothing was sent.
+    Refused(optobus_inspect::Error),
     /// The line's task has stopped.
     Stopped,
     /// The device or the line failed.
@@ -88,6 +103,12 @@ impl std::fmt::Display for JobError {
             Self::UnknownDevice(name) => write!(f, "the bus has no device `{name}`"),
             Self::NotWritable(register) => write!(f, "`{register}` cannot be written"),
             Self::Invalid { register, why } => write!(f, "`{register}` does not take it: {why}"),
+            Self::NotListed { device, name } => write!(
+                f,
+                "`{name}` of `{device}` is not writable here: the bus file's `writable` does not \
+                 list it"
+            ),
+            Self::Refused(error) => error.fmt(f),
             Self::Stopped => f.write_str("the bus has stopped"),
             Self::Device(error) => error.fmt(f),
         }
@@ -180,6 +201,65 @@ impl Handle {
             done,
         })
         .await
+    }
+
+    /// Sets `register` of device `device` from `text` as `optobus set` does (units and SI
+    /// prefixes, code names, range, steps), if the bus file lists it as writable, and reads it
+    /// back: what writes from the network use. Nothing is sent when it is refused. Returns the
+    /// value read back (`None` for a register that cannot be read).
+    pub async fn set_listed(
+        &self,
+        device: &str,
+        register: &str,
+        text: &str,
+    ) -> Result<Option<Value>, JobError> {
+        let entry = self.entry(device)?;
+        let info = entry.device;
+        let found = resolve_one(info, register, None).map_err(JobError::Refused)?;
+        if !entry.writable.allows_register(found) {
+            return Err(JobError::NotListed {
+                device: device.to_owned(),
+                name: register.to_owned(),
+            });
+        }
+        let words = parse_value(found, text)
+            .map_err(|error| JobError::Refused(optobus_inspect::Error::from(error)))?;
+        self.write(device, found, words, false).await?;
+        if !found.readable() {
+            return Ok(None);
+        }
+        let mut back = self.read(device, vec![found]).await?;
+        Ok(back.pop())
+    }
+
+    /// Runs `command` of device `device` as `optobus do` does, if the bus file lists it as
+    /// writable (a drastic one only when named there), and waits out its busy time.
+    pub async fn do_listed(&self, device: &str, command: &str) -> Result<(), JobError> {
+        let entry = self.entry(device)?;
+        let info = entry.device;
+        let found = info.command(command).ok_or_else(|| {
+            let names: Vec<&str> = info.commands.iter().map(|c| c.name).collect();
+            JobError::Refused(
+                optobus_inspect::Error::new(format!(
+                    "`{command}` is no command of {}",
+                    info.model_name()
+                ))
+                .hint(format!("commands: {}", names.join(", "))),
+            )
+        })?;
+        if !entry.writable.allows_command(found) {
+            return Err(JobError::NotListed {
+                device: device.to_owned(),
+                name: command.to_owned(),
+            });
+        }
+        let register = resolve_one(info, found.register, None).map_err(JobError::Refused)?;
+        self.run(device, found, register).await
+    }
+
+    /// What writes from the network may change on device `device`.
+    pub fn writable(&self, device: &str) -> Option<&Writable> {
+        self.entry(device).ok().map(|entry| &entry.writable)
     }
 
     /// Reads `registers` of device `device` now, ahead of the line's polls.

@@ -60,7 +60,7 @@ pub use catalogue::Catalogue;
 pub use event::{rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
 pub use file::{
     BusFile, DeviceConfig, LineConfig, LoadError, MetricsConfig, MqttConfig, Outputs, PollConfig,
-    Port, Rejected, SecretSource,
+    Port, Rejected, SecretSource, Writable,
 };
 pub use handle::{Handle, JobError};
 pub use link::Stream;

@@ -286,3 +286,74 @@ fn devices_and_oversized_files_are_refused_before_they_are_read() {
         "{error}"
     );
 }
+
+#[test]
+fn writable_lists_what_the_network_may_write_and_all_leaves_out_drastic_commands() {
+    let bus = parse(
+        "
+lines: [{ name: a, simulated: true }]
+devices:
+  - { name: open, model: p-series, slave: 1, writable: all }
+  - { name: listed, model: p-series, slave: 2, writable: [light_power, laser, save_parameters] }
+  - { name: closed, model: p-series, slave: 3 }
+",
+    )
+    .unwrap();
+    let device = &optobus_p_series::DEVICE;
+    let [open, listed, closed] = [0, 1, 2].map(|i| &bus.devices[i].writable);
+    let power = device.register("light_power").unwrap();
+    let save = device.command("save_parameters").unwrap();
+    let zero = device.command("zero_position_1").unwrap();
+    // `all`: every writable register and harmless command, no drastic one, never the address.
+    assert!(open.allows_register(power) && open.allows_command(zero));
+    assert!(!open.allows_command(save) && !open.allows_command(device.command("reboot").unwrap()));
+    for name in [
+        "save_parameters",
+        "network_reset_or_reboot",
+        "slave_address",
+    ] {
+        assert!(
+            !open.allows_register(device.register(name).unwrap()),
+            "{name}"
+        );
+    }
+    // A list: what it names (a group gives its writable members), a drastic command included.
+    assert!(listed.allows_register(power) && listed.allows_command(save));
+    assert!(listed.allows_register(device.register("laser_enabled").unwrap()));
+    assert!(!listed.allows_command(zero));
+    assert_eq!(listed.commands.len(), 1);
+    // Nothing by default.
+    assert!(closed.is_empty());
+}
+
+#[test]
+fn writable_names_that_cannot_be_written_are_located() {
+    let rendered = parse(
+        "
+lines: [{ name: a, simulated: true }]
+devices:
+  - name: head
+    model: p-series
+    slave: 1
+    writable: [distance_1, slave_address, warp_drive]
+",
+    )
+    .expect_err("three bad names");
+    for (message, column) in [
+        ("`distance_1` of p-series cannot be written", "7:16"),
+        (
+            "`slave_address` cannot be writable on a bus: the bus addresses the device by it",
+            "7:28",
+        ),
+        (
+            "p-series has no register, group or command `warp_drive`",
+            "7:43",
+        ),
+    ] {
+        assert!(rendered.contains(message), "{message}\n{rendered}");
+        assert!(
+            rendered.contains(&format!("bus.yaml:{column}")),
+            "{column}\n{rendered}"
+        );
+    }
+}

@@ -137,3 +137,87 @@ async fn a_commands_busy_time_holds_its_device_and_not_the_line() {
         "{confocal_samples}"
     );
 }
+
+#[tokio::test]
+async fn network_writes_are_refused_unless_listed_and_read_as_optobus_set_reads_them() {
+    // The function codes of the writes the head saw.
+    let writes = Arc::new(Mutex::new(Vec::new()));
+    let log = Arc::clone(&writes);
+    let head = Simulator::new(&optobus_p_series::DEVICE)
+        .slave(1)
+        .observe(move |exchange| {
+            if !matches!(exchange.function, 3 | 4) {
+                log.lock().unwrap().push(exchange.function);
+            }
+        });
+    let (stream, _server) = optobus_simulator::Bus::new([head.clone()]).duplex();
+    let text = "
+lines: [{ name: rs485, serial: memory, baud: 115200 }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms,
+      writable: [light_power, zero_position_1] }
+";
+    let running = Bus::new(file(text))
+        .with_stream("rs485", stream)
+        .start()
+        .unwrap();
+    let handle = running.handle();
+    let device = &optobus_p_series::DEVICE;
+    let power = device.register("light_power").unwrap();
+
+    // Listed: written from text as `optobus set` reads it, and read back.
+    let back = handle
+        .set_listed("head", "light_power", "12.5")
+        .await
+        .unwrap();
+    assert_eq!(back.map(|v| v.to_string()).as_deref(), Some("12.5 %"));
+    assert_eq!(head.peek(Table::Holding, power.address), Some(vec![125]));
+    handle.do_listed("head", "zero_position_1").await.unwrap();
+    let zero = device.register("position_1_zero").unwrap();
+    assert_eq!(head.peek(Table::Holding, zero.address), Some(vec![1]));
+    assert_eq!(writes.lock().unwrap().len(), 2, "one set, one command");
+
+    // Refused with the tool's own messages, and nothing sent.
+    for text in ["150", "12.5 mm", "0.1", "lots"] {
+        let error = handle
+            .set_listed("head", "light_power", text)
+            .await
+            .unwrap_err();
+        let tool = parse_value(power, text).unwrap_err().to_string();
+        assert!(matches!(error, JobError::Refused(_)), "{text}: {error}");
+        assert_eq!(error.to_string(), tool, "{text}");
+    }
+    let unlisted = handle
+        .set_listed("head", "laser_enabled", "true")
+        .await
+        .unwrap_err();
+    assert_eq!(
+        unlisted.to_string(),
+        "`laser_enabled` of `head` is not writable here: the bus file's `writable` does not list it"
+    );
+    assert!(matches!(
+        handle.do_listed("head", "save_parameters").await,
+        Err(JobError::NotListed { .. })
+    ));
+    let unknown = handle.do_listed("head", "warp").await.unwrap_err();
+    assert!(
+        unknown
+            .to_string()
+            .starts_with("`warp` is no command of p-series"),
+        "{unknown}"
+    );
+    let unknown = handle
+        .set_listed("head", "lihgt_power", "1")
+        .await
+        .unwrap_err();
+    assert!(
+        unknown.to_string().contains("light_power"),
+        "did you mean: {unknown}"
+    );
+    assert_eq!(
+        writes.lock().unwrap().len(),
+        2,
+        "nothing refused reached the device"
+    );
+    assert_eq!(head.peek(Table::Holding, power.address), Some(vec![125]));
+}

@@ -281,12 +281,7 @@ pub(crate) fn confirm(
     if yes {
         return Ok(());
     }
-    let drastic: Vec<&CommandInfo> = device
-        .commands
-        .iter()
-        .filter(|c| c.effect.is_drastic())
-        .filter(|c| c.register == register.name || register.member_name() == Some(c.register))
-        .collect();
+    let drastic: Vec<&CommandInfo> = device.drastic_commands_on(register).collect();
     match (
         raw.and_then(|raw| drastic.iter().find(|c| c.value == raw)),
         drastic.as_slice(),

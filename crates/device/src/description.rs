@@ -724,6 +724,20 @@ impl DeviceInfo {
         })
     }
 
+    /// The commands that write `register` (a register of their own, or a repeat copy of the
+    /// command's register) and store, restart or reset the device: a write there needs the
+    /// confirmation a drastic command needs.
+    pub fn drastic_commands_on(
+        &self,
+        register: &RegisterInfo,
+    ) -> impl Iterator<Item = &'static CommandInfo> + '_ {
+        let member = register.member_name();
+        let name = register.name;
+        self.commands.iter().filter(move |c| {
+            c.effect.is_drastic() && (c.register == name || member == Some(c.register))
+        })
+    }
+
     /// How many registers `table` has.
     pub const fn table_size(&self, table: Table) -> u16 {
         match table {

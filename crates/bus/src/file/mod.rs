@@ -9,7 +9,7 @@ pub mod outputs;
 mod read;
 
 pub use outputs::{MetricsConfig, MqttConfig, Outputs, SecretSource};
-pub use read::resolve;
+pub use read::{resolve, writable};
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -18,7 +18,7 @@ use std::time::Duration;
 use optobus_codec::LineFormat;
 use optobus_codegen::source::{read_yaml, ReadError};
 use optobus_codegen::SourceFile;
-use optobus_device::{DeviceInfo, RegisterInfo};
+use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
 
 use crate::catalogue::Catalogue;
 
@@ -123,6 +123,42 @@ pub struct DeviceConfig {
     pub polls: Vec<PollConfig>,
     /// On a simulated line: seeded faults in the simulated device's replies.
     pub faults: Option<optobus_simulator::Faults>,
+    /// What writes from the network (MQTT, the console) may change: nothing unless listed.
+    pub writable: Writable,
+}
+
+/// The registers and commands of a device that writes from the network may use: what the bus
+/// file lists under the device's `writable`, nothing by default.
+///
+/// `all` stands for every writable register and every command that does not store, restart or
+/// reset the device; a drastic command (and a register it writes) is writable only when named,
+/// as naming it is the confirmation `optobus do … --yes` asks for. The register holding the
+/// device's slave address is never writable on a bus, which addresses the device by it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Writable {
+    /// Registers that may be set, in address order.
+    pub registers: Vec<&'static RegisterInfo>,
+    /// Commands that may be run.
+    pub commands: Vec<&'static CommandInfo>,
+}
+
+impl Writable {
+    /// Whether `register` may be set.
+    pub fn allows_register(&self, register: &RegisterInfo) -> bool {
+        self.registers
+            .iter()
+            .any(|r| r.name == register.name && r.address == register.address)
+    }
+
+    /// Whether `command` may be run.
+    pub fn allows_command(&self, command: &CommandInfo) -> bool {
+        self.commands.iter().any(|c| c.name == command.name)
+    }
+
+    /// Whether nothing may be written.
+    pub fn is_empty(&self) -> bool {
+        self.registers.is_empty() && self.commands.is_empty()
+    }
 }
 
 /// A set of registers read together, periodically or as fast as the line allows.

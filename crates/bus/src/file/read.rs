@@ -12,8 +12,8 @@ use optobus_device::{DeviceInfo, RegisterInfo};
 
 use super::outputs::Outputs;
 use super::{
-    BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, DEFAULT_GATEWAY_CLIENTS,
-    MAX_DURATION,
+    BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, Writable,
+    DEFAULT_GATEWAY_CLIENTS, MAX_DURATION,
 };
 use crate::catalogue::Catalogue;
 
@@ -53,6 +53,7 @@ const DEVICE_KEYS: &[&str] = &[
     "power_up",
     "poll",
     "faults",
+    "writable",
 ];
 const POLL_KEYS: &[&str] = &["read", "every", "priority"];
 const TOP_KEYS: &[&str] = &["lines", "devices", "outputs"];
@@ -706,6 +707,10 @@ impl<'a> Reader<'a> {
             None => None,
         };
         let faults_span = get("faults").map(|v| v.span);
+        let writable = match (get("writable"), model.as_ref()) {
+            (Some(v), Some((device, _))) => self.writable(v, device),
+            (Some(_), None) | (None, _) => Some(Writable::default()),
+        };
         let (device, model) = model?;
         Some((
             DeviceConfig {
@@ -723,6 +728,7 @@ impl<'a> Reader<'a> {
                 power_up: power_up.unwrap_or_default(),
                 polls: polls.unwrap_or_default(),
                 faults,
+                writable: writable.unwrap_or_default(),
             },
             DevicePlaces {
                 name: span,
@@ -851,6 +857,116 @@ impl<'a> Reader<'a> {
             every: every?,
             priority: priority?,
         })
+    }
+
+    /// `writable: all`, or a list of register, group and command names.
+    fn writable(&mut self, node: &Node, device: &'static DeviceInfo) -> Option<Writable> {
+        if scalar(node) == Some("all") {
+            return Some(Writable::all(device));
+        }
+        let items = self.list(node, "`writable`")?;
+        let mut listed = Writable::default();
+        let mut ok = true;
+        for item in items {
+            let Some(name) = self.text(item, "a name to write") else {
+                ok = false;
+                continue;
+            };
+            match writable(device, name) {
+                Ok(found) => listed.add(found),
+                Err(why) => {
+                    self.error(
+                        item.span,
+                        why,
+                        format!(
+                            "`optobus registers {}` lists registers and commands; `all` allows \
+                             every register and every command that does not store, restart or \
+                             reset",
+                            device.model_name()
+                        ),
+                    );
+                    ok = false;
+                }
+            }
+        }
+        ok.then_some(listed)
+    }
+}
+
+/// What one name under `writable` allows: a command, or the writable registers a register or
+/// group name stands for; or why it cannot be written from the network.
+pub fn writable(device: &'static DeviceInfo, name: &str) -> Result<Writable, String> {
+    let model = device.model_name().to_string();
+    if let Some(command) = device.command(name) {
+        return Ok(Writable {
+            registers: Vec::new(),
+            commands: vec![command],
+        });
+    }
+    let registers: Vec<&'static RegisterInfo> = match device.group(name) {
+        Some(group) => group
+            .registers
+            .iter()
+            .flat_map(|member| device.members(member))
+            .filter(|r| r.access.writable())
+            .collect(),
+        None => device.members(name).collect(),
+    };
+    if registers.is_empty() {
+        return Err(match device.group(name) {
+            Some(_) => format!("group `{name}` of {model} has no register that can be written"),
+            None => format!("{model} has no register, group or command `{name}`"),
+        });
+    }
+    if let Some(register) = registers.iter().find(|r| !r.access.writable()) {
+        return Err(format!("`{}` of {model} cannot be written", register.name));
+    }
+    let own_address = device.slave_address_register().map(|r| r.name);
+    if let Some(register) = registers.iter().find(|r| Some(r.name) == own_address) {
+        return Err(format!(
+            "`{}` cannot be writable on a bus: the bus addresses the device by it",
+            register.name
+        ));
+    }
+    Ok(Writable {
+        registers,
+        commands: Vec::new(),
+    })
+}
+
+impl Writable {
+    /// Every writable register and every command that does not store, restart or reset, except
+    /// the slave address.
+    fn all(device: &'static DeviceInfo) -> Self {
+        let own_address = device.slave_address_register().map(|r| r.name);
+        Self {
+            registers: device
+                .registers
+                .iter()
+                .filter(|r| r.access.writable() && Some(r.name) != own_address)
+                .filter(|r| device.drastic_commands_on(r).next().is_none())
+                .collect(),
+            commands: device
+                .commands
+                .iter()
+                .filter(|c| !c.effect.is_drastic())
+                .collect(),
+        }
+    }
+
+    /// Adds what `more` allows.
+    fn add(&mut self, more: Self) {
+        for register in more.registers {
+            if !self.allows_register(register) {
+                self.registers.push(register);
+            }
+        }
+        for command in more.commands {
+            if !self.allows_command(command) {
+                self.commands.push(command);
+            }
+        }
+        self.registers.sort_by_key(|r| (r.table, r.address));
     }
 }
 
