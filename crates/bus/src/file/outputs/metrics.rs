@@ -13,6 +13,19 @@ pub struct MetricsConfig {
     pub listen: SocketAddr,
 }
 
+impl MetricsConfig {
+    /// Where `metrics: TEXT` listens: a port alone (on 127.0.0.1) or `IP:PORT`.
+    pub fn for_address(text: &str) -> Result<Self, String> {
+        listen_address(text)
+            .map(|listen| Self { listen })
+            .ok_or_else(|| {
+                format!(
+                    "`{text}` is no address to listen on: give a port (on 127.0.0.1) or IP:PORT"
+                )
+            })
+    }
+}
+
 impl Reader<'_> {
     /// `metrics: ADDRESS` or `metrics: { listen: ADDRESS }`.
     pub(super) fn metrics(&mut self, node: &Node) -> Option<MetricsConfig> {

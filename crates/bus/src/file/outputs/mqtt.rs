@@ -74,6 +74,44 @@ pub struct MqttConfig {
     pub homeassistant: Option<String>,
 }
 
+impl MqttConfig {
+    /// The settings a bus file gets from `mqtt: { broker: TEXT }` alone (`HOST` or
+    /// `HOST:PORT`), or why `text` is no broker address.
+    pub fn for_broker(text: &str) -> Result<Self, String> {
+        let (host, port) = broker_address(text, false)
+            .ok_or_else(|| format!("`{text}` is no broker address: give HOST or HOST:PORT"))?;
+        Ok(Self {
+            host,
+            port,
+            client_id: "optobus".to_owned(),
+            prefix: "optobus".to_owned(),
+            username: None,
+            password: None,
+            ca: None,
+            qos: 1,
+            queue: DEFAULT_MQTT_QUEUE,
+            keep_alive: Duration::from_secs(30),
+            homeassistant: None,
+        })
+    }
+}
+
+/// `HOST`, `HOST:PORT` or `[IPv6]:PORT`; the port is 1883, or 8883 with TLS, when not given.
+fn broker_address(text: &str, tls: bool) -> Option<(String, u16)> {
+    let text = text.trim();
+    let default = if tls { 8883 } else { 1883 };
+    if has_port(text) {
+        text.rsplit_once(':').and_then(|(host, port)| {
+            let host = host.trim_start_matches('[').trim_end_matches(']');
+            Some((host.to_owned(), port.parse().ok()?))
+        })
+    } else if !text.is_empty() && !text.contains([':', '/', ' ']) {
+        Some((text.to_owned(), default))
+    } else {
+        None
+    }
+}
+
 impl Reader<'_> {
     /// `mqtt: { broker: HOST[:PORT], … }`.
     /// `at` is where `mqtt` is written: a password written in the file is reported there, so
@@ -185,22 +223,12 @@ impl Reader<'_> {
 
     /// `HOST`, `HOST:PORT` or `[IPv6]:PORT`.
     fn broker(&mut self, node: &Node, tls: bool) -> Option<(String, u16)> {
-        let text = self.text(node, "`broker`")?.trim();
-        let default = if tls { 8883 } else { 1883 };
-        let parsed = if has_port(text) {
-            text.rsplit_once(':').and_then(|(host, port)| {
-                let host = host.trim_start_matches('[').trim_end_matches(']');
-                Some((host.to_owned(), port.parse().ok()?))
-            })
-        } else if !text.is_empty() && !text.contains([':', '/', ' ']) {
-            Some((text.to_owned(), default))
-        } else {
-            None
-        };
+        let text = self.text(node, "`broker`")?;
+        let parsed = broker_address(text, tls);
         if parsed.is_none() {
             self.error(
                 node.span,
-                format!("`{text}` is no broker address"),
+                format!("`{}` is no broker address", text.trim()),
                 "give HOST or HOST:PORT, e.g. 127.0.0.1:1883",
             );
         }
