@@ -128,6 +128,8 @@ pub struct Heard {
     pub topic: String,
     pub payload: String,
     pub retain: bool,
+    /// When the watcher's task stored it.
+    pub arrived: std::time::SystemTime,
 }
 
 /// A subscriber to `filter` with a persistent session (QoS 1), reconnecting on its own.
@@ -166,6 +168,7 @@ impl Watcher {
                                 topic: publish.topic.clone(),
                                 payload: String::from_utf8_lossy(&publish.payload).into_owned(),
                                 retain: publish.retain,
+                                arrived: std::time::SystemTime::now(),
                             });
                         }
                         Ok(_) => {}
