@@ -106,8 +106,10 @@ async fn samples_are_published_as_json_with_number_exact_text_unit_and_time() {
         }
     }
     assert!(matched > 0, "no published sample matched the bus's own");
-    let power: Json =
-        serde_json::from_str(&watcher.on("plant/hall/top/light_power")[0].payload).unwrap();
+    // The first samples may predate the simulator's new power.
+    let powers = watcher.on("plant/hall/top/light_power");
+    let set = powers.iter().find(|h| h.payload.contains("42.5")).unwrap();
+    let power: Json = serde_json::from_str(&set.payload).unwrap();
     assert_eq!(power["value"].as_f64(), Some(42.5));
     assert_eq!(power["text"], "42.5");
     assert_eq!(power["unit"], "%");
@@ -214,5 +216,35 @@ outputs:
     assert_eq!(
         missing.to_string(),
         "the environment variable OPTOBUS_TEST_NO_SUCH_VARIABLE is not set"
+    );
+}
+
+#[tokio::test]
+async fn a_ca_file_without_a_certificate_is_refused_before_connecting() {
+    let dir = std::env::temp_dir().join(format!("optobus-mqtt-ca-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("ca.pem"), "not a certificate\n").unwrap();
+    let file = file(&format!(
+        "
+lines: [{{ name: rs485, simulated: true }}]
+devices: [{{ name: top, model: p-series, slave: 1 }}]
+outputs:
+  mqtt: {{ broker: 127.0.0.1:1, ca: {} }}
+",
+        dir.join("ca.pem").display()
+    ));
+    let bus = Bus::new(file.clone());
+    let refused = Publisher::start(
+        file.outputs.mqtt.as_ref().unwrap(),
+        &file,
+        bus.subscribe(),
+        None,
+    )
+    .expect_err("no certificate to trust");
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(
+        refused.to_string().starts_with("MQTT TLS: ")
+            && refused.to_string().contains("holds no PEM certificate"),
+        "{refused}"
     );
 }

@@ -24,7 +24,7 @@ devices:
     slave: 1
     poll: [{{ read: distance_1, every: 10ms }}]
 outputs:
-  mqtt: {{ broker: 127.0.0.1:{port}, queue: {queue} }}
+  mqtt: {{ broker: 127.0.0.1:{port}, queue: {queue}, homeassistant: optobus/discovery }}
 "
     );
     let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);

@@ -422,6 +422,15 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     }
     drop(running);
     if let Some(publisher) = publisher {
+        let counts = publisher.counts();
+        if counts.dropped > 0 || !counts.connected {
+            note!(
+                "optobus: MQTT: {} samples published, {} dropped while the broker was away, {} still queued",
+                counts.published,
+                counts.dropped,
+                counts.queued
+            );
+        }
         publisher.stop(Duration::from_secs(2)).await;
     }
     drop(exporter);
