@@ -47,6 +47,12 @@ impl Broker {
             std::env::temp_dir().join(format!("optobus-mqtt-{name}-{}-{port}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
+        // Started as root, mosquitto drops to its own user: it must still write its log and
+        // its sessions (or a subscriber's session does not survive a restart).
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o777)).unwrap();
+        }
         std::fs::write(
             dir.join("mosquitto.conf"),
             format!(
