@@ -59,9 +59,9 @@ mod trace;
 pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
 pub use catalogue::Catalogue;
 pub use event::{rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
-pub use file::outputs::{HttpConfig, Outputs};
 pub use file::{
-    BusFile, DeviceConfig, LineConfig, LoadError, PollConfig, Port, Rejected, Writable,
+    BusFile, DeviceConfig, HttpConfig, LineConfig, LoadError, MetricsConfig, MqttConfig, Outputs,
+    PollConfig, Port, Rejected, SecretSource, Writable,
 };
 pub use handle::{Buffered, Handle, JobError};
 pub use link::Stream;

@@ -42,6 +42,6 @@ pub use frame::{CrcCheck, ExplainedFrame, Field, FrameKind, Framing, RegisterVal
 pub use hex::{hex, parse_hex, HexError};
 pub use number::{hex_and_decimal, parse_number};
 pub use optobus_codec::EncodeError;
-pub use parse::{code_list, parse_value, ParseError};
+pub use parse::{base_unit, code_list, in_base_unit, parse_value, ParseError};
 pub use resolve::{resolve, resolve_one, resolve_readable, ResolveError};
 pub use value::{decode_value, range_text, Value};

@@ -248,6 +248,34 @@ fn si_parts(unit: &str) -> Option<(i8, &str)> {
     })
 }
 
+/// `unit` as a power of ten of its base unit, for outputs that take base units (Prometheus):
+/// `mm` is 10^-3 `m`, `us` 10^-6 `s`, `%` 10^-2 of a plain ratio (`""`), `degC` is `degC`.
+/// `None` for a unit with no base unit known here.
+pub fn base_unit(unit: &str) -> Option<(i8, &'static str)> {
+    match unit {
+        "%" => Some((-2, "")),
+        "degC" => Some((0, "degC")),
+        _ => {
+            let (power, base) = si_parts(unit)?;
+            SI_BASES.iter().find(|b| **b == base).map(|b| (power, *b))
+        }
+    }
+}
+
+/// `value` in `unit` converted to its [`base_unit`], rounded once to the nearest `f64`
+/// (`4.969234` mm is `0.004969234` m), with the base unit.
+pub fn in_base_unit(value: Fixed, unit: &str) -> Option<(f64, &'static str)> {
+    let (power, base) = base_unit(unit)?;
+    let shifted = match value.scale() {
+        Scale::Decimal { exponent } => exponent
+            .checked_add(power)
+            .map(|exponent| Fixed::new(value.raw(), Scale::Decimal { exponent }).to_f64()),
+        Scale::Ratio { .. } => None,
+    };
+    let number = shifted.unwrap_or_else(|| value.to_f64() * 10f64.powi(i32::from(power)));
+    Some((number, base))
+}
+
 /// The number in `text` in the register's unit, exactly: bare, with the register's own unit
 /// (`100us`, `100 µs`), or with another SI prefix of the same base unit (`0.2ms` for a `us`
 /// register, `1500 um` for a `mm` one). A result the register's steps cannot hold exactly is

@@ -252,3 +252,34 @@ fn a_channel_given_to_a_model_without_repeats_is_refused() {
     // Without a copy number the group reads as before.
     assert!(optobus_inspect::resolve(&optobus_p_series::DEVICE, "measurements", None).is_ok());
 }
+
+#[test]
+fn quantities_convert_to_their_base_units_by_prefix() {
+    use optobus_codec::value::{Fixed, Scale};
+    let mm = Fixed::new(4_969_234, Scale::Decimal { exponent: -6 });
+    assert_eq!(
+        optobus_inspect::in_base_unit(mm, "mm"),
+        Some((0.004969234, "m"))
+    );
+    let us = Fixed::new(250, Scale::ONE);
+    assert_eq!(
+        optobus_inspect::in_base_unit(us, "us"),
+        Some((0.000250, "s"))
+    );
+    let percent = Fixed::new(505, Scale::Decimal { exponent: -1 });
+    assert_eq!(
+        optobus_inspect::in_base_unit(percent, "%"),
+        Some((0.505, ""))
+    );
+    let celsius = Fixed::new(-125, Scale::Decimal { exponent: -1 });
+    assert_eq!(
+        optobus_inspect::in_base_unit(celsius, "degC"),
+        Some((-12.5, "degC"))
+    );
+    assert_eq!(optobus_inspect::base_unit("uV"), Some((-6, "V")));
+    assert_eq!(
+        optobus_inspect::base_unit("counts"),
+        None,
+        "no base unit known"
+    );
+}

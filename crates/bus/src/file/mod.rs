@@ -8,6 +8,7 @@ mod check;
 pub mod outputs;
 mod read;
 
+pub use outputs::{HttpConfig, MetricsConfig, MqttConfig, Outputs, SecretSource};
 pub use read::{resolve, writable};
 
 use std::net::SocketAddr;
@@ -31,8 +32,8 @@ pub struct BusFile {
     pub lines: Vec<LineConfig>,
     /// The devices, in file order.
     pub devices: Vec<DeviceConfig>,
-    /// Where the bus serves what it reads besides its events (the console).
-    pub outputs: outputs::Outputs,
+    /// Where the bus sends what it reads besides its events (MQTT, metrics, the console).
+    pub outputs: Outputs,
 }
 
 /// One line: a port and the character format on it.

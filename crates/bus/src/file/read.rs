@@ -18,8 +18,8 @@ use super::{
 use crate::catalogue::Catalogue;
 
 /// Rule name of reading errors.
-const RULE: &str = "bus-file";
-const HELP: &str = "see crates/bus/README.md for the keys a bus file takes";
+pub(super) const RULE: &str = "bus-file";
+pub(super) const HELP: &str = "see crates/bus/README.md for the keys a bus file takes";
 
 /// The Modbus serial-line specification's turnaround delay after a broadcast.
 pub(crate) const DEFAULT_BROADCAST_TURNAROUND: Duration = Duration::from_millis(100);
@@ -129,7 +129,7 @@ pub(super) fn empty() -> Diagnostic {
 }
 
 /// The entries of a mapping.
-fn entries(node: &Node) -> Option<&[(Node, Node)]> {
+pub(super) fn entries(node: &Node) -> Option<&[(Node, Node)]> {
     match &node.value {
         Value::Mapping(entries) => Some(entries),
         _ => None,
@@ -247,7 +247,12 @@ impl<'a> Reader<'a> {
         text
     }
 
-    fn number<T: TryFrom<u64>>(&mut self, node: &Node, what: &str, range: (u64, u64)) -> Option<T> {
+    pub(super) fn number<T: TryFrom<u64>>(
+        &mut self,
+        node: &Node,
+        what: &str,
+        range: (u64, u64),
+    ) -> Option<T> {
         let text = self.text(node, what)?;
         let value = parse_integer(text).filter(|v| (range.0..=range.1).contains(v));
         match value.and_then(|v| T::try_from(v).ok()) {
@@ -278,7 +283,7 @@ impl<'a> Reader<'a> {
     }
 
     /// A duration like `200ms`, `1.5s`, `1s 500ms`, within `min ..= MAX_DURATION`.
-    fn duration(&mut self, node: &Node, what: &str, min: Duration) -> Option<Duration> {
+    pub(super) fn duration(&mut self, node: &Node, what: &str, min: Duration) -> Option<Duration> {
         let text = self.text(node, what)?;
         match parse_duration(text) {
             Ok(duration) if duration < min => {
@@ -344,7 +349,16 @@ impl<'a> Reader<'a> {
             None => self.error(root.span, "the bus file has no `devices`", HELP),
         }
         let outputs = match top.iter().find(|(k, _)| scalar(k) == Some("outputs")) {
-            Some((_, node)) if !node.is_null() => self.outputs(node),
+            Some((_, outputs)) if !outputs.is_null() => {
+                let names: Vec<(&str, Span)> = devices
+                    .iter()
+                    .zip(&device_places)
+                    .map(|(device, places): (&DeviceConfig, &DevicePlaces)| {
+                        (device.name.as_str(), places.name)
+                    })
+                    .collect();
+                self.outputs(outputs, &names)
+            }
             _ => Outputs::default(),
         };
         Some(Parsed {
@@ -1010,7 +1024,7 @@ pub(super) fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
     text.parse().ok()
 }
 
-fn has_port(address: &str) -> bool {
+pub(super) fn has_port(address: &str) -> bool {
     address
         .rsplit_once(':')
         .is_some_and(|(host, port)| !host.is_empty() && port.parse::<u16>().is_ok_and(|p| p > 0))

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::time::{Duration, SystemTime};
 
 use clap::Args;
-use optobus_bus::{Bus, BusFile, Event, Health, HttpConfig, Sample};
+use optobus_bus::{Bus, BusFile, Event, Health, HttpConfig, MetricsConfig, MqttConfig, Sample};
 use optobus_device::RegisterInfo;
 use optobus_inspect::Value;
 use tokio::sync::broadcast::error::RecvError;
@@ -50,6 +50,50 @@ pub(crate) struct RunArgs {
     /// Stop after this long (default: until Ctrl-C).
     #[arg(long, value_parser = inputs::RUN_FOR.parser())]
     duration: Option<Duration>,
+    /// Publish to this MQTT broker (HOST or HOST:PORT), over the bus file's `mqtt` broker if it
+    /// has one.
+    #[arg(long, value_name = "HOST:PORT")]
+    mqtt: Option<String>,
+    /// Announce the devices to Home Assistant (MQTT discovery under `homeassistant`).
+    #[arg(long)]
+    homeassistant: bool,
+    /// Serve Prometheus metrics on http://ADDRESS/metrics (a port alone is on 127.0.0.1).
+    #[arg(long, value_name = "ADDRESS")]
+    prometheus: Option<String>,
+}
+
+/// The outputs the command line adds to the bus file's, or overrides in it.
+fn command_line_outputs(bus: &mut BusFile, args: &RunArgs) -> Result<(), CliError> {
+    if let Some(broker) = &args.mqtt {
+        let given =
+            MqttConfig::for_broker(broker).map_err(|e| CliError::new(format!("--mqtt: {e}")))?;
+        match bus.outputs.mqtt.as_mut() {
+            Some(mqtt) => (mqtt.host, mqtt.port) = (given.host, given.port),
+            None => bus.outputs.mqtt = Some(given),
+        }
+    }
+    if args.homeassistant {
+        let mqtt = bus.outputs.mqtt.as_mut().ok_or_else(|| {
+            CliError::new(
+                "--homeassistant needs a broker: give --mqtt HOST:PORT or `mqtt` in the bus file",
+            )
+        })?;
+        mqtt.homeassistant
+            .get_or_insert_with(|| "homeassistant".to_owned());
+    }
+    if let Some(address) = args.http {
+        match bus.outputs.http.as_mut() {
+            Some(http) => http.listen = address,
+            None => bus.outputs.http = Some(HttpConfig::new(address)),
+        }
+    }
+    if let Some(address) = &args.prometheus {
+        bus.outputs.metrics = Some(
+            MetricsConfig::for_address(address)
+                .map_err(|e| CliError::new(format!("--prometheus: {e}")))?,
+        );
+    }
+    Ok(())
 }
 
 /// The demo's bus file, its gateway moved to `gateway` if given.
@@ -237,31 +281,58 @@ fn sample_json(sample: &Sample) -> String {
 }
 
 pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
-    let bus_file = match &args.file {
+    let mut bus_file = match &args.file {
         Some(path) => load(path)?,
         None => demo(args.gateway)?,
     };
+    command_line_outputs(&mut bus_file, args)?;
     let mut board = Board::new(&bus_file);
     let mut recorder = match &args.record {
         Some(dir) => Some(Recorder::create(dir, &bus_file)?),
         None => None,
     };
-    let http = match (args.http, bus_file.outputs.http.clone()) {
-        (Some(address), Some(config)) => Some(HttpConfig {
-            listen: address,
-            ..config
-        }),
-        (Some(address), None) => Some(HttpConfig::new(address)),
-        (None, config) => config,
-    };
+    let http = bus_file.outputs.http.clone();
     let lines = bus_file.lines.len();
     let devices = bus_file.devices.len();
-    let bus = Bus::new(bus_file);
+    let bus = Bus::new(bus_file.clone());
     let mut events = bus.subscribe();
+    let mut outputs = Vec::new();
+    let exporter = match &bus_file.outputs.metrics {
+        Some(config) => {
+            let exporter = optobus_metrics::Exporter::start(config, &bus_file, bus.subscribe())
+                .await
+                .map_err(|e| CliError::failed(format!("metrics on {}: {e}", config.listen)))?;
+            outputs.push(format!("metrics on http://{}/metrics", exporter.address()));
+            Some(exporter)
+        }
+        None => None,
+    };
+    let mqtt_events = bus_file.outputs.mqtt.as_ref().map(|_| bus.subscribe());
     let running = bus.start().map_err(|e| CliError::failed(e.to_string()))?;
+    let publisher = match (&bus_file.outputs.mqtt, mqtt_events) {
+        (Some(config), Some(events)) => {
+            let publisher =
+                optobus_mqtt::Publisher::start(config, &bus_file, events, Some(running.handle()))
+                    .map_err(|e| CliError::failed(e.to_string()))?;
+            outputs.push(format!(
+                "MQTT to {}:{}, topics {}/…{}",
+                config.host,
+                config.port,
+                config.prefix,
+                if config.homeassistant.is_some() {
+                    ", Home Assistant discovery"
+                } else {
+                    ""
+                }
+            ));
+            Some(publisher)
+        }
+        _ => None,
+    };
     let gateways: Vec<String> = running
         .gateways()
         .map(|(line, address)| format!("gateway of {line} on {address}"))
+        .chain(outputs)
         .collect();
     let header = format!(
         "{lines} line{}, {devices} device{}{}",
@@ -372,6 +443,19 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     }
     drop(console);
     drop(running);
+    if let Some(publisher) = publisher {
+        let counts = publisher.counts();
+        if counts.dropped > 0 || !counts.connected {
+            note!(
+                "optobus: MQTT: {} samples published, {} dropped while the broker was away, {} still queued",
+                counts.published,
+                counts.dropped,
+                counts.queued
+            );
+        }
+        publisher.stop(Duration::from_secs(2)).await;
+    }
+    drop(exporter);
     if let Some(recorder) = recorder {
         recorder.finish()?;
     }

@@ -1,34 +1,44 @@
-//! The bus file's `outputs:`: where the bus serves what it reads besides its event stream.
+//! The `outputs` of a bus file: where a running bus sends what it reads, besides its events.
+//! Plain settings, checked with the rest of the file; the crates that publish or serve read
+//! them.
 
 mod http;
+mod metrics;
+mod mqtt;
 
 pub use http::{HttpConfig, DEFAULT_HTTP_PORT};
+pub use metrics::MetricsConfig;
+pub use mqtt::{MqttConfig, SecretSource, DEFAULT_MQTT_QUEUE};
 
-use optobus_codegen::source::Node;
+use optobus_codegen::source::{Node, Span};
 
 use super::read::{scalar, Reader};
 
-/// The outputs a bus file asks for.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+/// Where a running bus sends what it reads; nothing unless the file says so.
+#[derive(Clone, Debug, Default, PartialEq)]
+#[non_exhaustive]
 pub struct Outputs {
+    /// An MQTT broker to publish to (and take writes from).
+    pub mqtt: Option<MqttConfig>,
+    /// A Prometheus `/metrics` endpoint.
+    pub metrics: Option<MetricsConfig>,
     /// The console in the browser (`http:`).
     pub http: Option<HttpConfig>,
 }
 
-const OUTPUT_KEYS: &[&str] = &["http"];
+const OUTPUT_KEYS: &[&str] = &["mqtt", "metrics", "http"];
 
 impl Reader<'_> {
-    /// `outputs:`, each output read and checked by its own module.
-    pub(super) fn outputs(&mut self, node: &Node) -> Outputs {
-        let mut outputs = Outputs::default();
+    /// `outputs:`; a problem is reported and leaves its output out.
+    pub(in crate::file) fn outputs(&mut self, node: &Node, devices: &[(&str, Span)]) -> Outputs {
         let Some(pairs) = self.mapping(node, "`outputs`", OUTPUT_KEYS) else {
-            return outputs;
+            return Outputs::default();
         };
-        for (key, value) in pairs {
-            if scalar(key) == Some("http") {
-                outputs.http = self.http(value);
-            }
+        let get = |key: &str| pairs.iter().find(|(k, _)| scalar(k) == Some(key));
+        Outputs {
+            mqtt: get("mqtt").and_then(|(k, v)| self.mqtt(v, k.span, devices)),
+            metrics: get("metrics").and_then(|(_, v)| self.metrics(v)),
+            http: get("http").and_then(|(_, v)| self.http(v)),
         }
-        outputs
     }
 }

@@ -1,0 +1,319 @@
+//! `outputs: mqtt:`: the broker, how to log in, the topics, the queue.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use optobus_codegen::source::{Node, Span};
+
+use super::super::read::{entries, has_port, scalar, Reader};
+
+/// Samples kept for the broker while it cannot be reached, unless the file says otherwise.
+pub const DEFAULT_MQTT_QUEUE: usize = 10_000;
+
+const MQTT_KEYS: &[&str] = &[
+    "broker",
+    "client_id",
+    "prefix",
+    "username",
+    "password",
+    "ca",
+    "qos",
+    "queue",
+    "keep_alive",
+    "homeassistant",
+];
+
+/// Where a secret comes from; the bus file never holds a password itself.
+#[derive(Clone, PartialEq, Eq)]
+pub enum SecretSource {
+    /// Written in the file (a user name only).
+    Text(String),
+    /// An environment variable of that name.
+    Env(String),
+    /// The first line of a file (relative paths are from the bus file's folder).
+    File(PathBuf),
+}
+
+/// Says where the secret comes from, never what a `Text` holds.
+impl std::fmt::Debug for SecretSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Text(_) => f.write_str("Text(..)"),
+            Self::Env(name) => f.debug_tuple("Env").field(name).finish(),
+            Self::File(path) => f.debug_tuple("File").field(path).finish(),
+        }
+    }
+}
+
+/// An MQTT broker and how to publish to it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MqttConfig {
+    /// The broker's host name or address.
+    pub host: String,
+    /// Its port (1883, or 8883 with TLS, unless given).
+    pub port: u16,
+    /// The client id (`optobus` unless given; two gateways on one broker need two).
+    pub client_id: String,
+    /// The first topic level(s): samples go to `<prefix>/<device>/<register>`.
+    pub prefix: String,
+    /// The user name, if the broker wants one.
+    pub username: Option<SecretSource>,
+    /// The password, from the environment or a file.
+    pub password: Option<SecretSource>,
+    /// TLS with the broker's certificate checked against this CA file (verification is
+    /// always on); `None` is plain TCP.
+    pub ca: Option<PathBuf>,
+    /// The QoS of samples (0 or 1; availability and discovery go at QoS 1).
+    pub qos: u8,
+    /// Samples kept while the broker cannot be reached; beyond it the oldest are dropped
+    /// (and counted).
+    pub queue: usize,
+    /// The MQTT keep-alive interval.
+    pub keep_alive: Duration,
+    /// Home Assistant discovery under this prefix (`homeassistant: true` is `homeassistant`).
+    pub homeassistant: Option<String>,
+}
+
+impl MqttConfig {
+    /// The settings a bus file gets from `mqtt: { broker: TEXT }` alone (`HOST` or
+    /// `HOST:PORT`), or why `text` is no broker address.
+    pub fn for_broker(text: &str) -> Result<Self, String> {
+        let (host, port) = broker_address(text, false)
+            .ok_or_else(|| format!("`{text}` is no broker address: give HOST or HOST:PORT"))?;
+        Ok(Self {
+            host,
+            port,
+            client_id: "optobus".to_owned(),
+            prefix: "optobus".to_owned(),
+            username: None,
+            password: None,
+            ca: None,
+            qos: 1,
+            queue: DEFAULT_MQTT_QUEUE,
+            keep_alive: Duration::from_secs(30),
+            homeassistant: None,
+        })
+    }
+}
+
+/// `HOST`, `HOST:PORT` or `[IPv6]:PORT`; the port is 1883, or 8883 with TLS, when not given.
+fn broker_address(text: &str, tls: bool) -> Option<(String, u16)> {
+    let text = text.trim();
+    let default = if tls { 8883 } else { 1883 };
+    if has_port(text) {
+        text.rsplit_once(':').and_then(|(host, port)| {
+            let host = host.trim_start_matches('[').trim_end_matches(']');
+            Some((host.to_owned(), port.parse().ok()?))
+        })
+    } else if !text.is_empty() && !text.contains([':', '/', ' ']) {
+        Some((text.to_owned(), default))
+    } else {
+        None
+    }
+}
+
+impl Reader<'_> {
+    /// `mqtt: { broker: HOST[:PORT], … }`.
+    /// `at` is where `mqtt` is written: a password written in the file is reported there, so
+    /// that the message does not show the line that holds it.
+    pub(super) fn mqtt(
+        &mut self,
+        node: &Node,
+        at: Span,
+        devices: &[(&str, Span)],
+    ) -> Option<MqttConfig> {
+        let pairs = self.mapping(node, "`mqtt`", MQTT_KEYS)?;
+        let get = |key: &str| {
+            pairs
+                .iter()
+                .find(|(k, _)| scalar(k) == Some(key))
+                .map(|(_, v)| v)
+        };
+        let mut ok = true;
+        let ca = match get("ca") {
+            Some(v) => self.text(v, "`ca`").map(|path| Some(self.base.join(path))),
+            None => Some(None),
+        };
+        let tls = matches!(ca, Some(Some(_)));
+        let broker = match get("broker") {
+            Some(v) => self.broker(v, tls),
+            None => {
+                self.error(
+                    node.span,
+                    "`mqtt` needs a `broker`",
+                    "e.g. `broker: 127.0.0.1:1883`",
+                );
+                None
+            }
+        };
+        let client_id = match get("client_id") {
+            Some(v) => self.client_id(v),
+            None => Some("optobus".to_owned()),
+        };
+        let prefix = match get("prefix") {
+            Some(v) => self.topic_prefix(v, "`prefix`"),
+            None => Some("optobus".to_owned()),
+        };
+        let username = match get("username") {
+            Some(v) => self.secret(v, v.span, "`username`", true).map(Some),
+            None => Some(None),
+        };
+        let password = match get("password") {
+            Some(v) => self.secret(v, at, "`password`", false).map(Some),
+            None => Some(None),
+        };
+        let qos = match get("qos") {
+            Some(v) => self.number::<u8>(v, "`qos`", (0, 1)),
+            None => Some(1),
+        };
+        let queue = match get("queue") {
+            Some(v) => self.number::<usize>(v, "`queue`", (1, 1_000_000)),
+            None => Some(DEFAULT_MQTT_QUEUE),
+        };
+        let keep_alive = match get("keep_alive") {
+            Some(v) => self.duration(v, "`keep_alive`", Duration::from_secs(5)),
+            None => Some(Duration::from_secs(30)),
+        };
+        let homeassistant = match get("homeassistant") {
+            Some(v) => match scalar(v) {
+                Some("true") => Some(Some("homeassistant".to_owned())),
+                Some("false") => Some(None),
+                _ => self
+                    .topic_prefix(v, "`homeassistant` (true, false or a discovery prefix)")
+                    .map(Some),
+            },
+            None => Some(None),
+        };
+        for (name, span) in devices {
+            if !is_topic_level(name) {
+                self.error(
+                    *span,
+                    format!("device `{name}` cannot be an MQTT topic level"),
+                    "MQTT topics take a device name without `/`, `+`, `#` or control characters",
+                );
+                ok = false;
+            }
+        }
+        if matches!(username, Some(None)) && matches!(password, Some(Some(_))) {
+            self.error(
+                at,
+                "a `password` without a `username`",
+                "MQTT sends a password only with a user name",
+            );
+            ok = false;
+        }
+        let (host, port) = broker?;
+        if !ok {
+            return None;
+        }
+        Some(MqttConfig {
+            host,
+            port,
+            client_id: client_id?,
+            prefix: prefix?,
+            username: username?,
+            password: password?,
+            ca: ca?,
+            qos: qos?,
+            queue: queue?,
+            keep_alive: keep_alive?,
+            homeassistant: homeassistant?,
+        })
+    }
+
+    /// `HOST`, `HOST:PORT` or `[IPv6]:PORT`.
+    fn broker(&mut self, node: &Node, tls: bool) -> Option<(String, u16)> {
+        let text = self.text(node, "`broker`")?;
+        let parsed = broker_address(text, tls);
+        if parsed.is_none() {
+            self.error(
+                node.span,
+                format!("`{}` is no broker address", text.trim()),
+                "give HOST or HOST:PORT, e.g. 127.0.0.1:1883",
+            );
+        }
+        parsed
+    }
+
+    fn client_id(&mut self, node: &Node) -> Option<String> {
+        let text = self.text(node, "`client_id`")?;
+        if text.is_empty() || text.len() > 256 || text.chars().any(char::is_control) {
+            self.error(
+                node.span,
+                "`client_id` must be 1 to 256 characters, none of them control characters",
+                "e.g. `client_id: optobus-hall-2`",
+            );
+            return None;
+        }
+        Some(text.to_owned())
+    }
+
+    /// One or more topic levels: no wildcards, no empty level, not a `$` system topic.
+    fn topic_prefix(&mut self, node: &Node, what: &str) -> Option<String> {
+        let text = self.text(node, what)?;
+        if text.starts_with('$') || !text.split('/').all(is_topic_level) {
+            self.error(
+                node.span,
+                format!("{what} `{text}` is no topic prefix"),
+                "topic levels joined by `/`, none empty, without `+`, `#` or a leading `$`",
+            );
+            return None;
+        }
+        Some(text.to_owned())
+    }
+
+    /// `NAME` (a user name only), `{ env: VARIABLE }` or `{ file: PATH }`.
+    fn secret(
+        &mut self,
+        node: &Node,
+        at: Span,
+        what: &str,
+        text_allowed: bool,
+    ) -> Option<SecretSource> {
+        if let Some(pairs) = entries(node) {
+            self.mapping(node, what, &["env", "file"])?;
+            return match pairs {
+                [(key, value)] if scalar(key) == Some("env") => {
+                    let name = self.text(value, "`env`")?;
+                    if name.is_empty() || name.contains(['=', '\0']) {
+                        self.error(
+                            value.span,
+                            "`env` names no variable",
+                            "e.g. `env: MQTT_PASSWORD`",
+                        );
+                        return None;
+                    }
+                    Some(SecretSource::Env(name.to_owned()))
+                }
+                [(key, value)] if scalar(key) == Some("file") => {
+                    let path = self.text(value, "`file`")?;
+                    Some(SecretSource::File(self.base.join(path)))
+                }
+                _ => {
+                    self.error(
+                        node.span,
+                        format!("{what} takes one of `env` or `file`"),
+                        "e.g. `{ env: MQTT_PASSWORD }` or `{ file: /run/secrets/mqtt }`",
+                    );
+                    None
+                }
+            };
+        }
+        if !text_allowed {
+            // Neither echoed nor shown: the text may be the very password.
+            self.error(
+                at,
+                format!("{what} is never written in the bus file"),
+                "give `{ env: VARIABLE }` or `{ file: PATH }`",
+            );
+            return None;
+        }
+        let text = self.text(node, what)?;
+        Some(SecretSource::Text(text.to_owned()))
+    }
+}
+
+/// Whether `level` can be one level of an MQTT topic name.
+fn is_topic_level(level: &str) -> bool {
+    !level.is_empty() && !level.contains(['/', '+', '#']) && !level.chars().any(char::is_control)
+}

@@ -1,0 +1,314 @@
+//! The registry and how each bus event changes it.
+
+use std::sync::atomic::AtomicU64;
+use std::time::UNIX_EPOCH;
+
+use optobus_bus::{BusFile, DeviceId, ErrorCounts, Event, Health, LineStats, Sample};
+use optobus_inspect::{in_base_unit, Value};
+use prometheus_client::encoding::text::encode;
+use prometheus_client::encoding::EncodeLabelSet;
+use prometheus_client::metrics::counter::Counter;
+use prometheus_client::metrics::family::Family;
+use prometheus_client::metrics::gauge::Gauge;
+use prometheus_client::registry::Registry;
+
+type FloatGauge = Gauge<f64, AtomicU64>;
+
+/// Readings by base unit (as [`in_base_unit`] names it), with their metric names.
+const READINGS: [(&str, &str, &str); 7] = [
+    ("m", "optobus_reading_meters", "A reading in metres."),
+    ("s", "optobus_reading_seconds", "A reading in seconds."),
+    (
+        "degC",
+        "optobus_reading_celsius",
+        "A reading in degrees Celsius.",
+    ),
+    (
+        "",
+        "optobus_reading_ratio",
+        "A reading given in percent, as a ratio (1 is 100 %).",
+    ),
+    ("V", "optobus_reading_volts", "A reading in volts."),
+    ("A", "optobus_reading_amperes", "A reading in amperes."),
+    ("Hz", "optobus_reading_hertz", "A reading in hertz."),
+];
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+struct ReadingLabels {
+    device: String,
+    register: String,
+    model: String,
+}
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+struct DeviceLabels {
+    device: String,
+    model: String,
+    line: String,
+}
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+struct LineLabels {
+    line: String,
+}
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+struct LineErrorLabels {
+    line: String,
+    kind: &'static str,
+}
+
+/// The metrics of one bus, changed by its events and encoded for scrapes.
+#[derive(Debug)]
+pub struct Metrics {
+    registry: Registry,
+    /// One family per base unit, in the order of [`READINGS`].
+    readings: Vec<Family<ReadingLabels, FloatGauge>>,
+    /// Numbers without a unit (and units with no base unit known), booleans as 0 and 1.
+    plain: Family<ReadingLabels, FloatGauge>,
+    codes: Family<ReadingLabels, Gauge>,
+    up: Family<DeviceLabels, Gauge>,
+    last_sample: Family<DeviceLabels, FloatGauge>,
+    transactions: Family<LineLabels, Counter>,
+    errors: Family<LineErrorLabels, Counter>,
+    busy: Family<LineLabels, Counter<f64, AtomicU64>>,
+    utilisation: Family<LineLabels, FloatGauge>,
+    open: Family<LineLabels, Gauge>,
+    missed: Counter,
+}
+
+impl Metrics {
+    /// The metrics of the bus `file` runs: every device `up` 0 until its first sample.
+    pub fn new(file: &BusFile) -> Self {
+        let mut registry = Registry::default();
+        let mut readings = Vec::new();
+        for (_, name, help) in READINGS {
+            let family = Family::default();
+            registry.register(name, help, family.clone());
+            readings.push(family);
+        }
+        let metrics = Self {
+            readings,
+            plain: registered(
+                &mut registry,
+                "optobus_reading",
+                "A reading without a unit (or in a unit with no base unit), a boolean as 0 or 1.",
+            ),
+            codes: registered(
+                &mut registry,
+                "optobus_code",
+                "An enumerated reading's code (its name is in the device's spec).",
+            ),
+            up: registered(
+                &mut registry,
+                "optobus_device_up",
+                "1 while the device answers its polls, 0 before its first sample and while offline.",
+            ),
+            last_sample: registered(
+                &mut registry,
+                "optobus_device_last_sample_timestamp_seconds",
+                "When the device's last good reply arrived, in seconds since the Unix epoch.",
+            ),
+            transactions: registered(
+                &mut registry,
+                "optobus_line_transactions",
+                "Requests sent on the line.",
+            ),
+            errors: registered(
+                &mut registry,
+                "optobus_line_errors",
+                "Failed transactions on the line, by kind: timeout, frame, exception, line.",
+            ),
+            busy: registered(
+                &mut registry,
+                "optobus_line_busy_seconds",
+                "Time the line spent in transactions (request out to reply in, or the timeout).",
+            ),
+            utilisation: registered(
+                &mut registry,
+                "optobus_line_utilisation_ratio",
+                "The share of time the line spent in transactions since it started.",
+            ),
+            open: registered(
+                &mut registry,
+                "optobus_line_open",
+                "1 while the line's port is open.",
+            ),
+            missed: {
+                let counter = Counter::default();
+                registry.register(
+                    "optobus_metrics_events_missed",
+                    "Bus events the exporter fell too far behind to see.",
+                    counter.clone(),
+                );
+                counter
+            },
+            registry,
+        };
+        for device in &file.devices {
+            let line = &file.lines[device.line].name;
+            metrics
+                .up
+                .get_or_create(&DeviceLabels {
+                    device: device.name.clone(),
+                    model: device.device.model_name().to_string(),
+                    line: line.clone(),
+                })
+                .set(0);
+        }
+        metrics
+    }
+
+    /// Takes in one event of the bus.
+    pub fn observe(&self, event: &Event) {
+        match event {
+            Event::Sample(sample) => self.sample(sample),
+            Event::Health(health) => {
+                let up = i64::from(health.health == Health::Online);
+                self.up
+                    .get_or_create(&device_labels(&health.source))
+                    .set(up);
+            }
+            Event::Line(stats) => self.line(stats),
+        }
+    }
+
+    /// Counts events the exporter missed.
+    pub fn missed(&self, events: u64) {
+        self.missed.inc_by(events);
+    }
+
+    fn sample(&self, sample: &Sample) {
+        let source = &sample.source;
+        self.set(source, sample.register.name, &sample.value);
+        self.up.get_or_create(&device_labels(source)).set(1);
+        if let Ok(since) = sample.replied.duration_since(UNIX_EPOCH) {
+            self.last_sample
+                .get_or_create(&device_labels(source))
+                .set(since.as_secs_f64());
+        }
+    }
+
+    /// Sets the series of `register` of `source` to `value` (fields as `register.field`); an
+    /// invalid reading removes its series, so that no stale number stands for it.
+    fn set(&self, source: &DeviceId, register: &str, value: &Value) {
+        let labels = || ReadingLabels {
+            device: source.device.to_string(),
+            register: register.to_owned(),
+            model: source.model.to_string(),
+        };
+        match value {
+            Value::Quantity(number, unit) => {
+                let converted = unit.and_then(|unit| in_base_unit(*number, unit));
+                match converted.and_then(|(number, base)| {
+                    let index = READINGS.iter().position(|(b, _, _)| *b == base)?;
+                    Some((number, index))
+                }) {
+                    Some((number, index)) => {
+                        self.readings[index].get_or_create(&labels()).set(number);
+                    }
+                    None => {
+                        self.plain.get_or_create(&labels()).set(number.to_f64());
+                    }
+                }
+            }
+            Value::Integer(number) => {
+                self.plain.get_or_create(&labels()).set(*number as f64);
+            }
+            Value::Bool(on) => {
+                self.plain
+                    .get_or_create(&labels())
+                    .set(if *on { 1.0 } else { 0.0 });
+            }
+            Value::Code(code, _) => {
+                self.codes.get_or_create(&labels()).set(i64::from(*code));
+            }
+            Value::Fields(fields) => {
+                for (name, value) in fields {
+                    self.set(source, &format!("{register}.{name}"), value);
+                }
+            }
+            Value::Invalid => {
+                let labels = labels();
+                for family in self.readings.iter().chain([&self.plain]) {
+                    family.remove(&labels);
+                }
+                self.codes.remove(&labels);
+            }
+            // Addresses and versions are settings, not readings.
+            Value::Ipv4(_) | Value::Version(_) => {}
+        }
+    }
+
+    fn line(&self, stats: &LineStats) {
+        let labels = LineLabels {
+            line: stats.line.to_string(),
+        };
+        raise(
+            &self.transactions.get_or_create(&labels),
+            stats.transactions,
+        );
+        let ErrorCounts {
+            timeouts,
+            frames,
+            exceptions,
+            line,
+        } = stats.errors;
+        for (kind, count) in [
+            ("timeout", timeouts),
+            ("frame", frames),
+            ("exception", exceptions),
+            ("line", line),
+        ] {
+            let labels = LineErrorLabels {
+                line: stats.line.to_string(),
+                kind,
+            };
+            raise(&self.errors.get_or_create(&labels), count);
+        }
+        let busy = self.busy.get_or_create(&labels);
+        let seconds = stats.busy.as_secs_f64();
+        if seconds > busy.get() {
+            busy.inc_by(seconds - busy.get());
+        }
+        self.utilisation
+            .get_or_create(&labels)
+            .set(stats.utilisation());
+        self.open.get_or_create(&labels).set(i64::from(stats.open));
+    }
+
+    /// The metrics in OpenMetrics text.
+    pub fn openmetrics(&self) -> String {
+        let mut text = String::new();
+        // Writing into a String cannot fail.
+        let _ = encode(&mut text, &self.registry);
+        text
+    }
+
+    /// The metrics in the Prometheus text format (0.0.4).
+    pub fn prometheus(&self) -> String {
+        crate::prometheus_text(&self.openmetrics())
+    }
+}
+
+fn registered<L, M>(registry: &mut Registry, name: &str, help: &str) -> Family<L, M>
+where
+    Family<L, M>: prometheus_client::registry::Metric + Clone + Default,
+{
+    let family = Family::default();
+    registry.register(name, help, family.clone());
+    family
+}
+
+/// Raises a counter to `total` (the bus counts; the counter follows).
+fn raise(counter: &Counter, total: u64) {
+    counter.inc_by(total.saturating_sub(counter.get()));
+}
+
+fn device_labels(source: &DeviceId) -> DeviceLabels {
+    DeviceLabels {
+        device: source.device.to_string(),
+        model: source.model.to_string(),
+        line: source.line.to_string(),
+    }
+}

@@ -1,0 +1,262 @@
+//! `/metrics` of a running bus, scraped over HTTP: readings in base units with their labels,
+//! device and line metrics under the names Prometheus conventions ask for, and a body that
+//! Prometheus's own `promtool check metrics` accepts.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::time::Duration;
+
+use optobus_bus::{Bus, BusFile, Catalogue, Event};
+use optobus_inspect::Value;
+use optobus_metrics::Exporter;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::sync::broadcast::error::RecvError;
+
+const BUS: &str = "
+lines:
+  - { name: rs485, simulated: true, baud: 115200, any_format: true }
+devices:
+  - name: top
+    model: p-series
+    slave: 1
+    timeout: 200ms
+    poll: [{ read: [light_power, laser_enabled, measurements, temperature], every: 20ms }]
+  - name: confocal
+    model: ccs
+    slave: 3
+    timeout: 200ms
+    poll: [{ read: [measurements, exposure_time], every: 20ms }]
+outputs:
+  metrics: 0
+";
+
+fn file() -> BusFile {
+    let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
+    BusFile::parse("bus.yaml", BUS, Path::new("."), &catalogue)
+        .unwrap_or_else(|e| panic!("{}", e.render()))
+}
+
+/// `GET /metrics` with `accept`, as (head, body).
+async fn scrape(address: std::net::SocketAddr, accept: &str) -> (String, String) {
+    let mut stream = tokio::net::TcpStream::connect(address)
+        .await
+        .expect("connects");
+    let request = format!(
+        "GET /metrics HTTP/1.1\r\nHost: {address}\r\nAccept: {accept}\r\nConnection: close\r\n\r\n"
+    );
+    stream.write_all(request.as_bytes()).await.unwrap();
+    let mut reply = String::new();
+    stream.read_to_string(&mut reply).await.unwrap();
+    let (head, body) = reply.split_once("\r\n\r\n").expect("an HTTP reply");
+    (head.to_owned(), body.to_owned())
+}
+
+/// The value of the series `name{labels}` in Prometheus text.
+fn series(text: &str, name: &str, labels: &str) -> Option<f64> {
+    let prefix = format!("{name}{{{labels}}} ");
+    text.lines()
+        .find_map(|line| line.strip_prefix(&prefix))
+        .map(|value| value.parse().expect("a number"))
+}
+
+/// Whether promtool is there; `.ci/run` installs it and sets `OPTOBUS_REQUIRE_INTEROP=1`,
+/// so there a missing promtool fails the test.
+fn promtool() -> bool {
+    let found = std::process::Command::new("promtool")
+        .arg("--version")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok();
+    if !found {
+        assert!(
+            std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
+            "promtool is not installed"
+        );
+        eprintln!("skipped: promtool is not installed (Debian package `prometheus`)");
+    }
+    found
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn metrics_give_readings_in_base_units_and_pass_promtool() {
+    let file = file();
+    let config = file.outputs.metrics.clone().expect("metrics are on");
+    let bus = Bus::new(file.clone());
+    let mut events = bus.subscribe();
+    let exporter = Exporter::start(&config, &file, bus.subscribe())
+        .await
+        .expect("listens");
+    assert!(
+        exporter.address().ip().is_loopback(),
+        "a port alone is 127.0.0.1"
+    );
+    let running = bus.start().expect("starts");
+    running
+        .simulator("top")
+        .expect("simulated")
+        .set("light_power", &[425])
+        .unwrap();
+    // Samples of both devices and a line statistic, then stop and keep the last values.
+    let mut last: HashMap<(String, &'static str), Value> = HashMap::new();
+    let mut lines = 0;
+    while lines < 2 || last.len() < 8 {
+        match tokio::time::timeout(Duration::from_secs(10), events.recv()).await {
+            Ok(Ok(Event::Sample(sample))) => {
+                last.insert(
+                    (sample.source.device.to_string(), sample.register.name),
+                    sample.value.clone(),
+                );
+            }
+            Ok(Ok(Event::Line(_))) => lines += 1,
+            Ok(Ok(Event::Health(_))) => {}
+            Ok(Err(RecvError::Lagged(_))) => {}
+            other => panic!("no events: {other:?}"),
+        }
+    }
+    running.stop();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    while let Ok(event) = events.try_recv() {
+        if let Event::Sample(sample) = event {
+            last.insert(
+                (sample.source.device.to_string(), sample.register.name),
+                sample.value.clone(),
+            );
+        }
+    }
+
+    let (head, text) = scrape(exporter.address(), "text/plain").await;
+    assert!(head.starts_with("HTTP/1.1 200"), "{head}");
+    assert!(
+        head.to_ascii_lowercase()
+            .contains("content-type: text/plain; version=0.0.4"),
+        "{head}"
+    );
+    let model = optobus_p_series::DEVICE.model_name().to_string();
+    let labels = |device: &str, register: &str, model: &str| {
+        format!("device=\"{device}\",register=\"{register}\",model=\"{model}\"")
+    };
+    // Millimetres in metres, exactly as the sample's decimal text shifted by three places.
+    let Some(Value::Quantity(distance, Some("mm"))) = last.get(&("top".into(), "distance_1"))
+    else {
+        panic!("no distance_1 sample: {last:?}")
+    };
+    let metres: f64 = format!("{distance}e-3").parse().unwrap();
+    assert_eq!(
+        series(
+            &text,
+            "optobus_reading_meters",
+            &labels("top", "distance_1", &model)
+        ),
+        Some(metres),
+        "{text}"
+    );
+    assert_eq!(
+        series(
+            &text,
+            "optobus_reading_ratio",
+            &labels("top", "light_power", &model)
+        ),
+        Some(0.425),
+        "42.5 % as a ratio"
+    );
+    let Some(Value::Quantity(celsius, Some("degC"))) = last.get(&("top".into(), "temperature"))
+    else {
+        panic!("no temperature sample")
+    };
+    assert_eq!(
+        series(
+            &text,
+            "optobus_reading_celsius",
+            &labels("top", "temperature", &model)
+        ),
+        Some(celsius.to_f64())
+    );
+    let ccs = optobus_ccs::DEVICE.model_name().to_string();
+    let Some(Value::Quantity(exposure, Some("us"))) =
+        last.get(&("confocal".into(), "exposure_time"))
+    else {
+        panic!("no exposure_time sample")
+    };
+    let seconds: f64 = format!("{exposure}e-6").parse().unwrap();
+    assert_eq!(
+        series(
+            &text,
+            "optobus_reading_seconds",
+            &labels("confocal", "exposure_time", &ccs)
+        ),
+        Some(seconds)
+    );
+    assert_eq!(
+        series(
+            &text,
+            "optobus_device_up",
+            &format!("device=\"top\",model=\"{model}\",line=\"rs485\"")
+        ),
+        Some(1.0)
+    );
+    assert!(
+        series(
+            &text,
+            "optobus_device_last_sample_timestamp_seconds",
+            &format!("device=\"top\",model=\"{model}\",line=\"rs485\"")
+        )
+        .is_some_and(|t| t > 1.7e9),
+        "{text}"
+    );
+    // Counters under their `_total` names, typed as counters.
+    assert!(
+        text.contains("# TYPE optobus_line_transactions_total counter"),
+        "{text}"
+    );
+    assert!(
+        series(&text, "optobus_line_transactions_total", "line=\"rs485\"").is_some_and(|n| n > 0.0),
+        "{text}"
+    );
+    assert_eq!(
+        series(
+            &text,
+            "optobus_line_errors_total",
+            "line=\"rs485\",kind=\"timeout\""
+        ),
+        Some(0.0)
+    );
+    assert!(text.contains("# TYPE optobus_line_busy_seconds_total counter"));
+    assert!(
+        series(&text, "optobus_line_utilisation_ratio", "line=\"rs485\"")
+            .is_some_and(|u| u > 0.0 && u <= 1.0)
+    );
+
+    if promtool() {
+        let mut check = std::process::Command::new("promtool")
+            .args(["check", "metrics"])
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("promtool starts");
+        use std::io::Write;
+        check
+            .stdin
+            .take()
+            .unwrap()
+            .write_all(text.as_bytes())
+            .unwrap();
+        let output = check.wait_with_output().unwrap();
+        assert!(
+            output.status.success(),
+            "promtool check metrics:\n{}{}\n{text}",
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr)
+        );
+    }
+
+    // OpenMetrics for a scraper that asks for it: counters named as families, `# EOF` last.
+    let (head, open) = scrape(exporter.address(), "application/openmetrics-text").await;
+    assert!(head.contains("application/openmetrics-text"), "{head}");
+    assert!(
+        open.contains("# TYPE optobus_line_transactions counter"),
+        "{open}"
+    );
+    assert!(open.ends_with("# EOF\n"));
+}

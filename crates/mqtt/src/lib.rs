@@ -1,0 +1,32 @@
+//! The MQTT output of an optobus bus.
+//!
+//! [`Publisher`] follows a bus's events and publishes, under the bus file's prefix:
+//!
+//! - each sample to `<prefix>/<device>/<register>` as JSON: the number for consumers
+//!   (`value`), the exact text (`text`), the `unit` and the reply's `time` in RFC 3339; codes as
+//!   `code` and `name` (see [`value_json`]);
+//! - `<prefix>/<device>/availability`, retained, `online` or `offline` following the device's
+//!   health, and `<prefix>/status`, retained, `online` while the process runs (its last will
+//!   says `offline`);
+//! - with Home Assistant discovery on, a device per sensor and an entity per polled register
+//!   under the discovery prefix (see [`discovery`]), again whenever Home Assistant comes online.
+//!
+//! While the broker cannot be reached the bus polls on; samples wait in a bounded queue (the
+//! oldest dropped and counted beyond its size) and the client reconnects with backoff
+//! ([`FIRST_BACKOFF`] doubling up to [`MAX_BACKOFF`]); each new connection publishes the
+//! availability and discovery again before the samples that waited.
+#![forbid(unsafe_code)]
+
+pub mod discovery;
+mod outbox;
+mod payload;
+mod publisher;
+mod secret;
+mod tls;
+mod topics;
+mod writes;
+
+pub use outbox::Counts;
+pub use payload::{sample_json, value_json};
+pub use publisher::{Publisher, StartError, FIRST_BACKOFF, MAX_BACKOFF};
+pub use secret::{Secret, SecretError};

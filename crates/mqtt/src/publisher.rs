@@ -1,0 +1,407 @@
+//! The publisher: a task that turns bus events into messages, one that hands them to the MQTT
+//! client, and one that drives the connection (reconnecting with backoff).
+
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use optobus_bus::{BusFile, Event, Handle, Health, MqttConfig};
+use rumqttc::{
+    AsyncClient, Event as MqttEvent, EventLoop, LastWill, MqttOptions, Outgoing, Packet, QoS,
+    TlsConfiguration, Transport,
+};
+use tokio::sync::broadcast::{self, error::RecvError};
+use tokio::sync::Notify;
+use tokio::task::JoinHandle;
+
+use crate::discovery;
+use crate::outbox::{Counts, Kind, Message, Outbox};
+use crate::payload::sample_json;
+use crate::secret::{Secret, SecretError};
+use crate::topics::Topics;
+
+/// The first wait before connecting again; it doubles after each failure.
+pub const FIRST_BACKOFF: Duration = Duration::from_millis(100);
+/// The longest wait between connection attempts.
+pub const MAX_BACKOFF: Duration = Duration::from_secs(30);
+/// Requests the MQTT client holds between our queue and the socket.
+const CLIENT_CHANNEL: usize = 64;
+/// Largest packet out (discovery configurations are a few kilobytes).
+const MAX_PACKET: usize = 256 * 1024;
+
+/// Why publishing could not start.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum StartError {
+    /// The user name or password could not be read.
+    Secret(&'static str, SecretError),
+    /// The CA file cannot be used.
+    Tls(String),
+}
+
+impl std::fmt::Display for StartError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Secret(what, error) => write!(f, "MQTT {what}: {error}"),
+            Self::Tls(why) => write!(f, "MQTT TLS: {why}"),
+        }
+    }
+}
+
+impl std::error::Error for StartError {}
+
+/// A device as the publisher follows it.
+#[derive(Debug)]
+struct DeviceState {
+    name: String,
+    /// `None` before its first sample or health event.
+    online: Option<bool>,
+}
+
+#[derive(Debug)]
+struct Shared {
+    outbox: Mutex<Outbox>,
+    wake: Notify,
+    devices: Mutex<Vec<DeviceState>>,
+    topics: Topics,
+    qos: QoS,
+    /// Home Assistant discovery, when on: its status topic and the entities' configurations.
+    discovery: Option<(String, Vec<Message>)>,
+}
+
+impl Shared {
+    fn outbox(&self) -> MutexGuard<'_, Outbox> {
+        self.outbox
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    fn push(&self, message: Message) {
+        self.outbox().push(message);
+        self.wake.notify_one();
+    }
+
+    /// What every new connection publishes first: the process is online, each device's known
+    /// availability, and discovery.
+    fn announcements(&self) -> Vec<Message> {
+        let mut messages = vec![announce(self.topics.status(), "online")];
+        let devices = self.devices.lock().unwrap_or_else(|p| p.into_inner());
+        for device in devices.iter() {
+            if let Some(online) = device.online {
+                messages.push(announce(
+                    self.topics.availability(&device.name),
+                    availability(online),
+                ));
+            }
+        }
+        if let Some((_, configs)) = &self.discovery {
+            messages.extend(configs.iter().cloned());
+        }
+        messages
+    }
+
+    /// Records a device's health; publishes its availability when it changed.
+    fn health(&self, device: &str, online: bool) {
+        let changed = {
+            let mut devices = self.devices.lock().unwrap_or_else(|p| p.into_inner());
+            match devices.iter_mut().find(|d| d.name == device) {
+                Some(state) if state.online != Some(online) => {
+                    state.online = Some(online);
+                    true
+                }
+                _ => false,
+            }
+        };
+        if changed {
+            self.push(announce(
+                self.topics.availability(device),
+                availability(online),
+            ));
+        }
+    }
+}
+
+fn availability(online: bool) -> &'static str {
+    if online {
+        "online"
+    } else {
+        "offline"
+    }
+}
+
+/// A retained QoS 1 announcement.
+pub(crate) fn announce(topic: String, payload: impl Into<Vec<u8>>) -> Message {
+    Message {
+        topic,
+        payload: payload.into(),
+        qos: QoS::AtLeastOnce,
+        retain: true,
+        kind: Kind::Announce,
+    }
+}
+
+/// A running MQTT output of a bus. Dropping it stops publishing (the broker then publishes
+/// the last will: the process is `offline`); [`Publisher::stop`] says so itself first.
+pub struct Publisher {
+    shared: Arc<Shared>,
+    client: AsyncClient,
+    tasks: Vec<JoinHandle<()>>,
+}
+
+/// Shows the topics and counts; never the credentials.
+impl std::fmt::Debug for Publisher {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Publisher")
+            .field("prefix", &self.shared.topics.prefix())
+            .field("counts", &self.counts())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Publisher {
+    /// Starts publishing what `events` (a subscription to the bus of `file`) carries to the
+    /// broker `config` names. Connecting happens in the background, again and again with
+    /// backoff while the broker cannot be reached; samples wait in the queue meanwhile.
+    /// With `handle`, writes come from `<prefix>/<device>/<register>/set` and
+    /// `<prefix>/<device>/<command>/do` for what the file's `writable` lists (see the crate's
+    /// README). Fails only when a secret or the CA file cannot be read.
+    pub fn start(
+        config: &MqttConfig,
+        file: &BusFile,
+        events: broadcast::Receiver<Event>,
+        handle: Option<Handle>,
+    ) -> Result<Self, StartError> {
+        let options = options(config)?;
+        let topics = Topics::new(&config.prefix);
+        let qos = if config.qos == 0 {
+            QoS::AtMostOnce
+        } else {
+            QoS::AtLeastOnce
+        };
+        let discovery = config.homeassistant.as_ref().map(|prefix| {
+            let configs =
+                discovery::configurations(file, prefix, &config.client_id, &config.prefix)
+                    .into_iter()
+                    .map(|(topic, payload)| announce(topic, payload.to_string()))
+                    .collect();
+            (format!("{prefix}/status"), configs)
+        });
+        let shared = Arc::new(Shared {
+            outbox: Mutex::new(Outbox::new(config.queue)),
+            wake: Notify::new(),
+            devices: Mutex::new(
+                file.devices
+                    .iter()
+                    .map(|d| DeviceState {
+                        name: d.name.clone(),
+                        online: None,
+                    })
+                    .collect(),
+            ),
+            topics,
+            qos,
+            discovery,
+        });
+        // Write topics are listened to only when the file lets something be written.
+        let writes = handle.filter(|_| file.devices.iter().any(|d| !d.writable.is_empty()));
+        let (client, eventloop) = AsyncClient::new(options, CLIENT_CHANNEL);
+        let tasks = vec![
+            tokio::spawn(follow(events, Arc::clone(&shared))),
+            tokio::spawn(send(client.clone(), Arc::clone(&shared))),
+            tokio::spawn(drive(
+                eventloop,
+                client.clone(),
+                Arc::clone(&shared),
+                writes,
+            )),
+        ];
+        Ok(Self {
+            shared,
+            client,
+            tasks,
+        })
+    }
+
+    /// How publishing has gone so far.
+    pub fn counts(&self) -> Counts {
+        self.shared.outbox().counts()
+    }
+
+    /// Says the process is going `offline`, waits up to `within` for what is queued to reach
+    /// the broker, and disconnects.
+    pub async fn stop(self, within: Duration) {
+        self.shared
+            .push(announce(self.shared.topics.status(), "offline"));
+        let deadline = tokio::time::Instant::now() + within;
+        while !self.shared.outbox().is_idle() && tokio::time::Instant::now() < deadline {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        let _ = self.client.disconnect().await;
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+impl Drop for Publisher {
+    fn drop(&mut self) {
+        for task in &self.tasks {
+            task.abort();
+        }
+    }
+}
+
+fn options(config: &MqttConfig) -> Result<MqttOptions, StartError> {
+    let topics = Topics::new(&config.prefix);
+    let mut options = MqttOptions::new(&config.client_id, &config.host, config.port);
+    options
+        .set_keep_alive(config.keep_alive)
+        .set_clean_session(true)
+        .set_max_packet_size(MAX_PACKET, MAX_PACKET)
+        .set_inflight(100)
+        .set_last_will(LastWill::new(
+            topics.status(),
+            "offline",
+            QoS::AtLeastOnce,
+            true,
+        ));
+    if let Some(source) = &config.username {
+        let username = Secret::read(source).map_err(|e| StartError::Secret("username", e))?;
+        let password = match &config.password {
+            Some(source) => {
+                Some(Secret::read(source).map_err(|e| StartError::Secret("password", e))?)
+            }
+            None => None,
+        };
+        options.set_credentials(
+            username.expose(),
+            password.as_ref().map_or("", Secret::expose),
+        );
+    }
+    if let Some(ca) = &config.ca {
+        let tls = crate::tls::client_config(ca).map_err(StartError::Tls)?;
+        options.set_transport(Transport::tls_with_config(TlsConfiguration::Rustls(
+            Arc::new(tls),
+        )));
+    }
+    Ok(options)
+}
+
+/// Bus events into messages.
+async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
+    loop {
+        match events.recv().await {
+            Ok(Event::Sample(sample)) => {
+                shared.health(&sample.source.device, true);
+                let payload = sample_json(&sample).to_string().into_bytes();
+                shared.push(Message {
+                    topic: shared
+                        .topics
+                        .sample(&sample.source.device, sample.register.name),
+                    payload,
+                    qos: shared.qos,
+                    retain: false,
+                    kind: Kind::Sample,
+                });
+            }
+            Ok(Event::Health(health)) => {
+                shared.health(&health.source.device, health.health == Health::Online);
+            }
+            Ok(Event::Line(_)) => {}
+            Err(RecvError::Lagged(missed)) => shared.outbox().counts.missed_events += missed,
+            Err(RecvError::Closed) => return,
+        }
+    }
+}
+
+/// Messages from the queue to the client, one at a time, in order.
+async fn send(client: AsyncClient, shared: Arc<Shared>) {
+    loop {
+        let next = shared.outbox().next();
+        match next {
+            Some(message) => {
+                let sent = client
+                    .publish(message.topic, message.qos, message.retain, message.payload)
+                    .await;
+                if sent.is_err() {
+                    return;
+                }
+            }
+            None => shared.wake.notified().await,
+        }
+    }
+}
+
+/// Drives the connection: reconnects with backoff, publishes the announcements at each
+/// connection, tracks what the broker took, and answers Home Assistant and writes.
+async fn drive(
+    mut eventloop: EventLoop,
+    client: AsyncClient,
+    shared: Arc<Shared>,
+    writes: Option<Handle>,
+) {
+    let mut backoff = FIRST_BACKOFF;
+    let mut failures = 0u64;
+    loop {
+        match eventloop.poll().await {
+            Ok(MqttEvent::Incoming(Packet::ConnAck(_))) => {
+                if failures > 0 {
+                    tracing::info!(after = failures, "MQTT broker connected");
+                }
+                backoff = FIRST_BACKOFF;
+                failures = 0;
+                let announcements = shared.announcements();
+                shared.outbox().connected(announcements);
+                shared.wake.notify_one();
+                let mut subscriptions = Vec::new();
+                if let Some((status, _)) = &shared.discovery {
+                    subscriptions.push(status.clone());
+                }
+                if writes.is_some() {
+                    subscriptions.extend(shared.topics.write_filters());
+                }
+                // Queued behind what the client holds, so not awaited here (this task is
+                // the one that empties the client's queue).
+                let client = client.clone();
+                tokio::spawn(async move {
+                    for topic in subscriptions {
+                        let _ = client.subscribe(topic, QoS::AtLeastOnce).await;
+                    }
+                });
+            }
+            Ok(MqttEvent::Outgoing(Outgoing::Publish(pkid))) => shared.outbox().written(pkid),
+            Ok(MqttEvent::Incoming(Packet::PubAck(ack))) => shared.outbox().acknowledged(ack.pkid),
+            Ok(MqttEvent::Incoming(Packet::Publish(publish))) => {
+                incoming(&shared, writes.as_ref(), &publish.topic, &publish.payload);
+            }
+            Ok(_) => {}
+            Err(error) => {
+                shared.outbox().disconnected();
+                if failures == 0 {
+                    tracing::warn!(%error, "MQTT broker unreachable; samples wait in the queue");
+                }
+                failures += 1;
+                tokio::time::sleep(backoff).await;
+                backoff = (backoff * 2).min(MAX_BACKOFF);
+            }
+        }
+    }
+}
+
+/// A message on a topic the publisher subscribed to.
+fn incoming(shared: &Arc<Shared>, writes: Option<&Handle>, topic: &str, payload: &[u8]) {
+    if let Some((status, configs)) = &shared.discovery {
+        if topic == status {
+            if payload == b"online" {
+                // Home Assistant (re)started: it forgets entities not announced again.
+                for config in configs {
+                    shared.push(config.clone());
+                }
+            }
+            return;
+        }
+    }
+    if let Some(handle) = writes {
+        let replies = Arc::clone(shared);
+        crate::writes::handle_write(&shared.topics, handle, topic, payload, move |message| {
+            replies.push(message)
+        });
+    }
+}

@@ -1,0 +1,223 @@
+//! A real mosquitto on a free 127.0.0.1 port, and a subscriber that keeps what it hears.
+
+#![allow(dead_code, unreachable_pub)]
+
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
+
+/// Whether mosquitto is installed. `.ci/run` installs it and sets `OPTOBUS_REQUIRE_INTEROP=1`,
+/// so there a missing broker fails the test; elsewhere the test says it was skipped.
+pub fn mosquitto_installed() -> bool {
+    let found = Command::new("mosquitto")
+        .arg("-h")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok();
+    if !found {
+        assert!(
+            std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
+            "mosquitto is not installed"
+        );
+        eprintln!("skipped: mosquitto is not installed (Debian package `mosquitto`)");
+    }
+    found
+}
+
+/// A mosquitto of its own: a free port, a folder for its config and persistence (so that a
+/// subscriber's session survives a restart).
+pub struct Broker {
+    pub port: u16,
+    dir: PathBuf,
+    child: Option<Child>,
+}
+
+impl Broker {
+    /// A broker on a free port, not started yet.
+    pub fn reserve(name: &str) -> Self {
+        let port = {
+            let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
+            listener.local_addr().unwrap().port()
+        };
+        let dir =
+            std::env::temp_dir().join(format!("optobus-mqtt-{name}-{}-{port}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        // Started as root, mosquitto drops to its own user: it must still write its log and
+        // its sessions (or a subscriber's session does not survive a restart).
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o777)).unwrap();
+        }
+        std::fs::write(
+            dir.join("mosquitto.conf"),
+            format!(
+                "listener {port} 127.0.0.1\nallow_anonymous true\npersistence true\n\
+                 persistence_location {}/\nmax_queued_messages 0\nautosave_interval 1\n\
+                 log_dest file {}/log\nlog_type all\n",
+                dir.display(),
+                dir.display()
+            ),
+        )
+        .unwrap();
+        Self {
+            port,
+            dir,
+            child: None,
+        }
+    }
+
+    /// A started broker on a free port.
+    pub async fn start(name: &str) -> Self {
+        let mut broker = Self::reserve(name);
+        broker.run().await;
+        broker
+    }
+
+    /// Starts it (again) and waits until it accepts connections.
+    pub async fn run(&mut self) {
+        let child = Command::new("mosquitto")
+            .arg("-c")
+            .arg(self.dir.join("mosquitto.conf"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("mosquitto starts");
+        self.child = Some(child);
+        for _ in 0..200 {
+            if tokio::net::TcpStream::connect(("127.0.0.1", self.port))
+                .await
+                .is_ok()
+            {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        panic!("mosquitto does not listen on {}", self.port);
+    }
+
+    /// Stops it as an operator would (SIGTERM: it saves its sessions) and waits for it.
+    pub fn stop(&mut self) {
+        if let Some(mut child) = self.child.take() {
+            let _ = Command::new("kill")
+                .args(["-TERM", &child.id().to_string()])
+                .status();
+            let _ = child.wait();
+        }
+    }
+}
+
+impl Broker {
+    /// The broker's log so far.
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(self.dir.join("log")).unwrap_or_default()
+    }
+}
+
+impl Drop for Broker {
+    fn drop(&mut self) {
+        if let Some(child) = self.child.as_mut() {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// One message a watcher heard.
+#[derive(Clone, Debug)]
+pub struct Heard {
+    pub topic: String,
+    pub payload: String,
+    pub retain: bool,
+    /// When the watcher's task stored it.
+    pub arrived: std::time::SystemTime,
+}
+
+/// A subscriber to `filter` with a persistent session (QoS 1), reconnecting on its own.
+pub struct Watcher {
+    pub heard: Arc<Mutex<Vec<Heard>>>,
+    task: tokio::task::JoinHandle<()>,
+}
+
+impl Watcher {
+    pub async fn start(port: u16, id: &str, filter: &str) -> Self {
+        let mut options = MqttOptions::new(id, "127.0.0.1", port);
+        options
+            .set_clean_session(false)
+            .set_max_packet_size(1 << 20, 1 << 20)
+            .set_keep_alive(Duration::from_secs(5));
+        let (client, mut eventloop) = AsyncClient::new(options, 100);
+        let heard = Arc::new(Mutex::new(Vec::new()));
+        let (subscribed_tx, subscribed) = tokio::sync::oneshot::channel();
+        let task = {
+            let heard = Arc::clone(&heard);
+            let filter = filter.to_owned();
+            tokio::spawn(async move {
+                let mut subscribed_tx = Some(subscribed_tx);
+                loop {
+                    match eventloop.poll().await {
+                        Ok(Event::Incoming(Packet::ConnAck(_))) => {
+                            let _ = client.try_subscribe(filter.clone(), QoS::AtLeastOnce);
+                        }
+                        Ok(Event::Incoming(Packet::SubAck(_))) => {
+                            if let Some(tx) = subscribed_tx.take() {
+                                let _ = tx.send(());
+                            }
+                        }
+                        Ok(Event::Incoming(Packet::Publish(publish))) => {
+                            heard.lock().unwrap().push(Heard {
+                                topic: publish.topic.clone(),
+                                payload: String::from_utf8_lossy(&publish.payload).into_owned(),
+                                retain: publish.retain,
+                                arrived: std::time::SystemTime::now(),
+                            });
+                        }
+                        Ok(_) => {}
+                        Err(_) => tokio::time::sleep(Duration::from_millis(50)).await,
+                    }
+                }
+            })
+        };
+        tokio::time::timeout(Duration::from_secs(10), subscribed)
+            .await
+            .expect("the watcher subscribes")
+            .unwrap();
+        Self { heard, task }
+    }
+
+    /// What it heard on `topic`.
+    pub fn on(&self, topic: &str) -> Vec<Heard> {
+        self.heard
+            .lock()
+            .unwrap()
+            .iter()
+            .filter(|h| h.topic == topic)
+            .cloned()
+            .collect()
+    }
+
+    /// Waits up to `within` for `done` to hold of what it heard.
+    pub async fn wait_for(&self, within: Duration, done: impl Fn(&[Heard]) -> bool) -> bool {
+        let deadline = tokio::time::Instant::now() + within;
+        loop {
+            if done(&self.heard.lock().unwrap()) {
+                return true;
+            }
+            if tokio::time::Instant::now() > deadline {
+                return false;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+}
+
+impl Drop for Watcher {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
