@@ -7,6 +7,7 @@
 mod check;
 pub mod outputs;
 mod read;
+mod reader;
 
 pub use outputs::{HttpConfig, MetricsConfig, MqttConfig, Outputs, SecretSource};
 pub use read::{resolve, writable};
@@ -190,17 +191,17 @@ impl BusFile {
         let mut diagnostics = Vec::new();
         let bus = match (&source.syntax_error, &source.root) {
             (Some(error), _) => {
-                diagnostics.push(read::syntax(error));
+                diagnostics.push(reader::syntax(error));
                 None
             }
             (None, Some(root)) => {
-                let mut reader = read::Reader::new(base, catalogue);
+                let mut reader = reader::Reader::new(base, catalogue);
                 let bus = reader.bus(root);
                 diagnostics.append(&mut reader.diagnostics);
                 bus
             }
             (None, None) => {
-                diagnostics.push(read::empty());
+                diagnostics.push(reader::empty());
                 None
             }
         };

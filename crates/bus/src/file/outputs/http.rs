@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use optobus_codegen::source::{Node, Value};
 
-use crate::file::read::{listen_address, scalar, Reader};
+use crate::file::reader::{listen_address, scalar, Reader};
 
 /// Where the console listens when the file gives `http: true`.
 pub const DEFAULT_HTTP_PORT: u16 = 8080;

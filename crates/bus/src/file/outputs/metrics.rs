@@ -4,7 +4,7 @@ use std::net::SocketAddr;
 
 use optobus_codegen::source::{Node, Value};
 
-use super::super::read::{listen_address, scalar, Reader};
+use super::super::reader::{listen_address, scalar, Reader};
 
 /// Where `/metrics` is served.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -12,7 +12,7 @@ pub use mqtt::{MqttConfig, SecretSource, DEFAULT_MQTT_QUEUE};
 
 use optobus_codegen::source::{Node, Span};
 
-use super::read::{scalar, Reader};
+use super::reader::{scalar, Reader};
 
 /// Where a running bus sends what it reads; nothing unless the file says so.
 #[derive(Clone, Debug, Default, PartialEq)]

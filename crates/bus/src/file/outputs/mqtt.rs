@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use optobus_codegen::source::{Node, Span};
 
-use super::super::read::{entries, has_port, scalar, Reader};
+use super::super::reader::{entries, has_port, scalar, Reader};
 
 /// Samples kept for the broker while it cannot be reached, unless the file says otherwise.
 pub const DEFAULT_MQTT_QUEUE: usize = 10_000;

@@ -1,0 +1,304 @@
+//! The reading kit of the bus file: a reader that collects every problem with its place, and
+//! what it reads values with (mappings with known keys, lists, text, numbers, durations,
+//! addresses). What the bus file means is read with it in `read.rs` and `outputs/`.
+
+use std::path::Path;
+use std::time::Duration;
+
+use jiff::SignedDuration;
+use optobus_codegen::diagnostic::{Label, Location};
+use optobus_codegen::source::{Node, Span, SyntaxError, Value};
+use optobus_codegen::Diagnostic;
+
+use super::MAX_DURATION;
+use crate::catalogue::Catalogue;
+
+/// Rule name of reading errors.
+pub(super) const RULE: &str = "bus-file";
+pub(super) const HELP: &str = "see crates/bus/README.md for the keys a bus file takes";
+
+/// Reads the bus file's tree, collecting every problem.
+pub(super) struct Reader<'a> {
+    pub(super) base: &'a Path,
+    pub(super) catalogue: &'a Catalogue,
+    pub(super) diagnostics: Vec<Diagnostic>,
+}
+
+/// The diagnostic for text that is not YAML.
+pub(super) fn syntax(error: &SyntaxError) -> Diagnostic {
+    Diagnostic {
+        rule: error.rule,
+        message: error.message.clone(),
+        primary: Label {
+            location: Location::Position {
+                line: error.line,
+                column: error.column,
+            },
+            text: String::new(),
+        },
+        secondary: Vec::new(),
+        help: Some(error.help.into()),
+    }
+}
+
+/// The diagnostic for an empty file.
+pub(super) fn empty() -> Diagnostic {
+    Diagnostic {
+        rule: RULE,
+        message: "the bus file is empty".into(),
+        primary: Label {
+            location: Location::Position { line: 1, column: 1 },
+            text: String::new(),
+        },
+        secondary: Vec::new(),
+        help: Some("a bus file has `lines` and `devices`; see crates/bus/README.md".into()),
+    }
+}
+
+/// The entries of a mapping.
+pub(super) fn entries(node: &Node) -> Option<&[(Node, Node)]> {
+    match &node.value {
+        Value::Mapping(entries) => Some(entries),
+        _ => None,
+    }
+}
+
+/// A plain or quoted scalar's text.
+pub(super) fn scalar(node: &Node) -> Option<&str> {
+    match &node.value {
+        Value::Scalar { text, .. } if !node.is_null() => Some(text),
+        _ => None,
+    }
+}
+
+impl<'a> Reader<'a> {
+    pub(super) fn new(base: &'a Path, catalogue: &'a Catalogue) -> Self {
+        Self {
+            base,
+            catalogue,
+            diagnostics: Vec::new(),
+        }
+    }
+
+    pub(super) fn error(
+        &mut self,
+        span: Span,
+        message: impl Into<String>,
+        help: impl Into<String>,
+    ) {
+        self.diagnostics.push(Diagnostic {
+            rule: RULE,
+            message: message.into(),
+            primary: Label {
+                location: Location::Span(span),
+                text: String::new(),
+            },
+            secondary: Vec::new(),
+            help: Some(help.into()),
+        });
+    }
+
+    /// The entries of `node`, checked against `allowed` keys (each unknown or repeated key
+    /// reported), or an error saying `what` must be a mapping.
+    pub(super) fn mapping<'n>(
+        &mut self,
+        node: &'n Node,
+        what: &str,
+        allowed: &[&str],
+    ) -> Option<&'n [(Node, Node)]> {
+        let Some(pairs) = entries(node) else {
+            self.error(
+                node.span,
+                format!("{what} must be a mapping, not {}", node.kind()),
+                HELP,
+            );
+            return None;
+        };
+        let mut seen: Vec<(&str, Span)> = Vec::new();
+        for (key, _) in pairs {
+            let Some(name) = scalar(key) else {
+                self.error(key.span, format!("{what} has a key that is not text"), HELP);
+                continue;
+            };
+            if let Some((_, first)) = seen.iter().find(|(seen, _)| *seen == name) {
+                let first = *first;
+                self.diagnostics.push(Diagnostic {
+                    rule: RULE,
+                    message: format!("{what} has `{name}` twice"),
+                    primary: Label {
+                        location: Location::Span(key.span),
+                        text: "repeated key".into(),
+                    },
+                    secondary: vec![Label {
+                        location: Location::Span(first),
+                        text: "first given here".into(),
+                    }],
+                    help: Some("give each key once".into()),
+                });
+            } else if !allowed.contains(&name) {
+                self.error(
+                    key.span,
+                    format!("{what} has no key `{name}`"),
+                    format!("its keys are {}", quoted(allowed)),
+                );
+            }
+            seen.push((name, key.span));
+        }
+        Some(pairs)
+    }
+
+    /// The items of a list, or an error.
+    pub(super) fn list<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n [Node]> {
+        match &node.value {
+            Value::Sequence(items) => Some(items),
+            _ => {
+                self.error(
+                    node.span,
+                    format!("{what} must be a list, not {}", node.kind()),
+                    HELP,
+                );
+                None
+            }
+        }
+    }
+
+    pub(super) fn text<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n str> {
+        let text = scalar(node);
+        if text.is_none() {
+            self.error(
+                node.span,
+                format!("{what} must be text, not {}", node.kind()),
+                HELP,
+            );
+        }
+        text
+    }
+
+    pub(super) fn number<T: TryFrom<u64>>(
+        &mut self,
+        node: &Node,
+        what: &str,
+        range: (u64, u64),
+    ) -> Option<T> {
+        let text = self.text(node, what)?;
+        let value = parse_integer(text).filter(|v| (range.0..=range.1).contains(v));
+        match value.and_then(|v| T::try_from(v).ok()) {
+            Some(value) => Some(value),
+            None => {
+                self.error(
+                    node.span,
+                    format!(
+                        "{what} must be a whole number from {} to {}, not `{text}`",
+                        range.0, range.1
+                    ),
+                    HELP,
+                );
+                None
+            }
+        }
+    }
+
+    pub(super) fn boolean(&mut self, node: &Node, what: &str) -> Option<bool> {
+        match scalar(node) {
+            Some("true") => Some(true),
+            Some("false") => Some(false),
+            _ => {
+                self.error(node.span, format!("{what} must be true or false"), HELP);
+                None
+            }
+        }
+    }
+
+    /// A duration like `200ms`, `1.5s`, `1s 500ms`, within `min ..= MAX_DURATION`.
+    pub(super) fn duration(&mut self, node: &Node, what: &str, min: Duration) -> Option<Duration> {
+        let text = self.text(node, what)?;
+        match parse_duration(text) {
+            Ok(duration) if duration < min => {
+                self.error(
+                    node.span,
+                    format!(
+                        "{what} must be more than {}",
+                        show(min.saturating_sub(Duration::from_nanos(1)))
+                    ),
+                    "e.g. 100ms, 1.5s, 2m",
+                );
+                None
+            }
+            Ok(duration) if duration > MAX_DURATION => {
+                self.error(
+                    node.span,
+                    format!("{what} `{text}` is too long: at most 24h"),
+                    "e.g. 100ms, 1.5s, 2m",
+                );
+                None
+            }
+            Ok(duration) => Some(duration),
+            Err(why) => {
+                self.error(
+                    node.span,
+                    format!("{what} `{text}` {why}"),
+                    "e.g. 100ms, 1.5s, 2m",
+                );
+                None
+            }
+        }
+    }
+}
+
+/// `a`, `b` and `c` in backquotes.
+pub(super) fn quoted(names: &[&str]) -> String {
+    names
+        .iter()
+        .map(|n| format!("`{n}`"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A port alone (on 127.0.0.1), `localhost:PORT`, or `IP:PORT`.
+pub(super) fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
+    let text = text.trim();
+    if let Ok(port) = text.parse::<u16>() {
+        return Some(std::net::SocketAddr::from(([127, 0, 0, 1], port)));
+    }
+    if let Some(port) = text.strip_prefix("localhost:") {
+        return Some(std::net::SocketAddr::from((
+            [127, 0, 0, 1],
+            port.parse().ok()?,
+        )));
+    }
+    text.parse().ok()
+}
+
+pub(super) fn has_port(address: &str) -> bool {
+    address
+        .rsplit_once(':')
+        .is_some_and(|(host, port)| !host.is_empty() && port.parse::<u16>().is_ok_and(|p| p > 0))
+}
+
+fn parse_integer(text: &str) -> Option<u64> {
+    let text = text.trim();
+    match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
+        Some(hex) => u64::from_str_radix(hex, 16).ok(),
+        None => text.parse().ok(),
+    }
+}
+
+/// A friendly duration (`200ms`, `1.5s`, `1s 500ms`, `2m`); a bare number is refused, since a
+/// unit cannot be guessed safely.
+pub(crate) fn parse_duration(text: &str) -> Result<Duration, &'static str> {
+    let text = text.trim();
+    if !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit() || b == b'.') {
+        return Err("needs a unit (ms, s, m, h)");
+    }
+    let signed: SignedDuration = text.parse().map_err(|_| "is not a duration")?;
+    if signed.is_negative() {
+        return Err("cannot be negative");
+    }
+    Duration::try_from(signed).map_err(|_| "is too long: at most 24h")
+}
+
+/// A duration as people write it.
+pub(crate) fn show(duration: Duration) -> String {
+    let signed = SignedDuration::try_from(duration).unwrap_or(SignedDuration::MAX);
+    format!("{signed:#}")
+}
