@@ -419,20 +419,31 @@ async fn direct_rtu() -> (Vec<f64>, u64, u64) {
     (times, wrong, errors)
 }
 
-fn jitter(requested: &[Vec<SystemTime>], from: SystemTime, to: SystemTime) -> Vec<(f64, f64)> {
+/// Per poll: the p50 and p99 of its period jitter (ms), and the ticks it skipped (intervals of
+/// 1.5 periods or more) between `from` and `to`.
+fn jitter(
+    requested: &[Vec<SystemTime>],
+    from: SystemTime,
+    to: SystemTime,
+) -> Vec<(f64, f64, usize)> {
     requested
         .iter()
         .zip(PERIODS_MS)
         .map(|(times, period)| {
             let inside: Vec<&SystemTime> = times.iter().filter(|&&t| t >= from && t < to).collect();
-            let jitter: Vec<f64> = inside
+            let intervals: Vec<f64> = inside
                 .windows(2)
-                .map(|pair| {
-                    let interval = pair[1].duration_since(*pair[0]).unwrap_or_default();
-                    (ms(interval) - period as f64).abs()
-                })
+                .map(|pair| ms(pair[1].duration_since(*pair[0]).unwrap_or_default()))
                 .collect();
-            (quantile(&jitter, 0.5), quantile(&jitter, 0.99))
+            let jitter: Vec<f64> = intervals
+                .iter()
+                .map(|interval| (interval - period as f64).abs())
+                .collect();
+            let skipped = intervals
+                .iter()
+                .filter(|&&interval| interval >= 1.5 * period as f64)
+                .count();
+            (quantile(&jitter, 0.5), quantile(&jitter, 0.99), skipped)
         })
         .collect()
 }
@@ -636,9 +647,9 @@ async fn run() {
         clients_from,
     );
     let with = jitter(&requested, clients_from, clients_to);
-    for (i, ((a50, a99), (w50, w99))) in alone.iter().zip(&with).enumerate() {
+    for (i, ((a50, a99, a_skipped), (w50, w99, w_skipped))) in alone.iter().zip(&with).enumerate() {
         println!(
-            "  poll d{} every {:>3} ms: jitter alone p50 {a50:.3} p99 {a99:.3} ms; with the clients p50 {w50:.3} p99 {w99:.3} ms (bound: longest transaction + 1 ms = {:.3} ms)",
+            "  poll d{} every {:>3} ms: jitter alone p50 {a50:.3} p99 {a99:.3} ms, {a_skipped} ticks skipped; with the clients p50 {w50:.3} p99 {w99:.3} ms, {w_skipped} ticks skipped (bound: longest transaction + 1 ms = {:.3} ms)",
             i + 1,
             PERIODS_MS[i],
             longest_poll + 1.0

@@ -481,7 +481,7 @@ impl LineTask {
             Some(_) => Outcome::Failed,
         };
         self.schedule
-            .measured(poll, replied.duration_since(requested));
+            .measured(poll, requested, replied.duration_since(requested));
         if let Some(health) = self.schedule.done(poll, replied, outcome) {
             let errors = *device.errors.lock().unwrap_or_else(|e| e.into_inner());
             let reason = match (error, health) {

@@ -52,6 +52,8 @@ struct Poll {
     served: u64,
     /// How long its last run took.
     took: Option<Duration>,
+    /// When its last run started.
+    started: Option<Instant>,
 }
 
 #[derive(Debug)]
@@ -61,6 +63,18 @@ struct Device {
     not_before: Instant,
     failures: u32,
     backoff: Duration,
+}
+
+impl Poll {
+    /// A periodic poll whose last run started late (its next tick at hand) waits for the tick
+    /// after: two runs less than half a period apart would be a burst.
+    fn keep_apart(&mut self) {
+        if let (Some(every), Some(started)) = (self.every, self.started) {
+            if self.due < started + every / 2 {
+                self.due += every;
+            }
+        }
+    }
 }
 
 /// What the line should do next.
@@ -112,6 +126,7 @@ impl Schedule {
             due,
             served: 0,
             took: None,
+            started: None,
         });
         self.polls.len() - 1
     }
@@ -123,8 +138,10 @@ impl Schedule {
     }
 
     /// Records how long a run of poll `index` took, for the phase plan.
-    pub(crate) fn measured(&mut self, index: usize, took: Duration) {
-        self.polls[index].took = Some(took);
+    pub(crate) fn measured(&mut self, index: usize, started: Instant, took: Duration) {
+        let poll = &mut self.polls[index];
+        poll.took = Some(took);
+        poll.started = Some(started);
     }
 
     /// Once every periodic poll of a device online has run (and so been timed), moves their
@@ -152,7 +169,9 @@ impl Schedule {
         }
         self.phased = true;
         for (&index, phase) in periodic.iter().zip(plan_phases(&timed)) {
-            self.polls[index].due = now + phase;
+            let poll = &mut self.polls[index];
+            poll.due = now + phase;
+            poll.keep_apart();
         }
     }
 
@@ -226,6 +245,7 @@ impl Schedule {
         poll.served = self.turns;
         if let Some(every) = poll.every {
             poll.due = next_tick(poll.due, every, now);
+            poll.keep_apart();
         }
         if !self.phased {
             self.plan_once_timed(now);
@@ -451,6 +471,30 @@ mod tests {
     }
 
     #[test]
+    fn a_poll_that_started_late_does_not_run_again_at_once() {
+        let start = Instant::now();
+        let mut schedule = Schedule::default();
+        let device = schedule.add_device(start);
+        let poll = schedule.add_poll(device, Some(ms(10)), 0);
+        // Its first run (at 0, 1 ms) sets its phase: ticks at 11, 21, 31 ms …
+        assert_eq!(schedule.next(start), Next::Run(poll));
+        schedule.measured(poll, start, ms(1));
+        schedule.done(poll, start + ms(1), Outcome::Answered);
+        assert_eq!(schedule.next(start + ms(1)), Next::Wait(start + ms(11)));
+        // Due at 11 ms, it started at 20.9 ms (the line was busy) and took 50 µs: its tick at
+        // 21 ms would follow 0.1 ms after it, so the one at 31 ms is taken.
+        let started = start + Duration::from_micros(20_900);
+        schedule.measured(poll, started, Duration::from_micros(50));
+        schedule.done(poll, started + Duration::from_micros(50), Outcome::Answered);
+        assert_eq!(schedule.next(start + ms(21)), Next::Wait(start + ms(31)));
+        // Started 3 ms late, its next tick (7 ms later) stays.
+        let started = start + ms(34);
+        schedule.measured(poll, started, ms(1));
+        schedule.done(poll, started + ms(1), Outcome::Answered);
+        assert_eq!(schedule.next(start + ms(35)), Next::Wait(start + ms(41)));
+    }
+
+    #[test]
     fn higher_priority_goes_first_among_due_polls() {
         let start = Instant::now();
         let mut schedule = Schedule::default();
@@ -542,7 +586,7 @@ mod tests {
         let mut now = start;
         for &poll in &polls {
             assert_eq!(schedule.next(now), Next::Run(poll));
-            schedule.measured(poll, ms(10));
+            schedule.measured(poll, now, ms(10));
             now += ms(10);
             schedule.done(poll, now, Outcome::Answered);
         }
