@@ -1,21 +1,13 @@
 //! A device's register map, commands and groups as the page shows them, from its spec.
 
 use optobus_bus::Writable;
-use optobus_device::{DeviceInfo, RegisterInfo, ValueKind};
-use optobus_inspect::{code_list, range_text};
+use optobus_device::{DeviceInfo, RegisterInfo};
+use optobus_inspect::values_text;
 use serde_json::{json, Value as Json};
 
 /// One register: where it is, its type, unit, range or codes, and the manual's words.
 fn register(register: &'static RegisterInfo, writable: &Writable) -> Json {
-    let values = match register.kind {
-        ValueKind::Enum => code_list(register.codes),
-        ValueKind::Packed(fields) => fields
-            .iter()
-            .map(|f| format!("{}: {}", f.name, code_list(f.codes)))
-            .collect::<Vec<_>>()
-            .join("; "),
-        _ => range_text(register).unwrap_or_default(),
-    };
+    let values = values_text(register);
     json!({
         "name": register.name,
         "table": register.table.as_str(),

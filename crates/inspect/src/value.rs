@@ -168,6 +168,20 @@ pub fn decode_value(register: &'static RegisterInfo, words: &[u16]) -> Value {
     }
 }
 
+/// What a register takes, as the register maps show it: its codes (`idle (0), save (1)`), each
+/// packed field's codes, or its range in its units; empty when it has none of them.
+pub fn values_text(register: &RegisterInfo) -> String {
+    match register.kind {
+        ValueKind::Enum => crate::code_list(register.codes),
+        ValueKind::Packed(fields) => fields
+            .iter()
+            .map(|f| format!("{}: {}", f.name, crate::code_list(f.codes)))
+            .collect::<Vec<_>>()
+            .join("; "),
+        _ => range_text(register).unwrap_or_default(),
+    }
+}
+
 /// The allowed range of a register in its units (`0.5 % ..= 100.0 %`), if it has one.
 pub fn range_text(register: &RegisterInfo) -> Option<String> {
     let (min, max) = register.range?;

@@ -1,8 +1,8 @@
 //! `optobus registers`: a model's register map, groups and commands, from its spec.
 
 use clap::Args;
-use optobus_device::{DeviceInfo, RegisterInfo, ValueKind};
-use optobus_inspect::{code_list, hex_and_decimal, range_text};
+use optobus_device::{DeviceInfo, RegisterInfo};
+use optobus_inspect::{hex_and_decimal, values_text};
 use serde_json::{json, Value as Json};
 
 use crate::connect::Options;
@@ -67,15 +67,7 @@ fn text(device: &'static DeviceInfo, json: bool) -> String {
 /// range or codes.
 fn describe(register: &RegisterInfo) -> (String, Json) {
     let kind = register.kind.name();
-    let values = match register.kind {
-        ValueKind::Enum => code_list(register.codes),
-        ValueKind::Packed(fields) => fields
-            .iter()
-            .map(|f| format!("{}: {}", f.name, code_list(f.codes)))
-            .collect::<Vec<_>>()
-            .join("; "),
-        _ => range_text(register).unwrap_or_default(),
-    };
+    let values = values_text(register);
     let text = format!(
         "{:<34} {:<7} {:<14} {:<2} {:<7} {:<4} {}",
         register.name,
