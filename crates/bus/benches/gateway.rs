@@ -24,6 +24,9 @@
 //! thread: a request counted behind more other clients' requests than there are other
 //! clients was still on its way to the gateway's queue (in the TCP path), not waiting in it.
 //!
+//! It runs twice: with each client reading every 20 ms, as a PLC or SCADA polls, and with each
+//! sending its next request the moment its reply arrives, which saturates the line.
+//!
 //! Run with `cargo bench -p optobus-bus --bench gateway`.
 
 mod common;
@@ -221,7 +224,7 @@ fn missing(name: &str, why: String) -> Tally {
 }
 
 /// pymodbus, reading unit 1's pinned register for `RUN`.
-fn pymodbus(port: u16) -> Tally {
+fn pymodbus(port: u16, pace: Option<Duration>) -> Tally {
     let name = "pymodbus";
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/pymodbus_client.py");
     let p = &pinned()[0];
@@ -229,6 +232,7 @@ fn pymodbus(port: u16) -> Tally {
         .args([script, "127.0.0.1", &port.to_string(), "1"])
         .arg(address(p).to_string())
         .args(["1", &RUN.as_secs_f64().to_string()])
+        .arg(pace.unwrap_or_default().as_secs_f64().to_string())
         .stderr(Stdio::piped())
         .output();
     let output = match output {
@@ -263,7 +267,7 @@ fn pymodbus(port: u16) -> Tally {
 }
 
 /// mbpoll, polling unit 2's pinned register until told to stop after `RUN`.
-fn mbpoll(port: u16) -> Tally {
+fn mbpoll(port: u16, pace: Option<Duration>) -> Tally {
     let name = "mbpoll";
     let p = &pinned()[1];
     let child = Command::new("stdbuf")
@@ -278,7 +282,12 @@ fn mbpoll(port: u16) -> Tally {
             "2",
         ])
         .args(["-r", &address(p).to_string(), "-c", "1", "-t", "4", "-0"])
-        .args(["-l", "10", "-o", "2", "127.0.0.1"])
+        // mbpoll waits at least 10 ms between its polls.
+        .args([
+            "-l",
+            &pace.map_or(10, |p| p.as_millis().max(10)).to_string(),
+        ])
+        .args(["-o", "2", "127.0.0.1"])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn();
@@ -328,8 +337,15 @@ fn which(tool: &str) -> bool {
         .is_ok_and(|o| o.status.success())
 }
 
+/// A client's pace: a read every `pace` (late ticks skipped), or back to back.
+fn pacer(pace: Option<Duration>) -> tokio::time::Interval {
+    let mut tick = tokio::time::interval(pace.unwrap_or(Duration::from_nanos(1)));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    tick
+}
+
 /// Our `TcpClient`, reading unit 3's pinned register for `RUN`.
-async fn our_client(address: SocketAddr) -> Tally {
+async fn our_client(address: SocketAddr, pace: Option<Duration>) -> Tally {
     let p = &pinned()[2];
     let mut tally = Tally {
         name: "TcpClient".to_owned(),
@@ -341,7 +357,9 @@ async fn our_client(address: SocketAddr) -> Tally {
     };
     let read = ReadRequest::new(ReadFunction::Holding, self::address(p), 1);
     let until = Instant::now() + RUN;
+    let mut tick = pacer(pace);
     while Instant::now() < until {
+        tick.tick().await;
         let value = client.read_words(3, read).await.ok().map(|w| w[0]);
         tally.value(value, p.value);
     }
@@ -349,7 +367,7 @@ async fn our_client(address: SocketAddr) -> Tally {
 }
 
 /// A raw socket, reading unit 4's pinned register for `RUN`.
-async fn raw_client(address: SocketAddr) -> Tally {
+async fn raw_client(address: SocketAddr, pace: Option<Duration>) -> Tally {
     let p = &pinned()[3];
     let mut tally = Tally {
         name: "raw socket".to_owned(),
@@ -362,7 +380,9 @@ async fn raw_client(address: SocketAddr) -> Tally {
     let [high, low] = self::address(p).to_be_bytes();
     let until = Instant::now() + RUN;
     let mut transaction = 0u16;
+    let mut tick = pacer(pace);
     while Instant::now() < until {
+        tick.tick().await;
         transaction = transaction.wrapping_add(1);
         let [t1, t2] = transaction.to_be_bytes();
         let frame = [t1, t2, 0, 0, 0, 6, 4, 0x03, high, low, 0, 1];
@@ -448,12 +468,21 @@ fn jitter(
         .collect()
 }
 
+/// How often each client reads in the paced run: as a PLC or SCADA polls its sensors.
+const PACED: Duration = Duration::from_millis(20);
+
 fn main() {
-    let runtime = common::runtime();
-    runtime.block_on(run());
+    common::runtime().block_on(run(Some(PACED)));
+    common::runtime().block_on(run(None));
 }
 
-async fn run() {
+/// One run: the clients reading every `pace`, or each sending its next request the moment its
+/// reply arrives (saturating the line).
+async fn run(pace: Option<Duration>) {
+    match pace {
+        Some(pace) => println!("clients polling every {} ms each:", pace.as_millis()),
+        None => println!("clients sending each next request as soon as the reply arrives:"),
+    }
     let format = LineFormat::new(BAUD);
     let line_log = Arc::new(Mutex::new(Vec::new()));
     let devices: Vec<String> = pinned()
@@ -499,10 +528,13 @@ async fn run() {
         if clients.is_none() && SystemTime::now() >= clients_from {
             let port = relay_address.port();
             clients = Some(std::thread::spawn(move || {
-                let python = std::thread::spawn(move || pymodbus(port));
-                let mbpoll = std::thread::spawn(move || mbpoll(port));
+                let python = std::thread::spawn(move || pymodbus(port, pace));
+                let mbpoll = std::thread::spawn(move || mbpoll(port, pace));
                 let ours = common::runtime().block_on(async {
-                    tokio::join!(our_client(relay_address), raw_client(relay_address))
+                    tokio::join!(
+                        our_client(relay_address, pace),
+                        raw_client(relay_address, pace)
+                    )
                 });
                 vec![
                     python.join().unwrap(),
