@@ -209,3 +209,34 @@ devices:
         );
     }
 }
+
+#[tokio::test]
+async fn a_late_reply_within_the_timeout_is_a_sample_when_the_faults_say_how_late() {
+    // Every reply 20 ms late: within the device's 200 ms timeout, as the file's `late=` says
+    // (the bus's own default would put a late reply past the timeout).
+    let running = Bus::new(file(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: slow, model: p-series, slave: 1, timeout: 200ms, faults: 'delay=1,late=20ms', poll: [{ read: light_power }] }
+",
+    ));
+    let mut events = running.subscribe();
+    let running = running.start().unwrap();
+    let mut samples = 0;
+    while samples < 3 {
+        match next(&mut events).await {
+            Event::Sample(sample) => {
+                assert!(
+                    sample.replied.duration_since(sample.requested).unwrap()
+                        >= Duration::from_millis(20),
+                    "a delayed reply"
+                );
+                samples += 1;
+            }
+            Event::Health(health) => panic!("{health:?}: every reply came within the timeout"),
+            Event::Line(_) => {}
+        }
+    }
+    running.stop();
+}

@@ -204,6 +204,11 @@ impl Faults {
         self
     }
 
+    /// How late a delayed reply comes.
+    pub fn late_by(&self) -> Duration {
+        self.late
+    }
+
     /// Sets `late` to 1.5 × `timeout`, so a delayed reply lands after the client gave up.
     pub fn client_timeout(self, timeout: Duration) -> Self {
         self.late(timeout.saturating_add(timeout / 2))

@@ -241,12 +241,16 @@ impl BusFile {
 
 impl DeviceConfig {
     /// The simulated device a `simulated: true` line puts in this device's place: its model
-    /// at its slave address, with its `faults` (a late reply lands after its `timeout`).
+    /// at its slave address, with its `faults` (a late reply lands after its `timeout`, unless
+    /// the faults say how late with `late=` or `timeout=`).
     /// `optobus simulate --bus` serves a line of them on a pty or a port.
     pub fn simulator(&self) -> optobus_simulator::Simulator {
         let simulator = optobus_simulator::Simulator::new(self.device).slave(self.slave);
         match &self.faults {
-            Some(faults) => simulator.faults(faults.clone().client_timeout(self.timeout)),
+            Some(faults) if faults.late_by() == optobus_simulator::Faults::default().late_by() => {
+                simulator.faults(faults.clone().client_timeout(self.timeout))
+            }
+            Some(faults) => simulator.faults(faults.clone()),
             None => simulator,
         }
     }
