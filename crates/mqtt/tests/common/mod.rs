@@ -116,6 +116,21 @@ impl Broker {
     pub fn log(&self) -> String {
         std::fs::read_to_string(self.dir.join("log")).unwrap_or_default()
     }
+
+    /// Its folder (removed with it): room for a test's own files, such as certificates.
+    pub fn dir(&self) -> &std::path::Path {
+        &self.dir
+    }
+
+    /// Adds `lines` to its configuration (before it starts), such as another listener.
+    pub fn configure(&self, lines: &str) {
+        use std::io::Write;
+        let mut config = std::fs::OpenOptions::new()
+            .append(true)
+            .open(self.dir.join("mosquitto.conf"))
+            .unwrap();
+        config.write_all(lines.as_bytes()).unwrap();
+    }
 }
 
 impl Drop for Broker {
