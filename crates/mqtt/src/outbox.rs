@@ -103,6 +103,22 @@ impl Outbox {
         Some(message)
     }
 
+    /// The client could not take the message [`next`](Self::next) gave (its channel was full):
+    /// it goes back to the front of its queue.
+    pub(crate) fn not_taken(&mut self) {
+        if let Some((None, message)) = self.in_flight.pop_back() {
+            match message.kind {
+                Kind::Sample => self.samples.push_front(message),
+                Kind::Announce | Kind::Reply => self.control.push_front(message),
+            }
+        }
+    }
+
+    /// Messages handed to the client that it has not written yet.
+    pub(crate) fn unwritten(&self) -> usize {
+        self.in_flight.iter().filter(|(id, _)| id.is_none()).count()
+    }
+
     /// The client wrote the oldest message handed to it not yet written, as packet `pkid`.
     pub(crate) fn written(&mut self, pkid: u16) {
         let Some(index) = self.in_flight.iter().position(|(id, _)| id.is_none()) else {
@@ -208,6 +224,29 @@ mod tests {
         }
         assert_eq!(outbox.counts().dropped, 1);
         assert_eq!(topics(&mut outbox), ["t/2", "t/3"]);
+    }
+
+    #[test]
+    fn a_message_the_client_could_not_take_is_handed_again_first() {
+        let mut outbox = Outbox::new(10);
+        outbox.connected(Vec::new());
+        for n in 1..=3 {
+            outbox.push(sample(n));
+        }
+        assert_eq!(outbox.next().map(|m| m.topic).as_deref(), Some("t/1"));
+        assert_eq!(outbox.next().map(|m| m.topic).as_deref(), Some("t/2"));
+        // The client's channel was full for t/2: it is not in flight, and comes next.
+        outbox.not_taken();
+        assert_eq!(outbox.counts().in_flight, 1);
+        assert_eq!(topics(&mut outbox), ["t/2", "t/3"]);
+        // The written ones are matched in order: t/1 as packet 1, t/2 as 2, t/3 as 3.
+        outbox.written(1);
+        outbox.written(2);
+        outbox.written(3);
+        outbox.acknowledged(2);
+        outbox.disconnected();
+        outbox.connected(Vec::new());
+        assert_eq!(topics(&mut outbox), ["t/1", "t/3"]);
     }
 
     #[test]

@@ -311,21 +311,27 @@ async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
     }
 }
 
-/// Messages from the queue to the client, one at a time, in order.
+/// Messages from the queue to the client, in order. A message is marked in flight and handed
+/// to the client's channel under the outbox's lock, so that a broken
+/// connection (which empties that channel under the same lock) never finds one in the channel
+/// that the outbox does not count as in flight, or the other way round.
 async fn send(client: AsyncClient, shared: Arc<Shared>) {
     loop {
-        let next = shared.outbox().next();
-        match next {
-            Some(message) => {
-                let sent = client
-                    .publish(message.topic, message.qos, message.retain, message.payload)
-                    .await;
-                if sent.is_err() {
-                    return;
+        // As many as the channel takes, under one lock.
+        {
+            let mut outbox = shared.outbox();
+            while let Some(message) = outbox.next() {
+                let taken = client
+                    .try_publish(message.topic, message.qos, message.retain, message.payload)
+                    .is_ok();
+                if !taken {
+                    outbox.not_taken();
+                    break;
                 }
             }
-            None => shared.wake.notified().await,
         }
+        // More to send, or room in the channel again (the event loop wrote one).
+        shared.wake.notified().await;
     }
 }
 
@@ -366,14 +372,32 @@ async fn drive(
                     }
                 });
             }
-            Ok(MqttEvent::Outgoing(Outgoing::Publish(pkid))) => shared.outbox().written(pkid),
+            Ok(MqttEvent::Outgoing(Outgoing::Publish(pkid))) => {
+                let room = {
+                    let mut outbox = shared.outbox();
+                    outbox.written(pkid);
+                    outbox.unwritten() <= CLIENT_CHANNEL / 2
+                };
+                // The client's channel half empty: the sender fills it again.
+                if room {
+                    shared.wake.notify_one();
+                }
+            }
             Ok(MqttEvent::Incoming(Packet::PubAck(ack))) => shared.outbox().acknowledged(ack.pkid),
             Ok(MqttEvent::Incoming(Packet::Publish(publish))) => {
                 incoming(&shared, writes.as_ref(), &publish.topic, &publish.payload);
             }
             Ok(_) => {}
             Err(error) => {
-                shared.outbox().disconnected();
+                {
+                    // The event loop dropped what its channel held when the connection broke
+                    // (a clean session starts empty); a message handed to it since then is
+                    // dropped too, under the lock the sender hands messages under, so that
+                    // the outbox sends again exactly what the broker may not have.
+                    let mut outbox = shared.outbox();
+                    eventloop.clean();
+                    outbox.disconnected();
+                }
                 if failures == 0 {
                     tracing::warn!(%error, "MQTT broker unreachable; samples wait in the queue");
                 }
