@@ -10,7 +10,6 @@ use std::time::Duration;
 use common::{mosquitto_installed, Broker, Watcher};
 use optobus_bus::{Bus, BusFile, Catalogue};
 use optobus_codec::value::Scale;
-use optobus_mqtt::Publisher;
 use rumqttc::{AsyncClient, MqttOptions, QoS};
 use serde_json::{json, Value as Json};
 
@@ -52,13 +51,7 @@ async fn home_assistant_gets_a_device_and_an_entity_per_polled_register() {
     let broker = Broker::start("discovery").await;
     let file = file(broker.port);
     let bus = Bus::new(file.clone());
-    let _publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        bus.subscribe(),
-        None,
-    )
-    .unwrap();
+    let _publisher = common::publish(&file, &bus);
     let running = bus.start().unwrap();
     let watcher = Watcher::start(broker.port, "watcher-discovery", "homeassistant/#").await;
     let distance_topic = "homeassistant/sensor/hall-2_top/distance_1/config";

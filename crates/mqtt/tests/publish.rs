@@ -49,13 +49,7 @@ async fn samples_are_published_as_json_with_number_exact_text_unit_and_time() {
     let file = file(&bus_text(broker.port));
     let bus = Bus::new(file.clone());
     let mut events = bus.subscribe();
-    let publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        bus.subscribe(),
-        None,
-    )
-    .expect("starts");
+    let publisher = common::publish(&file, &bus);
     let running = bus.start().expect("starts");
     running
         .simulator("top")
@@ -125,13 +119,7 @@ async fn availability_follows_health_and_the_last_will_says_offline() {
     let broker = Broker::start("availability").await;
     let file = file(&bus_text(broker.port));
     let bus = Bus::new(file.clone());
-    let publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        bus.subscribe(),
-        None,
-    )
-    .expect("starts");
+    let publisher = common::publish(&file, &bus);
     let running = bus.start().expect("starts");
     // Retained: a subscriber that comes later still learns the state.
     tokio::time::sleep(Duration::from_millis(1500)).await;

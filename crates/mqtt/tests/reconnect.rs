@@ -85,13 +85,7 @@ async fn a_broker_restart_loses_no_queued_sample_and_availability_is_published_a
     let file = file(broker.port, 100_000);
     let bus = Bus::new(file.clone());
     let mut events = bus.subscribe();
-    let publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        bus.subscribe(),
-        None,
-    )
-    .unwrap();
+    let publisher = common::publish(&file, &bus);
     let running = bus.start().unwrap();
     let mut sent = Vec::new();
     tokio::time::sleep(Duration::from_secs(1)).await;
@@ -156,13 +150,7 @@ async fn a_broker_down_at_start_gets_the_samples_that_waited() {
     let file = file(broker.port, 100_000);
     let bus = Bus::new(file.clone());
     let mut events = bus.subscribe();
-    let publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        bus.subscribe(),
-        None,
-    )
-    .unwrap();
+    let publisher = common::publish(&file, &bus);
     let running = bus.start().unwrap();
     tokio::time::sleep(Duration::from_millis(1500)).await;
     let waiting = publisher.counts();
@@ -202,13 +190,7 @@ async fn beyond_the_queue_the_oldest_samples_are_dropped_and_counted_exactly() {
     let file = file(broker.port, 20);
     let bus = Bus::new(file.clone());
     let mut events = bus.subscribe();
-    let publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        bus.subscribe(),
-        None,
-    )
-    .unwrap();
+    let publisher = common::publish(&file, &bus);
     let running = bus.start().unwrap();
     tokio::time::sleep(Duration::from_millis(500)).await;
     broker.stop();

@@ -5,7 +5,7 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -19,20 +19,7 @@ use tracing_subscriber::layer::{Context, Layer, SubscriberExt};
 
 /// Whether the `openssl` tool is installed (mandatory under `OPTOBUS_REQUIRE_INTEROP=1`).
 fn openssl_installed() -> bool {
-    let found = Command::new("openssl")
-        .arg("version")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok();
-    if !found {
-        assert!(
-            std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
-            "openssl is not installed"
-        );
-        eprintln!("skipped: the openssl tool is not installed (Debian package `openssl`)");
-    }
-    found
+    common::tool_installed("openssl", "version", "openssl")
 }
 
 /// Runs `openssl` with `args` in `dir`; panics with its output if it fails.
@@ -221,13 +208,7 @@ async fn samples_reach_a_tls_broker_whose_certificate_the_ca_file_vouches_for() 
     let watcher = Watcher::start(broker.port, "watcher-tls", "plant/#").await;
     let file = file(tls_port, &broker.dir().join("ca.pem"));
     let bus = Bus::new(file.clone());
-    let publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        bus.subscribe(),
-        None,
-    )
-    .expect("starts");
+    let publisher = common::publish(&file, &bus);
     let running = bus.start().expect("starts");
     running
         .simulator("top")

@@ -12,8 +12,14 @@ use rumqttc::{AsyncClient, Event, MqttOptions, Packet, QoS};
 /// Whether mosquitto is installed. `.ci/run` installs it and sets `OPTOBUS_REQUIRE_INTEROP=1`,
 /// so there a missing broker fails the test; elsewhere the test says it was skipped.
 pub fn mosquitto_installed() -> bool {
-    let found = Command::new("mosquitto")
-        .arg("-h")
+    tool_installed("mosquitto", "-h", "mosquitto")
+}
+
+/// Whether `tool` runs (with `arg`); missing, it fails the test under
+/// `OPTOBUS_REQUIRE_INTEROP=1` and is said to be skipped elsewhere (Debian package `package`).
+pub fn tool_installed(tool: &str, arg: &str, package: &str) -> bool {
+    let found = Command::new(tool)
+        .arg(arg)
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .status()
@@ -21,11 +27,23 @@ pub fn mosquitto_installed() -> bool {
     if !found {
         assert!(
             std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
-            "mosquitto is not installed"
+            "{tool} is not installed"
         );
-        eprintln!("skipped: mosquitto is not installed (Debian package `mosquitto`)");
+        eprintln!("skipped: {tool} is not installed (Debian package `{package}`)");
     }
     found
+}
+
+/// A publisher of `bus`'s samples to the broker its file's `mqtt` output names, taking no
+/// writes.
+pub fn publish(file: &optobus_bus::BusFile, bus: &optobus_bus::Bus) -> optobus_mqtt::Publisher {
+    optobus_mqtt::Publisher::start(
+        file.outputs.mqtt.as_ref().expect("the file has `mqtt`"),
+        file,
+        bus.subscribe(),
+        None,
+    )
+    .expect("starts")
 }
 
 /// A mosquitto of its own: a free port, a folder for its config and persistence (so that a
