@@ -135,20 +135,23 @@ fn resolve(source: &SourceFile, location: &Location) -> Option<Span> {
         Location::Key(path) => source.key_span(path).or_else(|| source.span(path)),
         Location::Span(span) => Some(*span),
         Location::Position { line, column } => {
-            // Underline the token the parser stopped at.
-            let width = source
-                .line(*line)
-                .map(|text| {
-                    text.chars()
-                        .skip(column.saturating_sub(1))
-                        .take_while(|c| !c.is_whitespace() && !matches!(c, ':' | ',' | '}' | ']'))
-                        .count()
-                })
-                .unwrap_or(1);
+            // Underline the token the parser stopped at; it may stop at the blank before it.
+            let text = source.line(*line).unwrap_or_default();
+            let rest = text.chars().skip(column.saturating_sub(1));
+            let blanks = rest.clone().take_while(|c| *c == ' ').count();
+            let token = rest
+                .skip(blanks)
+                .take_while(|c| !c.is_whitespace() && !matches!(c, ':' | ',' | '}' | ']'))
+                .count();
+            let at_token = blanks
+                < text
+                    .chars()
+                    .count()
+                    .saturating_sub(column.saturating_sub(1));
             Some(Span {
                 line: *line,
-                column: *column,
-                width: width.max(1),
+                column: if at_token { column + blanks } else { *column },
+                width: token.max(1),
             })
         }
     }

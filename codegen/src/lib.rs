@@ -57,6 +57,11 @@ impl std::error::Error for Rejected {}
 
 /// Parses, lowers and checks a spec given as text; `name` is shown in diagnostics.
 pub fn check_source(name: &str, text: &str) -> Result<Model, Box<Rejected>> {
+    check_text(name, text.to_owned())
+}
+
+/// [`check_source`] of a text already owned (a file's, which need not be copied).
+fn check_text(name: &str, text: String) -> Result<Model, Box<Rejected>> {
     let source = SourceFile::new(name, text);
     let reject = |source, diagnostics| {
         Err(Box::new(Rejected {
@@ -112,7 +117,7 @@ pub fn check_source(name: &str, text: &str) -> Result<Model, Box<Rejected>> {
 pub fn check_file(path: &std::path::Path) -> Result<Model, Box<Rejected>> {
     let name = path.display().to_string();
     match source::read_yaml(path) {
-        Ok(text) => check_source(&name, &text),
+        Ok(text) => check_text(&name, text),
         Err(error) => Err(Box::new(Rejected {
             source: SourceFile::new(name.clone(), ""),
             diagnostics: vec![Diagnostic::at(

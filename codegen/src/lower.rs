@@ -39,9 +39,10 @@ pub(crate) fn lower(mut spec: SpecFile) -> (Model, Vec<Diagnostic>) {
         });
     }
 
-    let mut registers = Vec::new();
     // Taken, so that their text moves into the model rather than being copied.
-    for (i, decl) in spec.registers.take() {
+    let decls = spec.registers.take();
+    let mut registers = Vec::with_capacity(decls.len());
+    for (i, decl) in decls {
         let path = root.key("registers").index(i);
         registers.push(lowering.register(decl, path));
     }

@@ -123,3 +123,85 @@ fn a_spec_of_100000_registers_checks() {
     // One inline enum per fifth register but the aliases, the shared `mode` besides.
     assert_eq!(model.enums.len(), 1 + 20_000);
 }
+
+#[test]
+fn nesting_deeper_than_the_parser_allows_is_refused_where_it_goes_too_deep() {
+    let text = format!("family: {}", "[".repeat(100_000));
+    // The parser allows 511 levels: the 512th bracket, after `family: `, is refused.
+    let rejected = optobus_codegen::check_source("deep.yaml", &text).expect_err("refused");
+    let rendered = rejected.render();
+    assert!(
+        rendered.starts_with(
+            "error[yaml]: collection nesting depth exceeds limit\n --> deep.yaml:1:520\n"
+        ),
+        "{rendered}"
+    );
+}
+
+/// `large_spec(registers)` with the line of register `holding_{index}` changed by `change`;
+/// also the line's number.
+fn large_spec_changed_at(
+    registers: usize,
+    index: usize,
+    change: impl Fn(&str) -> String,
+) -> (String, usize) {
+    let spec = large_spec::large_spec(registers);
+    let marker = format!("{{name: holding_{index}, ");
+    let at = spec.find(&marker).expect("the register is there");
+    let line_start = spec[..at].rfind('\n').map_or(0, |newline| newline + 1);
+    let line_end = at + spec[at..].find('\n').expect("a whole line");
+    let line = spec[..line_start].matches('\n').count() + 1;
+    let changed = format!(
+        "{}{}{}",
+        &spec[..line_start],
+        change(&spec[line_start..line_end]),
+        &spec[line_end..]
+    );
+    (changed, line)
+}
+
+#[test]
+fn a_large_spec_is_parsed_alongside_and_places_what_it_refuses_as_a_small_one() {
+    // Well past the size from which the parse runs on its own thread.
+    let registers = 20_000;
+    assert!(large_spec::large_spec(registers).len() > 2 << 20);
+    let (alias, line) = large_spec_changed_at(registers, 9_000, |line| {
+        line.replace("doc: Register 9000.", "doc: *register")
+    });
+    let rejected = optobus_codegen::check_source("alias.yaml", &alias).expect_err("refused");
+    let column = alias
+        .lines()
+        .nth(line - 1)
+        .and_then(|text| text.find("*register"))
+        .expect("written")
+        + 1;
+    let rendered = rejected.render();
+    assert!(
+        rendered.starts_with(
+            "error[yaml-alias]: YAML alias `*register`: specs use no anchors or aliases\n"
+        ) && rendered.contains(&format!("--> alias.yaml:{line}:{column}\n")),
+        "expected line {line}, column {column}:\n{rendered}"
+    );
+    assert_eq!(rejected.diagnostics.len(), 1, "{rendered}");
+    assert!(
+        rejected.source.root.is_none(),
+        "nothing is built past the alias"
+    );
+
+    // A column counts characters: the Chinese name before the mistake is three, not nine.
+    let (broken, line) = large_spec_changed_at(registers, 9_000, |line| {
+        line.replace("section: \"1\"}", "section: \"1\"} }")
+    });
+    let rejected = optobus_codegen::check_source("broken.yaml", &broken).expect_err("refused");
+    let rendered = rejected.render();
+    let text = broken.lines().nth(line - 1).expect("the line");
+    let column = text[..text.rfind(" }").expect("written") + 1]
+        .chars()
+        .count()
+        + 1;
+    assert!(
+        rendered.starts_with("error[yaml]: ")
+            && rendered.contains(&format!(" --> broken.yaml:{line}:{column}\n")),
+        "line {line}, column {column}:\n{rendered}"
+    );
+}

@@ -4,6 +4,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use optobus_codec::{ExceptionShape, ReadFunction, Request, WriteValue};
+use optobus_codegen::source::{Node, SourceFile, Value};
 use serde::{Deserialize, Deserializer};
 
 /// The directory holding the golden YAML files.
@@ -29,44 +30,73 @@ pub struct GoldenFile {
 pub fn load(family: &str) -> Result<GoldenFile, String> {
     let path = directory().join(format!("{family}.yaml"));
     let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let documents = yaml_rust2::YamlLoader::load_from_str(&text)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    let document = documents
-        .into_iter()
-        .next()
+    // The parser the specs and bus files are read with, so the golden files obey the same YAML.
+    let source = SourceFile::new(path.display().to_string(), text);
+    if let Some(error) = &source.syntax_error {
+        return Err(format!(
+            "{}:{}:{}: {}",
+            path.display(),
+            error.line,
+            error.column,
+            error.message
+        ));
+    }
+    let root = source
+        .root
+        .as_ref()
         .ok_or_else(|| format!("{}: empty", path.display()))?;
-    serde_json::from_value(json(document)?).map_err(|e| format!("{}: {e}", path.display()))
+    serde_json::from_value(json(root)?).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-/// The YAML tree as JSON, so that the serde types above read it.
-fn json(yaml: yaml_rust2::Yaml) -> Result<serde_json::Value, String> {
-    use yaml_rust2::Yaml;
-    Ok(match yaml {
-        Yaml::String(text) => serde_json::Value::String(text),
-        Yaml::Integer(number) => number.into(),
-        Yaml::Boolean(flag) => flag.into(),
-        Yaml::Null => serde_json::Value::Null,
-        Yaml::Real(text) => text
-            .parse::<f64>()
-            .map_err(|e| format!("{text}: {e}"))?
-            .into(),
-        Yaml::Array(items) => items
-            .into_iter()
+/// The YAML tree as JSON, so that the serde types above read it: plain scalars follow YAML
+/// 1.2's core schema (null, booleans, decimal, `0x`, `0o` and `0b` integers, decimals).
+fn json(node: &Node) -> Result<serde_json::Value, String> {
+    Ok(match &node.value {
+        Value::Scalar { text, plain: false } => serde_json::Value::String(text.to_string()),
+        Value::Scalar { .. } if node.is_null() => serde_json::Value::Null,
+        Value::Scalar { text, .. } => plain_scalar(text),
+        Value::Sequence(items) => items
+            .iter()
             .map(json)
             .collect::<Result<Vec<_>, _>>()?
             .into(),
-        Yaml::Hash(entries) => {
+        Value::Mapping(entries) => {
             let mut map = serde_json::Map::new();
             for (key, value) in entries {
-                let Yaml::String(key) = key else {
-                    return Err(format!("a key that is not text: {key:?}"));
-                };
-                map.insert(key, json(value)?);
+                let key = key
+                    .text()
+                    .ok_or_else(|| format!("line {}: a key that is not text", key.span.line))?;
+                map.insert(key.to_owned(), json(value)?);
             }
             map.into()
         }
-        other => return Err(format!("unsupported YAML: {other:?}")),
     })
+}
+
+fn plain_scalar(text: &str) -> serde_json::Value {
+    let radix = |prefix: &str, radix: u32| {
+        let digits = text.strip_prefix(prefix)?;
+        i64::from_str_radix(digits, radix).ok()
+    };
+    match text {
+        "true" | "True" | "TRUE" => true.into(),
+        "false" | "False" | "FALSE" => false.into(),
+        _ => text
+            .parse::<i64>()
+            .ok()
+            .or_else(|| radix("0x", 16))
+            .or_else(|| radix("0o", 8))
+            .or_else(|| radix("0b", 2))
+            .map(serde_json::Value::from)
+            .or_else(|| {
+                let decimal = text
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|_| text.contains(['.', 'e', 'E']));
+                decimal.map(serde_json::Value::from)
+            })
+            .unwrap_or_else(|| text.into()),
+    }
 }
 
 /// Exception frame shape names used in the files.

@@ -410,8 +410,12 @@ impl<T> Items<T> {
 
 impl<T: FromNode> FromNode for Items<T> {
     fn from_node(node: &Node, path: &At<'_>, reader: &mut Reader) -> Option<Self> {
-        let mut read = Self::default();
-        for (i, item) in sequence(node, path, reader)?.iter().enumerate() {
+        let items = sequence(node, path, reader)?;
+        let mut read = Self {
+            found: Vec::with_capacity(items.len()),
+            unread: Vec::new(),
+        };
+        for (i, item) in items.iter().enumerate() {
             match T::from_node(item, &At::Index(path, i), reader) {
                 Some(value) => read.found.push((i, value)),
                 None => read
