@@ -1,6 +1,7 @@
 //! How the checker grows with a spec's size: `check_source` (parse, read, lower, every rule) of
 //! a generated spec of 1,000 registers (the anchor) and of 100,000. With every pass n log n the
-//! second takes about a hundred times the first, well under a second.
+//! second takes about a hundred times the first, well under a second (from 1 MiB on the parse
+//! runs on a second thread, so on two cores the large spec gains a little more than the small).
 //!
 //!     cargo bench -p optobus-codegen --bench check
 
