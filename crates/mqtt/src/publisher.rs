@@ -226,6 +226,14 @@ impl Publisher {
         self.shared.outbox().counts()
     }
 
+    /// A handle that reads [`counts`](Self::counts) from elsewhere (a metrics exporter's
+    /// scrape); after the publisher stops, it reads the last counts.
+    pub fn counts_reader(&self) -> CountsReader {
+        CountsReader {
+            shared: Arc::clone(&self.shared),
+        }
+    }
+
     /// Says the process is going `offline`, waits up to `within` for what is queued to reach
     /// the broker, and disconnects.
     pub async fn stop(self, within: Duration) {
@@ -245,6 +253,28 @@ impl Drop for Publisher {
         for task in &self.tasks {
             task.abort();
         }
+    }
+}
+
+/// Reads a [`Publisher`]'s counts; cheap to clone, and to keep after the publisher stops.
+#[derive(Clone)]
+pub struct CountsReader {
+    shared: Arc<Shared>,
+}
+
+impl CountsReader {
+    /// How publishing has gone so far (see [`Publisher::counts`]).
+    pub fn counts(&self) -> Counts {
+        self.shared.outbox().counts()
+    }
+}
+
+/// Shows the counts; never the credentials.
+impl std::fmt::Debug for CountsReader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CountsReader")
+            .field("counts", &self.counts())
+            .finish()
     }
 }
 
