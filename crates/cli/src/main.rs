@@ -12,6 +12,7 @@ mod inputs;
 mod link;
 mod log;
 mod models;
+mod mqtt_metrics;
 mod render;
 
 use std::process::ExitCode;

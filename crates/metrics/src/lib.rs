@@ -5,6 +5,8 @@
 //! `register` and `model` labels, each device's `up` and the time of its last good sample,
 //! and each line's transactions, errors by kind, busy time and utilisation. [`serve`] answers
 //! scrapes with them (127.0.0.1 unless the bus file names another address).
+//! [`Metrics::add_source`] adds series of other outputs, read at every scrape (`optobus run`
+//! adds the MQTT publisher's queue and drops that way; this crate does not know MQTT).
 //!
 //! ```
 //! use optobus_bus::{Bus, BusFile, Catalogue};
@@ -32,9 +34,11 @@
 mod exposition;
 mod metrics;
 mod serve;
+mod sources;
 
 pub use exposition::{prometheus_text, OPENMETRICS_TYPE, PROMETHEUS_TEXT_TYPE};
 pub use metrics::Metrics;
 pub use serve::{serve, Exporter};
+pub use sources::{Reading, ReadingValue, Source, SourceError};
 
 pub use optobus_bus::Event;

@@ -1,6 +1,7 @@
 //! The registry and how each bus event changes it.
 
 use std::sync::atomic::AtomicU64;
+use std::sync::Arc;
 use std::time::UNIX_EPOCH;
 
 use optobus_bus::{BusFile, DeviceId, ErrorCounts, Event, Health, LineStats, Sample};
@@ -11,6 +12,8 @@ use prometheus_client::metrics::counter::Counter;
 use prometheus_client::metrics::family::Family;
 use prometheus_client::metrics::gauge::Gauge;
 use prometheus_client::registry::Registry;
+
+use crate::sources::{Source, SourceError, Sources, SourcesCollector};
 
 type FloatGauge = Gauge<f64, AtomicU64>;
 
@@ -75,74 +78,91 @@ pub struct Metrics {
     utilisation: Family<LineLabels, FloatGauge>,
     open: Family<LineLabels, Gauge>,
     missed: Counter,
+    /// The names of the families above.
+    names: Vec<&'static str>,
+    /// Series of other outputs, read at every scrape.
+    sources: Arc<Sources>,
 }
 
 impl Metrics {
     /// The metrics of the bus `file` runs: every device `up` 0 until its first sample.
     pub fn new(file: &BusFile) -> Self {
         let mut registry = Registry::default();
+        // Every family's name, for the sources added later to keep clear of.
+        let mut names = Vec::new();
         let mut readings = Vec::new();
         for (_, name, help) in READINGS {
             let family = Family::default();
             registry.register(name, help, family.clone());
+            names.push(name);
             readings.push(family);
         }
+        let sources = Arc::new(Sources::default());
+        registry.register_collector(Box::new(SourcesCollector(Arc::clone(&sources))));
         let metrics = Self {
+            sources,
             readings,
             plain: registered(
                 &mut registry,
+                &mut names,
                 "optobus_reading",
                 "A reading without a unit (or in a unit with no base unit), a boolean as 0 or 1.",
             ),
             codes: registered(
                 &mut registry,
+                &mut names,
                 "optobus_code",
                 "An enumerated reading's code (its name is in the device's spec).",
             ),
             up: registered(
                 &mut registry,
+                &mut names,
                 "optobus_device_up",
                 "1 while the device answers its polls, 0 before its first sample and while offline.",
             ),
             last_sample: registered(
                 &mut registry,
+                &mut names,
                 "optobus_device_last_sample_timestamp_seconds",
                 "When the device's last good reply arrived, in seconds since the Unix epoch.",
             ),
             transactions: registered(
                 &mut registry,
+                &mut names,
                 "optobus_line_transactions",
                 "Requests sent on the line.",
             ),
             errors: registered(
                 &mut registry,
+                &mut names,
                 "optobus_line_errors",
                 "Failed transactions on the line, by kind: timeout, frame, exception, line.",
             ),
             busy: registered(
                 &mut registry,
+                &mut names,
                 "optobus_line_busy_seconds",
                 "Time the line spent in transactions (request out to reply in, or the timeout).",
             ),
             utilisation: registered(
                 &mut registry,
+                &mut names,
                 "optobus_line_utilisation_ratio",
                 "The share of time the line spent in transactions since it started.",
             ),
             open: registered(
                 &mut registry,
+                &mut names,
                 "optobus_line_open",
                 "1 while the line's port is open.",
             ),
-            missed: {
-                let counter = Counter::default();
-                registry.register(
-                    "optobus_metrics_events_missed",
-                    "Bus events the exporter fell too far behind to see.",
-                    counter.clone(),
-                );
-                counter
-            },
+            missed: registered(
+                &mut registry,
+                &mut names,
+                "optobus_metrics_events_missed",
+                "Bus events the exporter fell too far behind to see.",
+            ),
+            names,
             registry,
         };
         for device in &file.devices {
@@ -171,6 +191,15 @@ impl Metrics {
             }
             Event::Line(stats) => self.line(stats),
         }
+    }
+
+    /// Adds the series of `source` (another output's own counts), read at every scrape from
+    /// then on. Its names are checked once, here: each a Prometheus metric name, none ending
+    /// in `_total` (a counter gets it when exposed), none that the bus's metrics or another
+    /// source already have. Later reads give the same names of the same types; a series
+    /// that was not there when the source was added is left out of scrapes.
+    pub fn add_source(&self, source: impl Source) -> Result<(), SourceError> {
+        self.sources.add(Box::new(source), &self.names)
     }
 
     /// Counts events the exporter missed.
@@ -291,13 +320,20 @@ impl Metrics {
     }
 }
 
-fn registered<L, M>(registry: &mut Registry, name: &str, help: &str) -> Family<L, M>
+/// A metric registered under `name`, which joins `names`.
+fn registered<M>(
+    registry: &mut Registry,
+    names: &mut Vec<&'static str>,
+    name: &'static str,
+    help: &str,
+) -> M
 where
-    Family<L, M>: prometheus_client::registry::Metric + Clone + Default,
+    M: prometheus_client::registry::Metric + Clone + Default,
 {
-    let family = Family::default();
-    registry.register(name, help, family.clone());
-    family
+    let metric = M::default();
+    registry.register(name, help, metric.clone());
+    names.push(name);
+    metric
 }
 
 /// Raises a counter to `total` (the bus counts; the counter follows).

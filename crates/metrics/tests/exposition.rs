@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use optobus_bus::{Bus, BusFile, Catalogue, Event};
 use optobus_inspect::Value;
-use optobus_metrics::Exporter;
+use optobus_metrics::{Exporter, Metrics, Reading, SourceError};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::sync::broadcast::error::RecvError;
 
@@ -53,7 +53,11 @@ async fn scrape(address: std::net::SocketAddr, accept: &str) -> (String, String)
 
 /// The value of the series `name{labels}` in Prometheus text.
 fn series(text: &str, name: &str, labels: &str) -> Option<f64> {
-    let prefix = format!("{name}{{{labels}}} ");
+    let prefix = if labels.is_empty() {
+        format!("{name} ")
+    } else {
+        format!("{name}{{{labels}}} ")
+    };
     text.lines()
         .find_map(|line| line.strip_prefix(&prefix))
         .map(|value| value.parse().expect("a number"))
@@ -76,6 +80,34 @@ fn promtool() -> bool {
         eprintln!("skipped: promtool is not installed (Debian package `prometheus`)");
     }
     found
+}
+
+/// `promtool check metrics` accepts `text` (when promtool is there).
+fn assert_promtool_accepts(text: &str) {
+    if !promtool() {
+        return;
+    }
+    let mut check = std::process::Command::new("promtool")
+        .args(["check", "metrics"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("promtool starts");
+    use std::io::Write;
+    check
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(text.as_bytes())
+        .unwrap();
+    let output = check.wait_with_output().unwrap();
+    assert!(
+        output.status.success(),
+        "promtool check metrics:\n{}{}\n{text}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -227,29 +259,7 @@ async fn metrics_give_readings_in_base_units_and_pass_promtool() {
             .is_some_and(|u| u > 0.0 && u <= 1.0)
     );
 
-    if promtool() {
-        let mut check = std::process::Command::new("promtool")
-            .args(["check", "metrics"])
-            .stdin(std::process::Stdio::piped())
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .expect("promtool starts");
-        use std::io::Write;
-        check
-            .stdin
-            .take()
-            .unwrap()
-            .write_all(text.as_bytes())
-            .unwrap();
-        let output = check.wait_with_output().unwrap();
-        assert!(
-            output.status.success(),
-            "promtool check metrics:\n{}{}\n{text}",
-            String::from_utf8_lossy(&output.stdout),
-            String::from_utf8_lossy(&output.stderr)
-        );
-    }
+    assert_promtool_accepts(&text);
 
     // OpenMetrics for a scraper that asks for it: counters named as families, `# EOF` last.
     let (head, open) = scrape(exporter.address(), "application/openmetrics-text").await;
@@ -259,4 +269,187 @@ async fn metrics_give_readings_in_base_units_and_pass_promtool() {
         "{open}"
     );
     assert!(open.ends_with("# EOF\n"));
+}
+
+#[test]
+fn sources_add_series_read_at_every_scrape_under_names_checked_once() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::sync::Arc;
+
+    let metrics = Metrics::new(&file());
+    let sent = Arc::new(AtomicU64::new(7));
+    let reader = Arc::clone(&sent);
+    metrics
+        .add_source(move || {
+            vec![
+                Reading::counter(
+                    "optobus_test_messages_sent",
+                    "Messages sent.",
+                    reader.load(Ordering::SeqCst),
+                ),
+                Reading::gauge("optobus_test_queue_messages", "Messages waiting.", -3),
+            ]
+        })
+        .expect("free names");
+    let text = metrics.prometheus();
+    assert!(
+        text.contains(
+            "# HELP optobus_test_messages_sent_total Messages sent.\n\
+             # TYPE optobus_test_messages_sent_total counter\n\
+             optobus_test_messages_sent_total 7\n"
+        ),
+        "{text}"
+    );
+    assert!(
+        text.contains("# TYPE optobus_test_queue_messages gauge\noptobus_test_queue_messages -3\n"),
+        "{text}"
+    );
+    assert_promtool_accepts(&text);
+    sent.store(12, Ordering::SeqCst);
+    assert_eq!(
+        series(
+            &metrics.prometheus(),
+            "optobus_test_messages_sent_total",
+            ""
+        ),
+        Some(12.0),
+        "read again at the next scrape"
+    );
+    let open = metrics.openmetrics();
+    assert!(
+        open.contains("# TYPE optobus_test_messages_sent counter\n")
+            && open.contains("\noptobus_test_messages_sent_total 12\n")
+            && open.ends_with("# EOF\n"),
+        "{open}"
+    );
+
+    // Names are checked when the source is added; nothing of a refused source is exposed.
+    let refused = |name: &'static str, counter: bool| {
+        metrics
+            .add_source(move || {
+                vec![if counter {
+                    Reading::counter(name, "x", 1)
+                } else {
+                    Reading::gauge(name, "x", 1)
+                }]
+            })
+            .unwrap_err()
+    };
+    assert_eq!(
+        refused("9lives", false),
+        SourceError::BadName("9lives".into())
+    );
+    assert_eq!(
+        refused("with-dash", false),
+        SourceError::BadName("with-dash".into())
+    );
+    assert_eq!(
+        refused("__reserved", false),
+        SourceError::BadName("__reserved".into())
+    );
+    assert_eq!(
+        refused("optobus_test_frames_total", true),
+        SourceError::Total("optobus_test_frames_total".into())
+    );
+    assert_eq!(
+        refused("optobus_device_up", false),
+        SourceError::Taken("optobus_device_up".into())
+    );
+    // A counter family is exposed as `<name>_total`: both forms are taken.
+    assert_eq!(
+        refused("optobus_line_transactions", true),
+        SourceError::Taken("optobus_line_transactions".into())
+    );
+    assert_eq!(
+        refused("optobus_test_queue_messages", false),
+        SourceError::Taken("optobus_test_queue_messages".into())
+    );
+    assert_eq!(
+        metrics
+            .add_source(|| vec![Reading::gauge("optobus_test_two", "one\ntwo", 1)])
+            .unwrap_err(),
+        SourceError::BadHelp("optobus_test_two".into())
+    );
+    let after = metrics.prometheus();
+    for name in [
+        "9lives",
+        "with-dash",
+        "__reserved",
+        "optobus_test_frames",
+        "optobus_test_two",
+    ] {
+        assert!(!after.contains(name), "{name} in\n{after}");
+    }
+    assert_eq!(after.matches("\noptobus_device_up{").count(), 2, "{after}");
+}
+
+#[test]
+fn a_source_later_giving_a_series_it_did_not_declare_has_it_left_out() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+
+    let metrics = Metrics::new(&file());
+    let later = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&later);
+    metrics
+        .add_source(move || {
+            let mut readings = vec![Reading::gauge("optobus_test_state", "A state.", 1)];
+            if flag.load(Ordering::SeqCst) {
+                readings.push(Reading::gauge("optobus_device_up", "Not checked.", 5));
+                // Declared as a gauge: a counter of the same name is not what was checked.
+                readings[0] = Reading::counter("optobus_test_state", "A state.", 2);
+            }
+            readings
+        })
+        .unwrap();
+    later.store(true, Ordering::SeqCst);
+    let text = metrics.prometheus();
+    assert!(!text.contains("optobus_test_state"), "{text}");
+    assert!(!text.contains("Not checked."), "{text}");
+    assert_promtool_accepts(&text);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_exporter_counts_the_bus_events_it_missed_exactly() {
+    let file = file();
+    let config = file.outputs.metrics.clone().expect("metrics are on");
+    let capacity = 32;
+    let bus = Bus::new(file.clone()).event_capacity(capacity);
+    // Subscribed now, read only once the bus has stopped: far behind by then.
+    let late = bus.subscribe();
+    let mut events = bus.subscribe();
+    let running = bus.start().expect("starts");
+    let mut sent = 0u64;
+    while sent < 200 {
+        match tokio::time::timeout(Duration::from_secs(10), events.recv()).await {
+            Ok(Ok(_)) => sent += 1,
+            other => panic!("the test's own receiver must see every event: {other:?}"),
+        }
+    }
+    drop(running);
+    loop {
+        match tokio::time::timeout(Duration::from_secs(10), events.recv()).await {
+            Ok(Ok(_)) => sent += 1,
+            Ok(Err(RecvError::Closed)) => break,
+            other => panic!("the test's own receiver must see every event: {other:?}"),
+        }
+    }
+    let exporter = Exporter::start(&config, &file, late)
+        .await
+        .expect("listens");
+    // The channel kept the last `capacity` events; everything before them was missed.
+    let missed = (sent - capacity as u64) as f64;
+    let mut text = String::new();
+    for _ in 0..100 {
+        text = scrape(exporter.address(), "text/plain").await.1;
+        if series(&text, "optobus_metrics_events_missed_total", "") == Some(missed) {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert_eq!(
+        series(&text, "optobus_metrics_events_missed_total", ""),
+        Some(missed),
+        "{sent} events sent, {capacity} kept\n{text}"
+    );
 }

@@ -28,5 +28,5 @@ mod writes;
 
 pub use outbox::Counts;
 pub use payload::{sample_json, value_json};
-pub use publisher::{Publisher, StartError, FIRST_BACKOFF, MAX_BACKOFF};
+pub use publisher::{CountsReader, Publisher, StartError, FIRST_BACKOFF, MAX_BACKOFF};
 pub use secret::{Secret, SecretError};

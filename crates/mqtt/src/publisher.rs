@@ -226,6 +226,14 @@ impl Publisher {
         self.shared.outbox().counts()
     }
 
+    /// A handle that reads [`counts`](Self::counts) from elsewhere (a metrics exporter's
+    /// scrape); after the publisher stops, it reads the last counts.
+    pub fn counts_reader(&self) -> CountsReader {
+        CountsReader {
+            shared: Arc::clone(&self.shared),
+        }
+    }
+
     /// Says the process is going `offline`, waits up to `within` for what is queued to reach
     /// the broker, and disconnects.
     pub async fn stop(self, within: Duration) {
@@ -245,6 +253,28 @@ impl Drop for Publisher {
         for task in &self.tasks {
             task.abort();
         }
+    }
+}
+
+/// Reads a [`Publisher`]'s counts; cheap to clone, and to keep after the publisher stops.
+#[derive(Clone)]
+pub struct CountsReader {
+    shared: Arc<Shared>,
+}
+
+impl CountsReader {
+    /// How publishing has gone so far (see [`Publisher::counts`]).
+    pub fn counts(&self) -> Counts {
+        self.shared.outbox().counts()
+    }
+}
+
+/// Shows the counts; never the credentials.
+impl std::fmt::Debug for CountsReader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CountsReader")
+            .field("counts", &self.counts())
+            .finish()
     }
 }
 
@@ -372,32 +402,9 @@ async fn drive(
                     }
                 });
             }
-            Ok(MqttEvent::Outgoing(Outgoing::Publish(pkid))) => {
-                let room = {
-                    let mut outbox = shared.outbox();
-                    outbox.written(pkid);
-                    outbox.unwritten() <= CLIENT_CHANNEL / 2
-                };
-                // The client's channel half empty: the sender fills it again.
-                if room {
-                    shared.wake.notify_one();
-                }
-            }
-            Ok(MqttEvent::Incoming(Packet::PubAck(ack))) => shared.outbox().acknowledged(ack.pkid),
-            Ok(MqttEvent::Incoming(Packet::Publish(publish))) => {
-                incoming(&shared, writes.as_ref(), &publish.topic, &publish.payload);
-            }
-            Ok(_) => {}
+            Ok(event) => take_in(&shared, writes.as_ref(), event),
             Err(error) => {
-                {
-                    // The event loop dropped what its channel held when the connection broke
-                    // (a clean session starts empty); a message handed to it since then is
-                    // dropped too, under the lock the sender hands messages under, so that
-                    // the outbox sends again exactly what the broker may not have.
-                    let mut outbox = shared.outbox();
-                    eventloop.clean();
-                    outbox.disconnected();
-                }
+                broke(&mut eventloop, &shared, writes.as_ref());
                 if failures == 0 {
                     tracing::warn!(%error, "MQTT broker unreachable; samples wait in the queue");
                 }
@@ -406,6 +413,47 @@ async fn drive(
                 backoff = (backoff * 2).min(MAX_BACKOFF);
             }
         }
+    }
+}
+
+/// The connection broke: what was not acknowledged goes back to the queue, to be sent again.
+fn broke(eventloop: &mut EventLoop, shared: &Arc<Shared>, writes: Option<&Handle>) {
+    // The event loop keeps the events it made before the break and had not given yet (a
+    // PUBLISH written, PUBACKs read) and gives them after the reconnection, where a PUBLISH
+    // written would be matched to the next connection's first message. They belong to the
+    // connection that broke: taken in now.
+    let before_break: Vec<MqttEvent> = eventloop.state.events.drain(..).collect();
+    for event in before_break {
+        take_in(shared, writes, event);
+    }
+    // The event loop dropped what its channel held when the connection broke (a clean
+    // session starts empty); a message handed to it since then is dropped too, under the
+    // lock the sender hands messages under, so that the outbox sends again exactly what the
+    // broker may not have.
+    let mut outbox = shared.outbox();
+    eventloop.clean();
+    outbox.disconnected();
+}
+
+/// What the connection did besides connecting: a message written, acknowledged or received.
+fn take_in(shared: &Arc<Shared>, writes: Option<&Handle>, event: MqttEvent) {
+    match event {
+        MqttEvent::Outgoing(Outgoing::Publish(pkid)) => {
+            let room = {
+                let mut outbox = shared.outbox();
+                outbox.written(pkid);
+                outbox.unwritten() <= CLIENT_CHANNEL / 2
+            };
+            // The client's channel half empty: the sender fills it again.
+            if room {
+                shared.wake.notify_one();
+            }
+        }
+        MqttEvent::Incoming(Packet::PubAck(ack)) => shared.outbox().acknowledged(ack.pkid),
+        MqttEvent::Incoming(Packet::Publish(publish)) => {
+            incoming(shared, writes, &publish.topic, &publish.payload);
+        }
+        _ => {}
     }
 }
 
@@ -427,5 +475,75 @@ fn incoming(shared: &Arc<Shared>, writes: Option<&Handle>, topic: &str, payload:
         crate::writes::handle_write(&shared.topics, handle, topic, payload, move |message| {
             replies.push(message)
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rumqttc::PubAck;
+
+    fn shared() -> Arc<Shared> {
+        Arc::new(Shared {
+            outbox: Mutex::new(Outbox::new(10)),
+            wake: Notify::new(),
+            devices: Mutex::new(Vec::new()),
+            topics: Topics::new("t"),
+            qos: QoS::AtLeastOnce,
+            discovery: None,
+        })
+    }
+
+    fn sample(n: u8) -> Message {
+        Message {
+            topic: format!("t/{n}"),
+            payload: vec![n],
+            qos: QoS::AtLeastOnce,
+            retain: false,
+            kind: Kind::Sample,
+        }
+    }
+
+    #[tokio::test]
+    async fn what_the_event_loop_did_before_a_break_counts_for_the_connection_that_broke() {
+        let shared = shared();
+        let (_client, mut eventloop) =
+            AsyncClient::new(MqttOptions::new("test", "127.0.0.1", 1), 8);
+        {
+            let mut outbox = shared.outbox();
+            outbox.connected(Vec::new());
+            outbox.push(sample(1));
+            outbox.push(sample(2));
+            assert_eq!(outbox.next().map(|m| m.topic).as_deref(), Some("t/1"));
+            assert_eq!(outbox.next().map(|m| m.topic).as_deref(), Some("t/2"));
+        }
+        take_in(&shared, None, MqttEvent::Outgoing(Outgoing::Publish(1)));
+        // The event loop read the PUBACK of t/1 and wrote t/2 as packet 2, and the connection
+        // broke before it gave those events.
+        let events = &mut eventloop.state.events;
+        events.push_back(MqttEvent::Incoming(Packet::PubAck(PubAck::new(1))));
+        events.push_back(MqttEvent::Outgoing(Outgoing::Publish(2)));
+        broke(&mut eventloop, &shared, None);
+        assert!(
+            eventloop.state.events.is_empty(),
+            "nothing left for the next connection"
+        );
+        let counts = shared.outbox().counts();
+        assert_eq!((counts.published, counts.requeued), (1, 1), "{counts:?}");
+        // The next connection sends t/2 again, as its packet 3, and its PUBACK takes it.
+        shared.outbox().connected(Vec::new());
+        assert_eq!(
+            shared.outbox().next().map(|m| m.topic).as_deref(),
+            Some("t/2")
+        );
+        take_in(&shared, None, MqttEvent::Outgoing(Outgoing::Publish(3)));
+        take_in(
+            &shared,
+            None,
+            MqttEvent::Incoming(Packet::PubAck(PubAck::new(3))),
+        );
+        let outbox = shared.outbox();
+        assert_eq!(outbox.counts().published, 2);
+        assert!(outbox.is_idle());
     }
 }

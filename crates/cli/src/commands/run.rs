@@ -325,6 +325,10 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
                     ""
                 }
             ));
+            if let Some(exporter) = &exporter {
+                crate::mqtt_metrics::add(exporter.metrics(), publisher.counts_reader())
+                    .map_err(|e| CliError::failed(format!("metrics of MQTT: {e}")))?;
+            }
             Some(publisher)
         }
         _ => None,

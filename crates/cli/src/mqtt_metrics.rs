@@ -1,0 +1,282 @@
+//! The MQTT publisher's counts on the Prometheus exporter's `/metrics`: the one place where
+//! the two outputs meet (neither crate knows the other).
+
+use optobus_metrics::{Metrics, Reading, SourceError};
+use optobus_mqtt::{Counts, CountsReader};
+
+/// Adds the publisher's counts to `metrics`, read at every scrape.
+pub(crate) fn add(metrics: &Metrics, counts: CountsReader) -> Result<(), SourceError> {
+    metrics.add_source(move || readings(&counts.counts()))
+}
+
+/// The series of one look at the counts (counters named without `_total`, which the
+/// exposition adds).
+fn readings(counts: &Counts) -> Vec<Reading> {
+    let gauge = |count: usize| i64::try_from(count).unwrap_or(i64::MAX);
+    vec![
+        Reading::counter(
+            "optobus_mqtt_samples_published",
+            "Samples the MQTT broker took (acknowledged at QoS 1, written at QoS 0).",
+            counts.published,
+        ),
+        Reading::counter(
+            "optobus_mqtt_samples_dropped",
+            "Samples dropped, oldest first, because the queue was full while the broker was away.",
+            counts.dropped,
+        ),
+        Reading::counter(
+            "optobus_mqtt_samples_requeued",
+            "Samples sent again after a broken connection, the broker not having acknowledged them.",
+            counts.requeued,
+        ),
+        Reading::gauge(
+            "optobus_mqtt_queue_samples",
+            "Samples waiting in the queue for the broker.",
+            gauge(counts.queued),
+        ),
+        Reading::gauge(
+            "optobus_mqtt_in_flight_samples",
+            "Samples handed to the MQTT client and not yet taken by the broker.",
+            gauge(counts.in_flight),
+        ),
+        Reading::gauge(
+            "optobus_mqtt_connected",
+            "1 while the MQTT broker is connected.",
+            i64::from(counts.connected),
+        ),
+        Reading::counter(
+            "optobus_mqtt_connections",
+            "Connections made to the MQTT broker.",
+            counts.connections,
+        ),
+        Reading::counter(
+            "optobus_mqtt_events_missed",
+            "Bus events the MQTT publisher fell too far behind to see.",
+            counts.missed_events,
+        ),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+    use std::process::{Child, Command, Stdio};
+    use std::time::Duration;
+
+    use optobus_bus::{Bus, BusFile};
+    use optobus_metrics::Exporter;
+    use optobus_mqtt::Publisher;
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+    use super::*;
+
+    /// Whether `tool` runs; `.ci/run` installs it and sets `OPTOBUS_REQUIRE_INTEROP=1`, so
+    /// there a missing tool fails the test, elsewhere it is skipped with a message.
+    fn installed(tool: &str, arg: &str) -> bool {
+        let found = Command::new(tool)
+            .arg(arg)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok();
+        if !found {
+            assert!(
+                std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
+                "{tool} is not installed"
+            );
+            eprintln!("skipped: {tool} is not installed");
+        }
+        found
+    }
+
+    /// A mosquitto on a free 127.0.0.1 port, killed when dropped.
+    struct Broker {
+        port: u16,
+        dir: PathBuf,
+        child: Child,
+    }
+
+    impl Broker {
+        async fn start() -> Self {
+            let port = std::net::TcpListener::bind("127.0.0.1:0")
+                .and_then(|l| l.local_addr())
+                .expect("a free port")
+                .port();
+            let dir = std::env::temp_dir().join(format!(
+                "optobus-cli-mqtt-metrics-{}-{port}",
+                std::process::id()
+            ));
+            std::fs::create_dir_all(&dir).unwrap();
+            let config = dir.join("mosquitto.conf");
+            std::fs::write(
+                &config,
+                format!("listener {port} 127.0.0.1\nallow_anonymous true\n"),
+            )
+            .unwrap();
+            let child = Command::new("mosquitto")
+                .arg("-c")
+                .arg(&config)
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("mosquitto starts");
+            // Killed when dropped, also when it never listens.
+            let broker = Self { port, dir, child };
+            for _ in 0..200 {
+                if tokio::net::TcpStream::connect(("127.0.0.1", port))
+                    .await
+                    .is_ok()
+                {
+                    return broker;
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+            panic!("mosquitto does not listen on {port}");
+        }
+
+        fn kill(&mut self) {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+
+    impl Drop for Broker {
+        fn drop(&mut self) {
+            self.kill();
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
+    }
+
+    /// The body of `GET /metrics` in the Prometheus text format.
+    async fn scrape(address: std::net::SocketAddr) -> String {
+        let mut stream = tokio::net::TcpStream::connect(address).await.unwrap();
+        let request =
+            format!("GET /metrics HTTP/1.1\r\nHost: {address}\r\nConnection: close\r\n\r\n");
+        stream.write_all(request.as_bytes()).await.unwrap();
+        let mut reply = String::new();
+        stream.read_to_string(&mut reply).await.unwrap();
+        let (head, body) = reply.split_once("\r\n\r\n").expect("an HTTP reply");
+        assert!(head.starts_with("HTTP/1.1 200"), "{head}");
+        body.to_owned()
+    }
+
+    /// The value of the series `name` (no labels) in Prometheus text.
+    fn series(text: &str, name: &str) -> Option<f64> {
+        text.lines()
+            .find_map(|line| line.strip_prefix(&format!("{name} ")))
+            .and_then(|value| value.parse().ok())
+    }
+
+    async fn wait_for(what: &str, publisher: &Publisher, done: impl Fn(&Counts) -> bool) {
+        for _ in 0..500 {
+            if done(&publisher.counts()) {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        panic!("{what}: {:?}", publisher.counts());
+    }
+
+    #[tokio::test]
+    async fn mqtt_counts_are_on_metrics_exactly_after_an_outage_that_overflowed_the_queue() {
+        if !installed("mosquitto", "-h") || !installed("promtool", "--version") {
+            return;
+        }
+        let mut broker = Broker::start().await;
+        let text = format!(
+            "
+lines: [{{ name: rs485, simulated: true }}]
+devices:
+  - {{ name: top, model: p-series, slave: 1, poll: [{{ read: measurements, every: 10ms }}] }}
+outputs:
+  mqtt: {{ broker: 127.0.0.1:{}, queue: 20 }}
+  metrics: 0
+",
+            broker.port
+        );
+        let file = BusFile::parse("bus.yaml", &text, ".".as_ref(), &crate::models::catalogue())
+            .unwrap_or_else(|e| panic!("{}", e.render()));
+        let bus = Bus::new(file.clone());
+        let metrics_config = file.outputs.metrics.clone().expect("metrics");
+        let exporter = Exporter::start(&metrics_config, &file, bus.subscribe())
+            .await
+            .expect("listens");
+        let mqtt_events = bus.subscribe();
+        let running = bus.start().expect("starts");
+        let mqtt_config = file.outputs.mqtt.as_ref().expect("mqtt");
+        let publisher = Publisher::start(mqtt_config, &file, mqtt_events, None).expect("starts");
+        add(exporter.metrics(), publisher.counts_reader()).expect("the names are free");
+
+        wait_for("samples published", &publisher, |c| c.published >= 50).await;
+        broker.kill();
+        wait_for("the queue overflowed", &publisher, |c| {
+            !c.connected && c.dropped >= 20
+        })
+        .await;
+        running.stop();
+        // The counts stand still once the bus has stopped and the broker is away: a scrape
+        // between two equal looks at them shows them.
+        let mut looks = 0;
+        let (counts, text) = loop {
+            let before = publisher.counts();
+            let text = scrape(exporter.address()).await;
+            if publisher.counts() == before {
+                break (before, text);
+            }
+            looks += 1;
+            assert!(looks < 100, "the counts never stood still");
+        };
+        println!(
+            "{counts:?}\n{}",
+            text.lines()
+                .filter(|l| l.starts_with("optobus_mqtt_"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        );
+        assert!(counts.dropped > 0 && counts.queued == 20, "{counts:?}");
+        let expected = [
+            ("optobus_mqtt_samples_published_total", counts.published),
+            ("optobus_mqtt_samples_dropped_total", counts.dropped),
+            ("optobus_mqtt_samples_requeued_total", counts.requeued),
+            ("optobus_mqtt_queue_samples", counts.queued as u64),
+            ("optobus_mqtt_in_flight_samples", counts.in_flight as u64),
+            ("optobus_mqtt_connected", u64::from(counts.connected)),
+            ("optobus_mqtt_connections_total", counts.connections),
+            ("optobus_mqtt_events_missed_total", counts.missed_events),
+        ];
+        for (name, value) in expected {
+            assert_eq!(
+                series(&text, name),
+                Some(value as f64),
+                "{name} in\n{text}\n{counts:?}"
+            );
+        }
+        for counter in [
+            "optobus_mqtt_samples_published_total",
+            "optobus_mqtt_samples_dropped_total",
+            "optobus_mqtt_connections_total",
+        ] {
+            assert!(
+                text.contains(&format!("# TYPE {counter} counter")),
+                "{text}"
+            );
+        }
+        assert!(text.contains("# TYPE optobus_mqtt_queue_samples gauge"));
+
+        let mut check = Command::new("promtool")
+            .args(["check", "metrics"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("promtool starts");
+        std::io::Write::write_all(&mut check.stdin.take().unwrap(), text.as_bytes()).unwrap();
+        let output = check.wait_with_output().unwrap();
+        assert!(
+            output.status.success(),
+            "promtool check metrics:\n{}{}\n{text}",
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr)
+        );
+    }
+}
