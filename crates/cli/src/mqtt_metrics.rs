@@ -70,25 +70,6 @@ mod tests {
 
     use super::*;
 
-    /// Whether `tool` runs; `.ci/run` installs it and sets `OPTOBUS_REQUIRE_INTEROP=1`, so
-    /// there a missing tool fails the test, elsewhere it is skipped with a message.
-    fn installed(tool: &str, arg: &str) -> bool {
-        let found = Command::new(tool)
-            .arg(arg)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .status()
-            .is_ok();
-        if !found {
-            assert!(
-                std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
-                "{tool} is not installed"
-            );
-            eprintln!("skipped: {tool} is not installed");
-        }
-        found
-    }
-
     /// A mosquitto on a free 127.0.0.1 port, killed when dropped.
     struct Broker {
         port: u16,
@@ -179,7 +160,10 @@ mod tests {
 
     #[tokio::test]
     async fn mqtt_counts_are_on_metrics_exactly_after_an_outage_that_overflowed_the_queue() {
-        if !installed("mosquitto", "-h") || !installed("promtool", "--version") {
+        let installed = optobus_testkit::peer_installed;
+        if !installed("mosquitto", "-h", "mosquitto")
+            || !installed("promtool", "--version", "prometheus")
+        {
             return;
         }
         let mut broker = Broker::start().await;

@@ -32,20 +32,11 @@ devices:
 /// Whether chromedriver and Chromium are here; without them the test is skipped, unless CI
 /// requires them.
 fn browser_present() -> bool {
-    let found = Path::new(CHROMIUM).exists()
-        && Command::new(DRIVER)
-            .arg("--version")
-            .stdout(Stdio::null())
-            .status()
-            .is_ok();
-    if !found {
-        assert!(
-            std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
-            "chromium and chromedriver are not installed"
-        );
-        eprintln!("skipped: chromium and chromedriver are not installed");
+    if !Path::new(CHROMIUM).exists() {
+        optobus_testkit::missing(CHROMIUM, "chromium");
+        return false;
     }
-    found
+    optobus_testkit::peer_installed(DRIVER, "--version", "chromium-driver")
 }
 
 /// chromedriver on a free port, ended when dropped.

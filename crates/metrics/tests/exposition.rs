@@ -66,20 +66,7 @@ fn series(text: &str, name: &str, labels: &str) -> Option<f64> {
 /// Whether promtool is there; `.ci/run` installs it and sets `OPTOBUS_REQUIRE_INTEROP=1`,
 /// so there a missing promtool fails the test.
 fn promtool() -> bool {
-    let found = std::process::Command::new("promtool")
-        .arg("--version")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .status()
-        .is_ok();
-    if !found {
-        assert!(
-            std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
-            "promtool is not installed"
-        );
-        eprintln!("skipped: promtool is not installed (Debian package `prometheus`)");
-    }
-    found
+    optobus_testkit::peer_installed("promtool", "--version", "prometheus")
 }
 
 /// `promtool check metrics` accepts `text` (when promtool is there).

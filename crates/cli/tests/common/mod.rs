@@ -169,20 +169,7 @@ pub fn interrupted(args: &[&str], after: std::time::Duration) -> Output {
 /// `OPTOBUS_REQUIRE_INTEROP=1`, so there a missing tool fails the test; elsewhere the test
 /// says it was skipped.
 pub fn tool(name: &str) -> bool {
-    let found = std::process::Command::new(name)
-        .arg("-h")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .status()
-        .is_ok();
-    if !found {
-        assert!(
-            std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
-            "{name} is not installed"
-        );
-        eprintln!("skipped: {name} is not installed");
-    }
-    found
+    optobus_testkit::peer_installed(name, "-h", name)
 }
 
 /// `mbpoll args…` once; the values it printed (`[3]: 425` lines).

@@ -20,20 +20,7 @@ pub fn mosquitto_installed() -> bool {
 /// Whether `tool` runs (with `arg`); missing, it fails the test under
 /// `OPTOBUS_REQUIRE_INTEROP=1` and is said to be skipped elsewhere (Debian package `package`).
 pub fn tool_installed(tool: &str, arg: &str, package: &str) -> bool {
-    let found = Command::new(tool)
-        .arg(arg)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok();
-    if !found {
-        assert!(
-            std::env::var_os("OPTOBUS_REQUIRE_INTEROP").is_none(),
-            "{tool} is not installed"
-        );
-        eprintln!("skipped: {tool} is not installed (Debian package `{package}`)");
-    }
-    found
+    optobus_testkit::peer_installed(tool, arg, package)
 }
 
 /// A publisher of `bus`'s samples to the broker its file's `mqtt` output names, taking no
