@@ -179,18 +179,24 @@ impl Builder {
         }
         std::thread::scope(|scope| {
             let (send, batches) = mpsc::sync_channel::<Vec<Parsed<'_>>>(BATCHES_AHEAD);
-            scope.spawn(move || {
-                let mut events = rlsp_yaml_parser::parse_events(text);
-                loop {
-                    let batch: Vec<_> = events.by_ref().take(BATCH).collect();
-                    let last = batch.len() < BATCH || batch.last().is_some_and(Result::is_err);
-                    // The builder hangs up once it has stopped at a problem.
-                    if send.send(batch).is_err() || last {
-                        break;
+            let parser = std::thread::Builder::new()
+                .name("yaml-parse".into())
+                .spawn_scoped(scope, move || {
+                    let mut events = rlsp_yaml_parser::parse_events(text);
+                    loop {
+                        let batch: Vec<_> = events.by_ref().take(BATCH).collect();
+                        let last = batch.len() < BATCH || batch.last().is_some_and(Result::is_err);
+                        // The builder hangs up once it has stopped at a problem.
+                        if send.send(batch).is_err() || last {
+                            break;
+                        }
                     }
-                }
-            });
-            self.build(text, batches.into_iter().flatten())
+                });
+            match parser {
+                Ok(_) => self.build(text, batches.into_iter().flatten()),
+                // No thread to be had: the parse runs here.
+                Err(_) => self.build(text, rlsp_yaml_parser::parse_events(text)),
+            }
         })
     }
 
