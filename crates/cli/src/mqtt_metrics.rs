@@ -247,20 +247,6 @@ outputs:
         }
         assert!(text.contains("# TYPE optobus_mqtt_queue_samples gauge"));
 
-        let mut check = Command::new("promtool")
-            .args(["check", "metrics"])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("promtool starts");
-        std::io::Write::write_all(&mut check.stdin.take().unwrap(), text.as_bytes()).unwrap();
-        let output = check.wait_with_output().unwrap();
-        assert!(
-            output.status.success(),
-            "promtool check metrics:\n{}{}\n{text}",
-            String::from_utf8_lossy(&output.stdout),
-            String::from_utf8_lossy(&output.stderr)
-        );
+        optobus_testkit::assert_promtool_accepts(&text);
     }
 }

@@ -166,22 +166,10 @@ impl Collector for SourcesCollector {
                 }
                 match reading.value {
                     ReadingValue::Counter(value) => {
-                        let metric = ConstCounter::new(value);
-                        metric.encode(encoder.encode_descriptor(
-                            reading.name,
-                            reading.help,
-                            None,
-                            metric.metric_type(),
-                        )?)?;
+                        describe(&mut encoder, &reading, &ConstCounter::new(value))?;
                     }
                     ReadingValue::Gauge(value) => {
-                        let metric = ConstGauge::new(value);
-                        metric.encode(encoder.encode_descriptor(
-                            reading.name,
-                            reading.help,
-                            None,
-                            metric.metric_type(),
-                        )?)?;
+                        describe(&mut encoder, &reading, &ConstGauge::new(value))?;
                     }
                 }
             }
@@ -197,4 +185,18 @@ fn is_metric_name(name: &str) -> bool {
         .is_some_and(|c| c.is_ascii_alphabetic() || c == '_' || c == ':')
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_' || c == ':')
         && !name.starts_with("__")
+}
+
+/// Encodes `metric`, the value of `reading`, under the reading's name and help.
+fn describe(
+    encoder: &mut DescriptorEncoder,
+    reading: &Reading,
+    metric: &impl EncodeMetric,
+) -> Result<(), std::fmt::Error> {
+    metric.encode(encoder.encode_descriptor(
+        reading.name,
+        reading.help,
+        None,
+        metric.metric_type(),
+    )?)
 }

@@ -63,38 +63,9 @@ fn series(text: &str, name: &str, labels: &str) -> Option<f64> {
         .map(|value| value.parse().expect("a number"))
 }
 
-/// Whether promtool is there; `.ci/run` installs it and sets `OPTOBUS_REQUIRE_INTEROP=1`,
-/// so there a missing promtool fails the test.
-fn promtool() -> bool {
-    optobus_testkit::peer_installed("promtool", "--version", "prometheus")
-}
-
 /// `promtool check metrics` accepts `text` (when promtool is there).
 fn assert_promtool_accepts(text: &str) {
-    if !promtool() {
-        return;
-    }
-    let mut check = std::process::Command::new("promtool")
-        .args(["check", "metrics"])
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("promtool starts");
-    use std::io::Write;
-    check
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(text.as_bytes())
-        .unwrap();
-    let output = check.wait_with_output().unwrap();
-    assert!(
-        output.status.success(),
-        "promtool check metrics:\n{}{}\n{text}",
-        String::from_utf8_lossy(&output.stdout),
-        String::from_utf8_lossy(&output.stderr)
-    );
+    optobus_testkit::assert_promtool_accepts(text);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

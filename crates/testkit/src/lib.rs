@@ -1,5 +1,6 @@
 //! What the tests of several optobus crates share: whether a peer program they talk to
-//! (mbpoll, socat, mosquitto, openssl, promtool, Chromium) is installed.
+//! (mbpoll, socat, mosquitto, openssl, promtool, Chromium) is installed, and promtool's check
+//! of a metrics exposition.
 //!
 //! Locally a test whose peer is missing is skipped and says so; `.ci/run` installs every peer
 //! and sets [`REQUIRE_PEERS`], so there a missing peer fails the test instead.
@@ -32,4 +33,32 @@ pub fn missing(what: &str, package: &str) {
         "{what} is not installed (Debian package `{package}`)"
     );
     eprintln!("skipped: {what} is not installed (Debian package `{package}`)");
+}
+
+/// Asserts that Prometheus's `promtool check metrics` accepts the exposition `text`; skipped
+/// (see [`missing`]) without promtool.
+pub fn assert_promtool_accepts(text: &str) {
+    use std::io::Write;
+    if !peer_installed("promtool", "--version", "prometheus") {
+        return;
+    }
+    let mut check = Command::new("promtool")
+        .args(["check", "metrics"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("promtool starts");
+    if let Some(mut input) = check.stdin.take() {
+        input
+            .write_all(text.as_bytes())
+            .expect("promtool reads the text");
+    }
+    let output = check.wait_with_output().expect("promtool ends");
+    assert!(
+        output.status.success(),
+        "promtool check metrics:\n{}{}\n{text}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
 }
