@@ -197,19 +197,22 @@ impl Outbox {
     }
 }
 
+/// A QoS 1 sample on topic `t/<n>` with payload `[n]`, for the tests of the queue and of the
+/// publisher.
+#[cfg(test)]
+pub(crate) fn sample(n: u8) -> Message {
+    Message {
+        topic: format!("t/{n}"),
+        payload: vec![n],
+        qos: QoS::AtLeastOnce,
+        retain: false,
+        kind: Kind::Sample,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn sample(n: u8) -> Message {
-        Message {
-            topic: format!("t/{n}"),
-            payload: vec![n],
-            qos: QoS::AtLeastOnce,
-            retain: false,
-            kind: Kind::Sample,
-        }
-    }
 
     fn topics(outbox: &mut Outbox) -> Vec<String> {
         std::iter::from_fn(|| outbox.next().map(|m| m.topic)).collect()

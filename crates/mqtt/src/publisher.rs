@@ -481,6 +481,7 @@ fn incoming(shared: &Arc<Shared>, writes: Option<&Handle>, topic: &str, payload:
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::outbox::sample;
     use rumqttc::PubAck;
 
     fn shared() -> Arc<Shared> {
@@ -492,16 +493,6 @@ mod tests {
             qos: QoS::AtLeastOnce,
             discovery: None,
         })
-    }
-
-    fn sample(n: u8) -> Message {
-        Message {
-            topic: format!("t/{n}"),
-            payload: vec![n],
-            qos: QoS::AtLeastOnce,
-            retain: false,
-            kind: Kind::Sample,
-        }
     }
 
     #[tokio::test]
