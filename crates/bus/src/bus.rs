@@ -15,8 +15,8 @@ use tokio::time::Instant;
 use crate::event::{DeviceId, ErrorCounts, Event};
 use crate::file::{BusFile, Port};
 use crate::gateway::{self, GatewayCounters};
-use crate::handle::{Entry, Handle, JOB_QUEUE};
-use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun};
+use crate::handle::{Entry, Handle, LineQueues, Source};
+use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun, Turns};
 use crate::link::{DeviceLink, DeviceSettings, LineState, Stream};
 use crate::schedule::Schedule;
 use crate::trace::LineFrames;
@@ -179,8 +179,8 @@ impl Bus {
                 }
                 None => None,
             };
-            let (jobs_in, jobs) = mpsc::channel(JOB_QUEUE);
-            job_queues.push(jobs_in);
+            let (queues, jobs) = LineQueues::new();
+            job_queues.push(queues);
             let task = LineTask {
                 jobs,
                 gateway,
@@ -194,12 +194,14 @@ impl Bus {
                 schedule,
                 events: self.events.clone(),
                 finishing: Vec::new(),
+                turns: Turns::default(),
             };
             tasks.push(tokio::spawn(task.run()));
         }
         Ok(Running {
             handle: Handle {
                 lines: job_queues.into(),
+                source: Source::Api,
                 devices: entries.into(),
                 frames: line_frames.into(),
             },

@@ -6,6 +6,7 @@
 //! time for commands. A broadcast write reaches every device of a line and is followed by the
 //! line's broadcast turnaround before the next request.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use optobus_device::{CommandInfo, DeviceInfo, Invalid, RegisterInfo};
@@ -17,8 +18,76 @@ use crate::event::DeviceId;
 use crate::file::Writable;
 use crate::trace::{Frame, LineFrames};
 
-/// Jobs a line keeps queued for its API callers.
-pub(crate) const JOB_QUEUE: usize = 64;
+/// Jobs a line keeps queued for an in-process caller ([`Source::Api`]), who waits for room.
+pub(crate) const API_QUEUE: usize = 64;
+
+/// Jobs a line keeps queued for each network source; one more is refused at once
+/// ([`JobError::Busy`]).
+pub const NETWORK_QUEUE: usize = 8;
+
+/// Who asks a line for work. Each source has its own bounded queue on every line, and the
+/// line serves at most one job of each (and one gateway request per client) between its
+/// polls: what the network asks for gets a bounded share of the line, the polls keep their
+/// schedule.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Source {
+    /// The program that runs the bus: it waits for room in its queue rather than being refused.
+    Api,
+    /// The console in the browser.
+    Console,
+    /// Writes arriving over MQTT.
+    Mqtt,
+}
+
+impl Source {
+    /// Every source, in the order a line serves them.
+    pub const ALL: [Self; 3] = [Self::Api, Self::Console, Self::Mqtt];
+
+    pub(crate) fn index(self) -> usize {
+        match self {
+            Self::Api => 0,
+            Self::Console => 1,
+            Self::Mqtt => 2,
+        }
+    }
+
+    /// How many jobs a line keeps queued for it.
+    pub(crate) fn queue(self) -> usize {
+        match self {
+            Self::Api => API_QUEUE,
+            Self::Console | Self::Mqtt => NETWORK_QUEUE,
+        }
+    }
+
+    /// Its name in messages and metrics.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Api => "api",
+            Self::Console => "console",
+            Self::Mqtt => "mqtt",
+        }
+    }
+}
+
+/// A line's job queues, one per [`Source`], and the jobs each source had refused as busy.
+#[derive(Debug)]
+pub(crate) struct LineQueues {
+    pub(crate) senders: [mpsc::Sender<Job>; 3],
+    pub(crate) busy: [AtomicU64; 3],
+}
+
+impl LineQueues {
+    /// The queues, and the receivers the line takes from (in [`Source::ALL`] order).
+    pub(crate) fn new() -> (Self, [mpsc::Receiver<Job>; 3]) {
+        let [api, console, mqtt] = Source::ALL.map(|source| mpsc::channel(source.queue()));
+        let queues = Self {
+            senders: [api.0, console.0, mqtt.0],
+            busy: Default::default(),
+        };
+        (queues, [api.1, console.1, mqtt.1])
+    }
+}
 
 /// What an API caller asked a line to do.
 #[derive(Debug)]
@@ -109,6 +178,14 @@ pub enum JobError {
     /// The name or the value was refused as `optobus set` and `optobus do` refuse it (unknown
     /// name, a value out of range or off its steps, a unit that does not fit); nothing was sent.
     Refused(optobus_inspect::Error),
+    /// The line already has as many jobs of this source queued as it keeps
+    /// ([`NETWORK_QUEUE`]); refused at once, nothing was sent.
+    Busy {
+        /// The line.
+        line: String,
+        /// Who asked.
+        source: Source,
+    },
     /// The line's task has stopped.
     Stopped,
     /// The device or the line failed.
@@ -127,6 +204,12 @@ impl std::fmt::Display for JobError {
                  list it"
             ),
             Self::Refused(error) => error.fmt(f),
+            Self::Busy { line, source } => write!(
+                f,
+                "line `{line}` is busy: {NETWORK_QUEUE} requests of the {} already wait for it; \
+                 nothing was sent, try again later",
+                source.name()
+            ),
             Self::Stopped => f.write_str("the bus has stopped"),
             Self::Device(error) => error.fmt(f),
         }
@@ -138,13 +221,40 @@ impl std::error::Error for JobError {}
 /// A cloneable handle on a running bus's lines.
 #[derive(Clone, Debug)]
 pub struct Handle {
-    pub(crate) lines: Arc<[mpsc::Sender<Job>]>,
+    pub(crate) lines: Arc<[LineQueues]>,
+    /// Whose jobs this handle queues.
+    pub(crate) source: Source,
     pub(crate) devices: Arc<[Entry]>,
     /// Each line's frame rings.
     pub(crate) frames: Arc<[Arc<LineFrames>]>,
 }
 
 impl Handle {
+    /// The same handle, its jobs queued as `source`'s: a network source's jobs beyond
+    /// [`NETWORK_QUEUE`] on a line are refused at once with [`JobError::Busy`].
+    pub fn for_source(&self, source: Source) -> Self {
+        Self {
+            source,
+            ..self.clone()
+        }
+    }
+
+    /// How many jobs of `source` the bus's lines refused as busy.
+    pub fn busy_refusals(&self, source: Source) -> u64 {
+        self.lines
+            .iter()
+            .map(|queues| queues.busy[source.index()].load(Ordering::Relaxed))
+            .sum()
+    }
+
+    fn line_name(&self, line: usize) -> String {
+        self.devices
+            .iter()
+            .find(|entry| entry.line == line)
+            .map(|entry| entry.id.line.to_string())
+            .unwrap_or_default()
+    }
+
     fn entry(&self, device: &str) -> Result<&Entry, JobError> {
         self.devices
             .iter()
@@ -175,10 +285,23 @@ impl Handle {
         job: impl FnOnce(oneshot::Sender<Result<T, optobus_driver::Error>>) -> Job,
     ) -> Result<T, JobError> {
         let (done, result) = oneshot::channel();
-        self.lines[line]
-            .send(job(done))
-            .await
-            .map_err(|_| JobError::Stopped)?;
+        let queues = &self.lines[line];
+        let queue = &queues.senders[self.source.index()];
+        if self.source == Source::Api {
+            queue.send(job(done)).await.map_err(|_| JobError::Stopped)?;
+        } else {
+            match queue.try_send(job(done)) {
+                Ok(()) => {}
+                Err(mpsc::error::TrySendError::Full(_)) => {
+                    queues.busy[self.source.index()].fetch_add(1, Ordering::Relaxed);
+                    return Err(JobError::Busy {
+                        line: self.line_name(line),
+                        source: self.source,
+                    });
+                }
+                Err(mpsc::error::TrySendError::Closed(_)) => return Err(JobError::Stopped),
+            }
+        }
         result
             .await
             .map_err(|_| JobError::Stopped)?

@@ -63,7 +63,7 @@ pub use file::{
     BusFile, DeviceConfig, HttpConfig, LineConfig, LoadError, MetricsConfig, MqttConfig, Outputs,
     PollConfig, Port, Rejected, SecretSource, Writable,
 };
-pub use handle::{Buffered, Handle, JobError};
+pub use handle::{Buffered, Handle, JobError, Source, NETWORK_QUEUE};
 pub use link::Stream;
 pub use schedule::Health;
 pub use trace::{Direction, Frame, FRAMES_KEPT};

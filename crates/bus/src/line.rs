@@ -16,7 +16,7 @@ use tokio::time::Instant;
 
 use crate::event::{DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
 use crate::gateway::{self, GatewayRequest};
-use crate::handle::{self, Checked, Job};
+use crate::handle::{self, Checked, Job, Source};
 use crate::link::{Client, DeviceLink, DeviceSettings, LineState, Stream};
 use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
 use crate::trace::{LineFrames, TracedStream};
@@ -159,8 +159,11 @@ pub(crate) struct LineTask {
     pub(crate) schedule: Schedule,
     pub(crate) events: broadcast::Sender<Event>,
     pub(crate) gateway: Option<GatewayQueue>,
-    /// Writes, commands and reads asked for through a [`crate::Handle`].
-    pub(crate) jobs: mpsc::Receiver<Job>,
+    /// Writes, commands and reads asked for through a [`crate::Handle`], a queue per
+    /// [`Source`].
+    pub(crate) jobs: [mpsc::Receiver<Job>; 3],
+    /// Whose turn it is among the queues of network work.
+    pub(crate) turns: Turns,
     /// The silence owed after a broadcast.
     pub(crate) broadcast_turnaround: Duration,
     /// Commands waiting for their device to show it finished (`done_when`).
@@ -177,6 +180,35 @@ pub(crate) struct Finishing {
     done: tokio::sync::oneshot::Sender<Result<(), DriverError>>,
 }
 
+/// How many queues of network work a line serves in turns: the gateway's and one per
+/// [`Source`].
+const QUEUES: usize = 1 + Source::ALL.len();
+
+/// Work asked of the line from outside its schedule.
+enum Work {
+    Gateway(GatewayRequest),
+    Job(Job),
+}
+
+/// Whose turn it is among a line's queues of network work (queue 0 the gateway's, then one per
+/// [`Source`] in [`Source::ALL`] order).
+#[derive(Debug, Default)]
+pub(crate) struct Turns {
+    /// What each queue may still have served before the next due poll.
+    allowance: [usize; QUEUES],
+    /// The queue looked at first, so that no queue starves another.
+    next: usize,
+}
+
+impl Turns {
+    /// A poll ran: the gateway's clients that waited through it get a turn each, every source
+    /// one.
+    fn after_poll(&mut self, gateway_waiting: usize) {
+        self.allowance = [1; QUEUES];
+        self.allowance[0] = gateway_waiting;
+    }
+}
+
 /// The next request of the gateway, or never when the line has none.
 async fn next_request(gateway: &mut Option<GatewayQueue>) -> Option<GatewayRequest> {
     match gateway {
@@ -188,17 +220,16 @@ async fn next_request(gateway: &mut Option<GatewayQueue>) -> Option<GatewayReque
 impl LineTask {
     /// Runs the line until the task is aborted.
     ///
-    /// After each poll the line serves the gateway's requests that waited through it (one
-    /// round: at most one per client), then the next poll: a request waits for at most one
-    /// poll besides the requests of other clients queued before it, and the polls keep at
-    /// least one turn in every `clients + 1`.
+    /// Polls that are due go first. Between them the line serves the network's work in turns
+    /// (see [`Turns`]): after each poll every queue gets one turn (the gateway one per request
+    /// that waited through the poll, at most one per client; each [`Source`] one job), then the
+    /// next due poll runs. Work waits for at most one poll, and the polls keep their schedule
+    /// however much work is queued.
     pub(crate) async fn run(mut self) {
         let clock = Clock::now();
         let mut next_stats = clock.instant + STATS_EVERY;
         let mut reopen_at = clock.instant;
         let mut reopen_wait = FIRST_BACKOFF;
-        // Gateway requests still to serve before the next poll.
-        let mut gateway_round = 0usize;
         let mut was_open = true;
         loop {
             let now = Instant::now();
@@ -217,8 +248,12 @@ impl LineTask {
                 }
             }
             if open != was_open {
-                // Whoever watches the line hears at once that it closed or opened again.
+                // Whoever watches the line hears at once that it closed or opened again, and
+                // a closed line's devices are down until they answer again.
                 self.send_stats(&clock).await;
+                if !open {
+                    self.line_down(now).await;
+                }
                 was_open = open;
             }
             let next = if open {
@@ -226,31 +261,19 @@ impl LineTask {
             } else {
                 Next::Wait(reopen_at)
             };
-            // API jobs go ahead of everything (the gateway's clients and the polls).
-            if let Ok(job) = self.jobs.try_recv() {
-                self.do_job(job).await;
-                continue;
-            }
             if let Some(index) = self.finishing.iter().position(|f| f.at <= now) {
                 self.check_finished(index).await;
                 continue;
             }
-            if gateway_round > 0 || !matches!(next, Next::Run(_)) {
-                if let Some(request) = self
-                    .gateway
-                    .as_mut()
-                    .and_then(|g| g.requests.try_recv().ok())
-                {
-                    self.serve(request).await;
-                    gateway_round = gateway_round.saturating_sub(1);
-                    continue;
-                }
-                gateway_round = 0;
+            if let Some(work) = self.take_work(matches!(next, Next::Run(_))) {
+                self.do_work(work).await;
+                continue;
             }
             let until = match next {
                 Next::Run(poll) => {
                     self.run_poll(poll, &clock).await;
-                    gateway_round = self.gateway.as_ref().map_or(0, |g| g.requests.len());
+                    let waiting = self.gateway.as_ref().map_or(0, |g| g.requests.len());
+                    self.turns.after_poll(waiting);
                     continue;
                 }
                 Next::Wait(until) => until.min(next_stats),
@@ -261,11 +284,66 @@ impl LineTask {
                 .iter()
                 .map(|f| f.at)
                 .fold(until, Instant::min);
-            tokio::select! {
-                () = tokio::time::sleep_until(until) => {}
-                Some(job) = self.jobs.recv() => self.do_job(job).await,
-                Some(request) = next_request(&mut self.gateway) => self.serve(request).await,
+            let [api, console, mqtt] = &mut self.jobs;
+            let work = tokio::select! {
+                () = tokio::time::sleep_until(until) => None,
+                Some(job) = api.recv() => Some(Work::Job(job)),
+                Some(job) = console.recv() => Some(Work::Job(job)),
+                Some(job) = mqtt.recv() => Some(Work::Job(job)),
+                Some(request) = next_request(&mut self.gateway) => Some(Work::Gateway(request)),
+            };
+            if let Some(work) = work {
+                self.do_work(work).await;
             }
+        }
+    }
+
+    /// The next work to do before the next poll: any that waits when no poll is due, else only
+    /// from queues that still have a turn in this round.
+    fn take_work(&mut self, poll_due: bool) -> Option<Work> {
+        for step in 0..QUEUES {
+            let queue = (self.turns.next + step) % QUEUES;
+            if poll_due && self.turns.allowance[queue] == 0 {
+                continue;
+            }
+            let work = match queue.checked_sub(1) {
+                None => self
+                    .gateway
+                    .as_mut()
+                    .and_then(|g| g.requests.try_recv().ok())
+                    .map(Work::Gateway),
+                Some(source) => self.jobs[source].try_recv().ok().map(Work::Job),
+            };
+            if let Some(work) = work {
+                self.turns.allowance[queue] = self.turns.allowance[queue].saturating_sub(1);
+                self.turns.next = (queue + 1) % QUEUES;
+                return Some(work);
+            }
+        }
+        None
+    }
+
+    async fn do_work(&mut self, work: Work) {
+        match work {
+            Work::Gateway(request) => self.serve(request).await,
+            Work::Job(job) => self.do_job(job).await,
+        }
+    }
+
+    /// The port closed: every device of the line that was online is down, told at once.
+    async fn line_down(&mut self, now: Instant) {
+        let reason = "the line's port is closed".to_owned();
+        for device in self.schedule.line_down(now) {
+            let device = &self.devices[device];
+            let errors = *device.errors.lock().unwrap_or_else(|e| e.into_inner());
+            tracing::info!(target: "optobus_bus", device = &*device.id.device, "device down with its line");
+            let event = HealthEvent {
+                source: Arc::clone(&device.id),
+                health: Health::Offline,
+                errors,
+                reason: Some(reason.clone()),
+            };
+            let _ = self.events.send(Event::Health(Arc::new(event)));
         }
     }
 

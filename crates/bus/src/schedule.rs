@@ -236,6 +236,24 @@ impl Schedule {
         }
     }
 
+    /// The line's port closed at `now`: every online device goes offline at once, to be probed
+    /// as soon as the line opens again. Gives the devices that went down.
+    pub(crate) fn line_down(&mut self, now: Instant) -> Vec<usize> {
+        let mut down = Vec::new();
+        for (index, device) in self.devices.iter_mut().enumerate() {
+            if device.health == Health::Online {
+                *device = Device {
+                    health: Health::Offline,
+                    not_before: device.not_before.max(now),
+                    failures: OFFLINE_AFTER,
+                    backoff: FIRST_BACKOFF,
+                };
+                down.push(index);
+            }
+        }
+        down
+    }
+
     /// Records that poll `index` ended at `now` with `outcome`; gives the device's new health
     /// when it changed.
     pub(crate) fn done(&mut self, index: usize, now: Instant, outcome: Outcome) -> Option<Health> {
