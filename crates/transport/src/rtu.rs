@@ -78,6 +78,14 @@ impl RtuConfig {
     }
 }
 
+/// The line state is unknown since `since`: the line must be quiet for `quiet` (the recovery
+/// of the transaction that left it so, which a late reply to it needs) before the next request.
+#[derive(Clone, Copy, Debug)]
+struct Unsettled {
+    since: Instant,
+    quiet: Duration,
+}
+
 /// A Modbus RTU client over `stream`.
 ///
 /// # A reply is only ever taken as the answer to its own request
@@ -101,10 +109,10 @@ pub struct RtuClient<S> {
     config: RtuConfig,
     /// When the line was last busy (a byte sent or received), for the frame gap.
     last_activity: Option<Instant>,
-    /// `Some(since)` while the line state is unknown: set when a transaction starts and
-    /// cleared when it completes cleanly, so a dropped transaction leaves it set. Recovery
-    /// waits for quiet counted from `since`.
-    unsettled: Option<Instant>,
+    /// Set while the line state is unknown: when a transaction starts, cleared when it
+    /// completes cleanly, so a dropped transaction leaves it set. Recovery waits for quiet
+    /// counted from its `since`, as long as the transaction that left it needs.
+    unsettled: Option<Unsettled>,
     /// When the last request began to leave, once the line was ready.
     last_request: Option<Instant>,
     buffer: Box<[u8; rtu::MAX_FRAME_LEN + 4]>,
@@ -174,10 +182,10 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         }
     }
 
-    /// Discards input until the line has been quiet for the recovery time, counted from
-    /// `since` or the last byte seen, whichever is later.
-    async fn recover(&mut self, since: Instant) -> Result<(), Error> {
-        let quiet = self.config.recovery();
+    /// Discards input until the line has been quiet for the recovery time of the transaction
+    /// that left it unsettled, counted from then or the last byte seen, whichever is later.
+    async fn recover(&mut self, unsettled: Unsettled) -> Result<(), Error> {
+        let Unsettled { since, quiet } = unsettled;
         let mut heard = since;
         if self.discard_waiting().await? {
             heard = Instant::now();
@@ -199,11 +207,20 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         Ok(())
     }
 
+    /// The line is unsettled since `since` by a transaction made with the present settings:
+    /// its own recovery time, not that of whoever asks next, is what a late reply needs.
+    fn unsettled_since(&self, since: Instant) -> Unsettled {
+        Unsettled {
+            since,
+            quiet: self.config.recovery(),
+        }
+    }
+
     /// Makes the line ready for a request: recovered after a fault, stray bytes discarded,
     /// and silent for a frame gap.
     async fn prepare(&mut self) -> Result<(), Error> {
         match self.unsettled {
-            Some(since) => self.recover(since).await?,
+            Some(unsettled) => self.recover(unsettled).await?,
             None => {
                 self.discard_waiting().await?;
             }
@@ -258,10 +275,10 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         self.last_request = Some(now);
         let sent = now + self.config.transmit_time(frame.len());
         let deadline = deadline_from(sent, self.config.timeout);
-        self.unsettled = Some(deadline_from(
+        self.unsettled = Some(self.unsettled_since(deadline_from(
             sent,
             self.config.timeout.min(MAX_DEFAULT_RECOVERY),
-        ));
+        )));
         self.stream.write_all(frame).await?;
         self.stream.flush().await?;
         let written = Instant::now();
@@ -278,7 +295,8 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                     frames::received(slave, &self.buffer[..filled], written.elapsed(), None);
                     // Bytes behind a good reply mean something else is talking: recover
                     // before the next request.
-                    self.unsettled = (consumed < filled).then(Instant::now);
+                    self.unsettled =
+                        (consumed < filled).then(|| self.unsettled_since(Instant::now()));
                     return Ok(Some(frame));
                 }
                 Ok(Decoded::NeedMore { .. }) => {}
@@ -290,7 +308,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                 Err(error) => {
                     // The device may still be sending, or this was another slave's reply
                     // and ours is yet to come: quiet is counted from now.
-                    self.unsettled = Some(Instant::now());
+                    self.unsettled = Some(self.unsettled_since(Instant::now()));
                     let bytes = &self.buffer[..filled];
                     frames::received(slave, bytes, written.elapsed(), Some("garbled"));
                     return Err(Error::Frame(error));

@@ -206,6 +206,43 @@ async fn a_silent_device_times_out_and_the_next_request_works() {
     );
 }
 
+/// Issue 28, point 6: a silent slave with a short timeout beside devices with the default one.
+/// The quiet kept after its timeout is what a late reply to *its* request needs, not the next
+/// request's timeout (which made each timeout of the absent device cost the line 1.1 s).
+#[tokio::test(start_paused = true)]
+async fn an_absent_device_costs_its_own_recovery_not_the_next_requests_timeout() {
+    let (a, b) = tokio::io::duplex(1024);
+    let mut seen = device(b, vec![Act::Silent, Act::Answer], vec![]);
+    let mut client = client(
+        a,
+        RtuConfig {
+            timeout: Duration::from_millis(100),
+            line: None,
+            ..RtuConfig::default()
+        },
+    );
+    let asked = tokio::time::Instant::now();
+    match client.read(25, ReadFunction::Holding, 0, 1).await {
+        Err(Error::Timeout { after }) => assert_eq!(after, Duration::from_millis(100)),
+        other => panic!("{other:?}"),
+    }
+    // The next device on the line has the default timeout of 1 s.
+    client.config_mut().timeout = Duration::from_secs(1);
+    assert_eq!(
+        client.read(1, ReadFunction::Input, 7, 2).await.unwrap(),
+        [7, 8]
+    );
+    let took = asked.elapsed();
+    // Its timeout (100 ms) and the quiet a late reply to it needs (100 ms): the clock is
+    // tokio's paused one, so this is the client's own arithmetic, not the machine's speed.
+    assert!(
+        took >= Duration::from_millis(200) && took < Duration::from_millis(300),
+        "the absent device cost {took:?}"
+    );
+    assert_eq!(seen.recv().await.map(|(slave, _)| slave), Some(25));
+    assert_eq!(seen.recv().await.map(|(slave, _)| slave), Some(1));
+}
+
 #[tokio::test]
 async fn a_garbled_reply_resynchronises_without_losing_the_next_transaction() {
     let (a, b) = tokio::io::duplex(1024);
