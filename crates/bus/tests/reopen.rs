@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::time::Duration;
 
-use optobus_bus::{Bus, BusFile, Catalogue, Event};
+use optobus_bus::{Bus, BusFile, Catalogue, Event, Health};
 use optobus_simulator::Simulator;
 use tokio::sync::broadcast::Receiver;
 
@@ -35,12 +35,18 @@ fn closed(line: &str) -> impl FnMut(&Event) -> bool + '_ {
     move |event| matches!(event, Event::Line(stats) if &*stats.line == line && !stats.open)
 }
 
+fn health_of(device: &str, health: Health) -> impl FnMut(&Event) -> bool + '_ {
+    move |event| {
+        matches!(event, Event::Health(h) if &*h.source.device == device && h.health == health)
+    }
+}
+
 fn sample_of(device: &str) -> impl FnMut(&Event) -> bool + '_ {
     move |event| matches!(event, Event::Sample(sample) if &*sample.source.device == device)
 }
 
 #[tokio::test]
-async fn a_vanished_port_closes_its_line_and_is_reopened_when_it_returns() {
+async fn a_vanished_port_takes_its_devices_down_at_once_and_is_reopened_when_it_returns() {
     let folder = std::env::temp_dir().join(format!("optobus-reopen-{}", std::process::id()));
     std::fs::create_dir_all(&folder).unwrap();
     let link = folder.join("ttyUSB0");
@@ -75,6 +81,9 @@ devices:
     drop(unplugged);
     std::fs::remove_file(&link).unwrap();
     until(&mut events, &mut counts, closed("usb")).await;
+    // Its device is down at once, told on the event stream every output follows (issue 28,
+    // point 7: it stayed online with its last values while its port was gone).
+    until(&mut events, &mut counts, health_of("head", Health::Offline)).await;
     counts.clear();
     // While it is gone the other line goes on, and nothing comes from the head.
     until(
@@ -92,6 +101,7 @@ devices:
     // Plugged in again (a new terminal behind the same name): the head is read again.
     let replugged = head.serve_pty().expect("a pty");
     std::os::unix::fs::symlink(replugged.path(), &link).unwrap();
+    until(&mut events, &mut counts, health_of("head", Health::Online)).await;
     until(&mut events, &mut counts, sample_of("head")).await;
     let _ = std::fs::remove_dir_all(&folder);
 }
