@@ -1,5 +1,5 @@
 //! Asking a running bus to write, run a command or read now: jobs that go onto their line
-//! ahead of its polls.
+//! between its polls, in turns with the other sources (see the crate README).
 //!
 //! A write is checked against the register's spec before it is queued (nothing invalid reaches
 //! the line), is made once (writes are never retried), and is followed by the device's busy
@@ -309,7 +309,7 @@ impl Handle {
     }
 
     /// Writes `words` (the register's whole value, as `optobus_inspect::parse_value` gives
-    /// them) to `register` of device `device`, ahead of the line's polls; with `broadcast`,
+    /// them) to `register` of device `device`, between the line's polls; with `broadcast`,
     /// to every device of its line (slave 0).
     pub async fn write(
         &self,
@@ -339,7 +339,7 @@ impl Handle {
         .await
     }
 
-    /// Runs `command` of device `device` (on the copy `register` of its register), ahead of
+    /// Runs `command` of device `device` (on the copy `register` of its register), between
     /// the line's polls, and waits out its busy time.
     pub async fn run(
         &self,
@@ -412,7 +412,7 @@ impl Handle {
         self.run(device, found, register).await
     }
 
-    /// Reads out the data buffer of device `device` (where its spec has one) ahead of the
+    /// Reads out the data buffer of device `device` (where its spec has one) between the
     /// line's polls: its sampling timing, then the buffer locked, read a page at a time and
     /// unlocked, as `optobus buffer` does. The lock and unlock are commands: the bus file's
     /// `writable` must list them (`all` does), since reading out empties the buffer.
@@ -449,7 +449,7 @@ impl Handle {
         self.entry(device).ok().map(|entry| &entry.writable)
     }
 
-    /// Reads `registers` of device `device` now, ahead of the line's polls.
+    /// Reads `registers` of device `device` now, between the line's polls.
     pub async fn read(
         &self,
         device: &str,

@@ -7,7 +7,7 @@
 //!   each gets an equal share of turns.
 //! - A device that fails [`OFFLINE_AFTER`] times in a row goes offline: its polls stop, and one
 //!   of them probes it after a backoff that starts at [`FIRST_BACKOFF`] and doubles to
-//!   [`MAX_BACKOFF`], so a dead device costs at most one timeout per backoff period. A
+//!   [`MAX_BACKOFF`], so a dead device costs at most one attempt per backoff period. A
 //!   successful probe brings it back online, its periodic polls resuming at their phases.
 //! - A device is first asked once its power-up wait has passed.
 

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use optobus_bus::{Bus, BusFile, Catalogue, Event, JobError};
+use optobus_bus::{Bus, BusFile, Catalogue, Event, JobError, Source};
 use optobus_device::Table;
 use optobus_inspect::parse_value;
 use optobus_simulator::Simulator;
@@ -254,4 +254,88 @@ async fn a_save_is_done_through_the_bus_only_once_its_flag_reads_0() {
     );
     assert!(started.elapsed() <= Duration::from_millis(2000));
     assert_eq!(head.peek(Table::Holding, register.address), Some(vec![1]));
+}
+
+/// Issue 28, point 3: a flood of reads from the network (10,000 MQTT writes or 16 console
+/// clients stopped every poll for minutes). Each network source has a bounded queue per line,
+/// one more job is refused at once, and the line serves at most one job of each source
+/// between two polls: the polls keep their turns however many jobs are asked for.
+#[tokio::test]
+async fn a_flood_of_network_jobs_is_refused_beyond_its_queue_and_the_polls_keep_their_turns() {
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    // The head's requests in the order it saw them: `J` a read of light_power (a job), `P`
+    // any other read (a poll).
+    let seen = Arc::new(Mutex::new(String::new()));
+    let log = Arc::clone(&seen);
+    let head = Simulator::new(&optobus_p_series::DEVICE)
+        .slave(1)
+        .observe(move |exchange| {
+            if let Some(optobus_codec::Request::Read { address, .. }) = exchange.request {
+                let job = *address == power.address;
+                log.lock().unwrap().push(if job { 'J' } else { 'P' });
+            }
+        });
+    let (stream, _server) = optobus_simulator::Bus::new([head.clone()]).duplex();
+    let text = "
+lines: [{ name: rs485, serial: memory, baud: 115200 }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms, poll: [{ read: measurements }] }
+";
+    let running = Bus::new(file(text))
+        .with_stream("rs485", stream)
+        .start()
+        .unwrap();
+    running
+        .handle()
+        .write("head", power, vec![125], false)
+        .await
+        .unwrap();
+    let network = running.handle().for_source(Source::Mqtt);
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mut flood = Vec::new();
+    for _ in 0..40 {
+        let (network, stop) = (network.clone(), Arc::clone(&stop));
+        flood.push(tokio::spawn(async move {
+            let (mut read, mut busy) = (0u32, 0u32);
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                match network.read("head", vec![power]).await {
+                    Ok(values) => {
+                        assert_eq!(values[0].to_string(), "12.5 %");
+                        read += 1;
+                    }
+                    Err(JobError::Busy { line, source }) => {
+                        assert_eq!((line.as_str(), source), ("rs485", Source::Mqtt));
+                        busy += 1;
+                        tokio::task::yield_now().await;
+                    }
+                    Err(other) => panic!("{other}"),
+                }
+            }
+            (read, busy)
+        }));
+    }
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
+    while seen.lock().unwrap().matches('P').count() < 100 {
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "the polls starved: {}",
+            seen.lock().unwrap()
+        );
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let (mut read, mut busy) = (0, 0);
+    for task in flood {
+        let (r, b) = task.await.unwrap();
+        (read, busy) = (read + r, busy + b);
+    }
+    let order = seen.lock().unwrap().clone();
+    assert!(read > 20, "jobs were done too: {read}");
+    assert!(busy > 0, "beyond its queue a job is refused at once");
+    assert_eq!(u64::from(busy), network.busy_refusals(Source::Mqtt));
+    // Between two polls, at most one job of the one source that asks.
+    let polls_at: Vec<usize> = order.match_indices('P').map(|(at, _)| at).collect();
+    for pair in polls_at.windows(2) {
+        assert!(pair[1] - pair[0] <= 2, "{order}");
+    }
 }

@@ -36,9 +36,7 @@ fn closed(line: &str) -> impl FnMut(&Event) -> bool + '_ {
 }
 
 fn health_of(device: &str, health: Health) -> impl FnMut(&Event) -> bool + '_ {
-    move |event| {
-        matches!(event, Event::Health(h) if &*h.source.device == device && h.health == health)
-    }
+    move |event| matches!(event, Event::Health(h) if &*h.source.device == device && h.health == health)
 }
 
 fn sample_of(device: &str) -> impl FnMut(&Event) -> bool + '_ {
