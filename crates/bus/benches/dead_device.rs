@@ -9,6 +9,12 @@
 //!    again. Prints the time from its return to its `Online` health event against the backoff
 //!    period in effect then, the wait between its last failed probe and the probe that found
 //!    it (target: within one backoff period). Probes are seen by the simulated device.
+//! 3. A real line beside an absent device: a P series and a CCS (default timeout, 1 s) polled
+//!    every 100 ms on a line-timed pty served by another process (this bench run again as the
+//!    server), and a rangefinder at slave 25 that is not there (timeout 100 ms). Trials
+//!    alternate the file without the absent device (the anchor) and with it; prints each live
+//!    device's polls per second and its longest gap between two polls (targets: ≥ 7 a second,
+//!    no gap over 0.4 s).
 //!
 //! Run with `cargo bench -p optobus-bus --bench dead_device`.
 
@@ -21,6 +27,7 @@ use std::time::{Duration, Instant};
 use common::{bus_file, emulated_line, model_name, models, simulators};
 use optobus_bus::{Bus, Event, Health};
 use optobus_codec::LineFormat;
+use optobus_simulator::{Line, Simulator};
 
 const BAUD: u32 = 115_200;
 const TRIALS: usize = 3;
@@ -220,6 +227,147 @@ async fn run() {
     }
 }
 
+/// The environment variable that makes this bench the pty server of part 3.
+const SERVE_PTY: &str = "OPTOBUS_BENCH_SERVE_PTY";
+
+/// Part 3's server: a P series at slave 1 and a CCS at slave 2 on a pty timed as 115200 8N1;
+/// prints the pty's path and serves until its standard input closes (the bench ended).
+async fn serve_pty() {
+    let devices = [
+        Simulator::new(&optobus_p_series::DEVICE).slave(1),
+        Simulator::new(&optobus_ccs::DEVICE).slave(2),
+    ];
+    let pty = optobus_simulator::Bus::new(devices)
+        .serve_pty_line(Line::new(LineFormat::new(BAUD)))
+        .expect("a pty");
+    println!("{}", pty.path().display());
+    let _ = tokio::task::spawn_blocking(|| std::io::stdin().read_line(&mut String::new())).await;
+}
+
+/// A pty served by another process (this bench binary as the server of part 3).
+struct PtyServer {
+    child: std::process::Child,
+    path: String,
+}
+
+impl PtyServer {
+    fn start() -> Self {
+        let mut child = std::process::Command::new(std::env::current_exe().unwrap())
+            .env(SERVE_PTY, "1")
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .expect("the pty server starts");
+        let mut path = String::new();
+        std::io::BufRead::read_line(
+            &mut std::io::BufReader::new(child.stdout.take().unwrap()),
+            &mut path,
+        )
+        .unwrap();
+        Self {
+            child,
+            path: path.trim().to_owned(),
+        }
+    }
+}
+
+impl Drop for PtyServer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Polls per second and the longest gap between two polls of the head (slave 1) and the
+/// confocal (slave 2), beside an absent rangefinder (`absent`) or without it.
+async fn beside_absent(server: &PtyServer, absent: bool) -> [(f64, Duration); 2] {
+    let mut devices = vec![
+        "{ name: head, model: p-series, slave: 1, poll: [{ read: measurements, every: 100ms }] }"
+            .to_owned(),
+        "{ name: confocal, model: ccs, slave: 2, poll: [{ read: measurements, every: 100ms }] }"
+            .to_owned(),
+    ];
+    if absent {
+        devices.push(
+            "{ name: absent, model: rangefinder, slave: 25, timeout: 100ms, poll: [{ read: measurements, every: 100ms }] }"
+                .to_owned(),
+        );
+    }
+    let file = bus_file(&format!("serial: {}, baud: {BAUD}", server.path), &devices);
+    let bus = Bus::new(file);
+    let mut events = bus.subscribe();
+    let running = bus.start().expect("starts");
+    let mut polls: [Vec<std::time::SystemTime>; 2] = Default::default();
+    let started = Instant::now();
+    while started.elapsed() < trial_length() {
+        if let Ok(Ok(Event::Sample(sample))) =
+            tokio::time::timeout(Duration::from_millis(100), events.recv()).await
+        {
+            let index = match &*sample.source.device {
+                "head" => 0,
+                "confocal" => 1,
+                _ => continue,
+            };
+            // One sample per poll: the poll's request time tells them apart.
+            if polls[index].last() != Some(&sample.requested) {
+                polls[index].push(sample.requested);
+            }
+        }
+    }
+    drop(running);
+    let elapsed = started.elapsed().as_secs_f64();
+    polls.map(|times| {
+        let gap = times
+            .windows(2)
+            .map(|pair| pair[1].duration_since(pair[0]).unwrap_or_default())
+            .max()
+            .unwrap_or(Duration::MAX);
+        (times.len() as f64 / elapsed, gap)
+    })
+}
+
+async fn real_line() {
+    let server = PtyServer::start();
+    let mut without = Vec::new();
+    let mut with = Vec::new();
+    for _ in 0..TRIALS {
+        without.push(beside_absent(&server, false).await);
+        with.push(beside_absent(&server, true).await);
+    }
+    println!(
+        "a line-timed pty served by another process, {BAUD} baud 8N1: head (p-series) and confocal (ccs) every 100 ms, default timeout; absent rangefinder at slave 25, timeout 100 ms; {TRIALS} trials of {:.0} s each way, interleaved  (load {})",
+        trial_length().as_secs_f64(),
+        common::load()
+    );
+    for (index, name) in ["head", "confocal"].into_iter().enumerate() {
+        let mean = |runs: &[[(f64, Duration); 2]]| {
+            runs.iter().map(|r| r[index].0).sum::<f64>() / runs.len() as f64
+        };
+        let longest = |runs: &[[(f64, Duration); 2]]| {
+            runs.iter().map(|r| r[index].1).max().unwrap_or_default()
+        };
+        let (alone, beside) = (mean(&without), mean(&with));
+        println!(
+            "  {name:<9} {alone:>5.2} polls/s alone (longest gap {:.3} s), {beside:>5.2} beside the absent device (longest gap {:.3} s): ratio {:.3}; targets ≥ 7/s and ≤ 0.4 s: {}",
+            longest(&without).as_secs_f64(),
+            longest(&with).as_secs_f64(),
+            beside / alone,
+            if beside >= 7.0 && longest(&with) <= Duration::from_millis(400) {
+                "met"
+            } else {
+                "NOT met"
+            }
+        );
+    }
+}
+
 fn main() {
-    common::runtime().block_on(run());
+    if std::env::var_os(SERVE_PTY).is_some() {
+        common::runtime().block_on(serve_pty());
+        return;
+    }
+    common::runtime().block_on(async {
+        run().await;
+        real_line().await;
+    });
 }
