@@ -64,6 +64,7 @@ pub use file::{
     PollConfig, Port, Rejected, SecretSource, Writable,
 };
 pub use handle::{Buffered, Handle, JobError, Source, NETWORK_QUEUE};
+pub use line::NETWORK_SHARE;
 pub use link::Stream;
 pub use schedule::Health;
 pub use trace::{Direction, Frame, FRAMES_KEPT};

@@ -190,14 +190,38 @@ enum Work {
     Job(Job),
 }
 
+/// The share of a line's time that work from outside its schedule may take on a line with
+/// polls: a request that costs the line long (a slave that does not answer, its timeout and
+/// the quiet after it) is paid back to the polls before the next one goes.
+pub const NETWORK_SHARE: f64 = 0.5;
+
+/// The most line time such work may save up while nobody asks.
+const NETWORK_BURST: Duration = Duration::from_millis(500);
+
 /// Whose turn it is among a line's queues of network work (queue 0 the gateway's, then one per
-/// [`Source`] in [`Source::ALL`] order).
-#[derive(Debug, Default)]
+/// [`Source`] in [`Source::ALL`] order), and how much line time that work may still take.
+#[derive(Debug)]
 pub(crate) struct Turns {
     /// What each queue may still have served before the next due poll.
     allowance: [usize; QUEUES],
     /// The queue looked at first, so that no queue starves another.
     next: usize,
+    /// Line time the work may still take, in seconds (negative: owed to the polls); it grows
+    /// by [`NETWORK_SHARE`] of the time that passes, up to [`NETWORK_BURST`].
+    credit: f64,
+    /// When the credit was last brought up to date.
+    at: Instant,
+}
+
+impl Default for Turns {
+    fn default() -> Self {
+        Self {
+            allowance: [0; QUEUES],
+            next: 0,
+            credit: NETWORK_BURST.as_secs_f64(),
+            at: Instant::now(),
+        }
+    }
 }
 
 impl Turns {
@@ -206,6 +230,28 @@ impl Turns {
     fn after_poll(&mut self, gateway_waiting: usize) {
         self.allowance = [1; QUEUES];
         self.allowance[0] = gateway_waiting;
+    }
+
+    /// Whether the work has not taken more than its share of the line by `now`.
+    fn in_credit(&mut self, now: Instant) -> bool {
+        self.credit = (self.credit
+            + NETWORK_SHARE * now.saturating_duration_since(self.at).as_secs_f64())
+        .min(NETWORK_BURST.as_secs_f64());
+        self.at = self.at.max(now);
+        self.credit >= 0.0
+    }
+
+    /// When the work is back within its share, if it is beyond it now.
+    fn back_in_credit(&self) -> Option<Instant> {
+        (self.credit < 0.0).then(|| {
+            let wait = Duration::try_from_secs_f64(-self.credit / NETWORK_SHARE);
+            self.at + wait.map_or(MAX_BACKOFF, |wait| wait.min(MAX_BACKOFF))
+        })
+    }
+
+    /// Work took `took` of the line.
+    fn spent(&mut self, took: Duration) {
+        self.credit -= took.as_secs_f64();
     }
 }
 
@@ -223,8 +269,9 @@ impl LineTask {
     /// Polls that are due go first. Between them the line serves the network's work in turns
     /// (see [`Turns`]): after each poll every queue gets one turn (the gateway one per request
     /// that waited through the poll, at most one per client; each [`Source`] one job), then the
-    /// next due poll runs. Work waits for at most one poll, and the polls keep their schedule
-    /// however much work is queued.
+    /// next due poll runs; and on a line with polls that work takes at most [`NETWORK_SHARE`]
+    /// of the line's time. The polls keep their schedule however much work is queued, and
+    /// however long it takes.
     pub(crate) async fn run(mut self) {
         let clock = Clock::now();
         let mut next_stats = clock.instant + STATS_EVERY;
@@ -265,7 +312,9 @@ impl LineTask {
                 self.check_finished(index).await;
                 continue;
             }
-            if let Some(work) = self.take_work(matches!(next, Next::Run(_))) {
+            // A line without polls gives its time to whoever asks.
+            let budgeted = next != Next::Idle;
+            if let Some(work) = self.take_work(matches!(next, Next::Run(_)), budgeted) {
                 self.do_work(work).await;
                 continue;
             }
@@ -279,18 +328,22 @@ impl LineTask {
                 Next::Wait(until) => until.min(next_stats),
                 Next::Idle => next_stats,
             };
+            let owed = self.turns.back_in_credit().filter(|_| budgeted);
             let until = self
                 .finishing
                 .iter()
                 .map(|f| f.at)
+                .chain(owed)
                 .fold(until, Instant::min);
+            // Beyond its share, work waits in its queues until the polls have paid it back.
+            let take = owed.is_none();
             let [api, console, mqtt] = &mut self.jobs;
             let work = tokio::select! {
                 () = tokio::time::sleep_until(until) => None,
-                Some(job) = api.recv() => Some(Work::Job(job)),
-                Some(job) = console.recv() => Some(Work::Job(job)),
-                Some(job) = mqtt.recv() => Some(Work::Job(job)),
-                Some(request) = next_request(&mut self.gateway) => Some(Work::Gateway(request)),
+                Some(job) = api.recv(), if take => Some(Work::Job(job)),
+                Some(job) = console.recv(), if take => Some(Work::Job(job)),
+                Some(job) = mqtt.recv(), if take => Some(Work::Job(job)),
+                Some(request) = next_request(&mut self.gateway), if take => Some(Work::Gateway(request)),
             };
             if let Some(work) = work {
                 self.do_work(work).await;
@@ -298,9 +351,13 @@ impl LineTask {
         }
     }
 
-    /// The next work to do before the next poll: any that waits when no poll is due, else only
+    /// The next work to do before the next poll, if the work is within its share of the line
+    /// (`budgeted`: while the line has polls): any that waits when no poll is due, else only
     /// from queues that still have a turn in this round.
-    fn take_work(&mut self, poll_due: bool) -> Option<Work> {
+    fn take_work(&mut self, poll_due: bool, budgeted: bool) -> Option<Work> {
+        if budgeted && !self.turns.in_credit(Instant::now()) {
+            return None;
+        }
         for step in 0..QUEUES {
             let queue = (self.turns.next + step) % QUEUES;
             if poll_due && self.turns.allowance[queue] == 0 {
@@ -324,10 +381,12 @@ impl LineTask {
     }
 
     async fn do_work(&mut self, work: Work) {
+        let started = Instant::now();
         match work {
             Work::Gateway(request) => self.serve(request).await,
             Work::Job(job) => self.do_job(job).await,
         }
+        self.turns.spent(started.elapsed());
     }
 
     /// The port closed: every device of the line that was online is down, told at once.
