@@ -17,7 +17,7 @@ use tokio::time::Instant;
 use crate::event::{DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
 use crate::gateway::{self, GatewayRequest};
 use crate::handle::{self, Checked, Job, Source};
-use crate::link::{Client, DeviceLink, DeviceSettings, LineState, Stream};
+use crate::link::{count, Client, DeviceLink, DeviceSettings, LineState, Stream};
 use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
 use crate::trace::{LineFrames, TracedStream};
 
@@ -321,6 +321,7 @@ impl LineTask {
             let until = match next {
                 Next::Run(poll) => {
                     self.run_poll(poll, &clock).await;
+                    self.settle().await;
                     let waiting = self.gateway.as_ref().map_or(0, |g| g.requests.len());
                     self.turns.after_poll(waiting);
                     continue;
@@ -386,7 +387,20 @@ impl LineTask {
             Work::Gateway(request) => self.serve(request).await,
             Work::Job(job) => self.do_job(job).await,
         }
+        self.settle().await;
         self.turns.spent(started.elapsed());
+    }
+
+    /// Recovers the line now after a fault of the last request, so that the quiet it needs is
+    /// counted to that request (a poll's or the network's), not to the next one.
+    async fn settle(&mut self) {
+        let mut state = self.state.lock().await;
+        if let Some(Client::Rtu(rtu)) = state.client.as_mut() {
+            if let Err(error) = rtu.settle().await {
+                count(&mut state.errors, &error);
+                state.broken |= matches!(error, Error::Closed | Error::Io(_));
+            }
+        }
     }
 
     /// The port closed: every device of the line that was online is down, told at once.

@@ -207,6 +207,15 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         Ok(())
     }
 
+    /// Recovers the line now if a fault left it unsettled, rather than before the next request:
+    /// a scheduler that shares the line can so count the quiet to whoever caused the fault.
+    pub async fn settle(&mut self) -> Result<(), Error> {
+        match self.unsettled {
+            Some(unsettled) => self.recover(unsettled).await,
+            None => Ok(()),
+        }
+    }
+
     /// The line is unsettled since `since` by a transaction made with the present settings:
     /// its own recovery time, not that of whoever asks next, is what a late reply needs.
     fn unsettled_since(&self, since: Instant) -> Unsettled {
