@@ -439,3 +439,32 @@ async fn the_client_idle_the_longest_makes_room_and_a_broken_client_harms_no_oth
     let counts = counts_when(&running, |c| c.not_modbus == 1).await;
     assert_eq!(counts.not_modbus, 1, "{counts:?}");
 }
+
+#[tokio::test]
+async fn a_client_that_takes_no_replies_is_closed_after_its_idle_timeout() {
+    let running = start(&BUS.replace("clients: 2", "clients: 2, idle: 1s"));
+    let address = running.gateway_address("rs485").unwrap();
+    // A small receive window, and requests the gateway answers itself (a 2-byte FC03), sent
+    // without end and never read: the gateway's replies fill the socket until they block.
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(4096).unwrap();
+    let stream = socket.connect(address).await.unwrap();
+    let (mut reader, mut writer) = stream.into_split();
+    let flood = tokio::spawn(async move {
+        let request = [0, 1, 0, 0, 0, 3, 1, 0x03, 0x00].repeat(1000);
+        while writer.write_all(&request).await.is_ok() {}
+    });
+    // The first reply is a whole exception reply; no other is read.
+    let mut first = [0u8; 9];
+    reader.read_exact(&mut first).await.unwrap();
+    assert_eq!(first, [0, 1, 0, 0, 0, 3, 1, 0x83, 0x03]);
+    let counts = counts_when(&running, |c| c.stalled == 1).await;
+    assert_eq!(counts.stalled, 1, "{counts:?}");
+    assert!(counts.malformed > 0, "{counts:?}");
+    assert_eq!(counts.requests, 0, "{counts:?}");
+    // The flood ends once the gateway has closed the connection.
+    tokio::time::timeout(Duration::from_secs(30), flood)
+        .await
+        .expect("the writes fail once the connection is closed")
+        .unwrap();
+}
