@@ -14,7 +14,7 @@ use tokio::time::Instant;
 
 use crate::event::{DeviceId, ErrorCounts, Event};
 use crate::file::{BusFile, Port};
-use crate::gateway::{self, GatewayCounters};
+use crate::gateway::{self, GatewayCounters, GatewayCounts};
 use crate::handle::{Entry, Handle, LineQueues, Source};
 use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun, Turns};
 use crate::link::{DeviceLink, DeviceSettings, LineState, Stream};
@@ -161,7 +161,7 @@ impl Bus {
                         address: config.listen,
                         source,
                     })?;
-                    let (queue, requests) = mpsc::channel(config.clients);
+                    let (queue, requests) = mpsc::channel(config.queue);
                     let counters = Arc::new(GatewayCounters::default());
                     if let Ok(address) = listener.local_addr() {
                         gateways.push((line.name.clone(), address, Arc::clone(&counters)));
@@ -302,18 +302,12 @@ impl Running {
             .map(|(_, address, _)| *address)
     }
 
-    /// What the gateway of line `line` has done: requests passed to the line, and clients
-    /// closed at once because the client limit was reached.
-    pub fn gateway_counts(&self, line: &str) -> Option<(u64, u64)> {
+    /// What the gateway of line `line` has passed, refused and closed.
+    pub fn gateway_counts(&self, line: &str) -> Option<GatewayCounts> {
         self.gateways
             .iter()
             .find(|(name, ..)| name == line)
-            .map(|(_, _, counters)| {
-                (
-                    counters.requests.load(std::sync::atomic::Ordering::Relaxed),
-                    counters.refused.load(std::sync::atomic::Ordering::Relaxed),
-                )
-            })
+            .map(|(_, _, counters)| counters.counts())
     }
 
     /// Stops every line.

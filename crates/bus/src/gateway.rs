@@ -1,25 +1,38 @@
 //! A Modbus TCP gateway onto an RTU line, as mbusd is, inside the bus: other masters (a PLC,
 //! SCADA, a configuration tool) reach the line's devices while the bus keeps its schedule.
 //!
-//! Each connection has one request in flight; requests of all connections wait in one queue
-//! that the line takes from between its own polls, so clients are served in turn and each
-//! request waits for at most one poll. A reply goes back under its request's MBAP header; a
-//! device that does not answer in time gives exception 0x0B, a line that cannot be used 0x0A,
-//! a function whose reply cannot be framed on RTU 0x01. Writes pass only where the bus file
-//! allows them, and a write to one of the bus's devices is checked against its spec first
-//! (0x02 for an address that holds nothing writable, 0x03 for a value it refuses): nothing
-//! invalid reaches the line.
+//! Each connection has one request in flight; requests of all connections wait in one bounded
+//! queue that the line takes from between its own polls, so clients are served in turn and
+//! each request waits for at most one poll. A request beyond the queue is answered busy (0x06)
+//! at once. A reply goes back under its request's MBAP header; a device that does not answer
+//! in time gives exception 0x0B, a line that cannot be used 0x0A.
+//!
+//! What can never be carried is answered here, before the queue: a request whose length or
+//! counts do not fit its function 0x03, a function whose reply cannot be framed on RTU or a
+//! write the bus file does not allow 0x01, a read to the broadcast address (nobody would
+//! answer) 0x01, a unit id RTU reserves (248 to 255) 0x0A. A write to one of the bus's
+//! devices is checked against its spec by the line (0x02 for an address that holds nothing
+//! writable, 0x03 for a value it refuses): nothing invalid reaches the line.
+//!
+//! A client that sends no whole request for the `idle` time, or does not take its reply
+//! within it, is closed. At the client limit a new client closes the one idle the longest (no
+//! request in flight), as mbusd and mosquitto do; it is refused only when every client has a
+//! request in flight. Everything refused and closed is counted ([`GatewayCounts`]).
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
 
-use optobus_codec::passthrough::{encode_tcp_reply, MAX_PDU_LEN};
+use optobus_codec::passthrough::{encode_tcp_reply, PassPdu, MAX_PDU_LEN};
 use optobus_codec::tcp::{Header, Mbap, HEADER_LEN};
-use optobus_codec::EXCEPTION_BIT;
+use optobus_codec::{EncodeError, EXCEPTION_BIT, MAX_SLAVE};
 use optobus_device::{DeviceInfo, Table};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{mpsc, oneshot, Semaphore};
+use tokio::sync::mpsc::error::TrySendError;
+use tokio::sync::{mpsc, oneshot};
+use tokio::task::{AbortHandle, JoinSet};
+use tokio::time::{timeout, Instant};
 
 use crate::file::GatewayConfig;
 
@@ -29,6 +42,8 @@ pub(crate) const ILLEGAL_FUNCTION: u8 = 0x01;
 pub(crate) const ILLEGAL_ADDRESS: u8 = 0x02;
 /// Illegal data value: a write of a value the register refuses.
 pub(crate) const ILLEGAL_VALUE: u8 = 0x03;
+/// Server device busy: the queue to the line is full.
+pub(crate) const BUSY: u8 = 0x06;
 /// Gateway path unavailable: the line cannot be used.
 pub(crate) const PATH_UNAVAILABLE: u8 = 0x0A;
 /// Gateway target device failed to respond.
@@ -115,82 +130,335 @@ fn check_words(device: &DeviceInfo, address: u16, words: &[u16]) -> Option<u8> {
     None
 }
 
-/// What a gateway has done.
-#[derive(Debug, Default)]
-pub(crate) struct GatewayCounters {
-    /// Connections closed at once because the client limit was reached.
-    pub(crate) refused: AtomicU64,
+/// What a gateway has passed, refused and closed since it started
+/// ([`Running::gateway_counts`](crate::Running::gateway_counts)).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GatewayCounts {
     /// Requests passed to the line.
-    pub(crate) requests: AtomicU64,
+    pub requests: u64,
+    /// Requests answered busy (exception 06) at once: `queue` requests were waiting for the
+    /// line already.
+    pub busy: u64,
+    /// Requests answered at once with exception 03: their length or counts do not fit their
+    /// function (a 2-byte FC03, a read of 0 registers).
+    pub malformed: u64,
+    /// Requests answered at once because the line can never carry them: a function whose
+    /// reply cannot be framed on RTU, a write the bus file does not allow, a read to the
+    /// broadcast address (exception 01), a unit id RTU reserves (0A).
+    pub not_carried: u64,
+    /// Clients closed at once because every client had a request in flight.
+    pub refused: u64,
+    /// Clients closed at the client limit, the one idle the longest, to admit a new one.
+    pub evicted: u64,
+    /// Clients closed because they sent no whole request within `idle`.
+    pub idle_closed: u64,
+    /// Clients closed because they did not take their reply within `idle`.
+    pub stalled: u64,
+    /// Clients closed because they sent what is not Modbus TCP.
+    pub not_modbus: u64,
 }
 
-/// Accepts clients on `listener` until the task is aborted.
+/// A gateway's [`GatewayCounts`], counted as it goes.
+#[derive(Debug, Default)]
+pub(crate) struct GatewayCounters {
+    requests: AtomicU64,
+    busy: AtomicU64,
+    malformed: AtomicU64,
+    not_carried: AtomicU64,
+    refused: AtomicU64,
+    evicted: AtomicU64,
+    idle_closed: AtomicU64,
+    stalled: AtomicU64,
+    not_modbus: AtomicU64,
+}
+
+fn add(counter: &AtomicU64) {
+    counter.fetch_add(1, Ordering::Relaxed);
+}
+
+impl GatewayCounters {
+    /// The counts so far.
+    pub(crate) fn counts(&self) -> GatewayCounts {
+        let load = |counter: &AtomicU64| counter.load(Ordering::Relaxed);
+        GatewayCounts {
+            requests: load(&self.requests),
+            busy: load(&self.busy),
+            malformed: load(&self.malformed),
+            not_carried: load(&self.not_carried),
+            refused: load(&self.refused),
+            evicted: load(&self.evicted),
+            idle_closed: load(&self.idle_closed),
+            stalled: load(&self.stalled),
+            not_modbus: load(&self.not_modbus),
+        }
+    }
+}
+
+/// The connected clients, from which the acceptor closes one to admit another.
+#[derive(Debug, Default)]
+struct Clients {
+    next_id: u64,
+    connected: Vec<Client>,
+}
+
+#[derive(Debug)]
+struct Client {
+    id: u64,
+    /// Since when it has had no request in flight; `None` while it has one.
+    idle_since: Option<Instant>,
+    /// Its task, aborted to close it.
+    task: Option<AbortHandle>,
+}
+
+impl Clients {
+    /// A place for a new client: a free one, or the place of the client idle the longest,
+    /// whose task is given back to be closed; `None` when `limit` clients all have a request
+    /// in flight.
+    fn admit(
+        &mut self,
+        limit: usize,
+        counters: &GatewayCounters,
+    ) -> Option<(u64, Option<AbortHandle>)> {
+        let mut closed = None;
+        if self.connected.len() >= limit {
+            // The earliest idle, and of two idle since the same instant the first admitted.
+            let (_, _, longest) = self
+                .connected
+                .iter()
+                .enumerate()
+                .filter_map(|(at, client)| client.idle_since.map(|since| (since, client.id, at)))
+                .min()?;
+            closed = self.connected.remove(longest).task;
+            add(&counters.evicted);
+        }
+        let id = self.next_id;
+        self.next_id += 1;
+        self.connected.push(Client {
+            id,
+            idle_since: Some(Instant::now()),
+            task: None,
+        });
+        Some((id, closed))
+    }
+
+    fn get(&mut self, id: u64) -> Option<&mut Client> {
+        self.connected.iter_mut().find(|client| client.id == id)
+    }
+}
+
+fn lock(clients: &Mutex<Clients>) -> std::sync::MutexGuard<'_, Clients> {
+    // The lock is never held across a panic that could leave the list half-changed.
+    clients.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// A client's place among the connected ones, given up when its task ends (or is aborted).
+struct Place {
+    clients: Arc<Mutex<Clients>>,
+    id: u64,
+}
+
+impl Place {
+    /// Marks a request in flight; false if the client was closed to admit another meanwhile.
+    fn busy(&self) -> bool {
+        lock(&self.clients)
+            .get(self.id)
+            .map(|client| client.idle_since = None)
+            .is_some()
+    }
+
+    /// Marks the client idle from now (its request is answered).
+    fn idle(&self) {
+        if let Some(client) = lock(&self.clients).get(self.id) {
+            client.idle_since = Some(Instant::now());
+        }
+    }
+}
+
+impl Drop for Place {
+    fn drop(&mut self) {
+        lock(&self.clients)
+            .connected
+            .retain(|client| client.id != self.id);
+    }
+}
+
+/// What each connection needs of the gateway's settings.
+#[derive(Clone, Copy)]
+struct Settings {
+    idle: Duration,
+    writes: bool,
+}
+
+/// Accepts clients on `listener` until the task is aborted, which closes every client.
 pub(crate) async fn serve(
     listener: TcpListener,
     config: GatewayConfig,
     queue: mpsc::Sender<GatewayRequest>,
     counters: Arc<GatewayCounters>,
 ) {
-    let permits = Arc::new(Semaphore::new(config.clients));
+    let settings = Settings {
+        idle: config.idle,
+        writes: config.writes,
+    };
+    let clients = Arc::new(Mutex::new(Clients::default()));
+    let mut tasks = JoinSet::new();
     loop {
-        let Ok((socket, _peer)) = listener.accept().await else {
+        let accepted = tokio::select! {
+            accepted = listener.accept() => accepted,
+            Some(_) = tasks.join_next(), if !tasks.is_empty() => continue,
+        };
+        let Ok((socket, _peer)) = accepted else {
             // Out of file descriptors or similar: try again shortly rather than spin.
-            tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+            tokio::time::sleep(Duration::from_millis(100)).await;
             continue;
         };
-        match Arc::clone(&permits).try_acquire_owned() {
-            Ok(permit) => {
-                let queue = queue.clone();
-                let counters = Arc::clone(&counters);
-                tokio::spawn(async move {
-                    connection(socket, queue, &counters).await;
-                    drop(permit);
-                });
-            }
-            Err(_) => {
-                counters.refused.fetch_add(1, Ordering::Relaxed);
-                drop(socket);
-            }
+        let admitted = lock(&clients).admit(config.clients, &counters);
+        let Some((id, closed)) = admitted else {
+            add(&counters.refused);
+            drop(socket);
+            continue;
+        };
+        // Aborted outside the lock, which the closed client's place takes when it goes.
+        if let Some(task) = closed {
+            task.abort();
+        }
+        let place = Place {
+            clients: Arc::clone(&clients),
+            id,
+        };
+        let task = tasks.spawn(connection(
+            socket,
+            place,
+            settings,
+            queue.clone(),
+            Arc::clone(&counters),
+        ));
+        // A client already gone has left its place: nothing to attach to then.
+        if let Some(client) = lock(&clients).get(id) {
+            client.task = Some(task);
         }
     }
 }
 
-/// Serves one client, one request at a time, until it closes or sends what is not Modbus TCP.
+/// Why a connection stopped reading requests.
+enum Stop {
+    /// The client closed it or the socket failed.
+    Closed,
+    /// The client sent what is not Modbus TCP: nothing after it can be trusted to be framed.
+    NotModbus,
+}
+
+/// Reads one whole request: its MBAP header, and its PDU into `pdu`, whose length it gives.
+async fn read_request(
+    socket: &mut TcpStream,
+    pdu: &mut [u8; MAX_PDU_LEN],
+) -> Result<(Mbap, usize), Stop> {
+    let mut header = [0u8; HEADER_LEN];
+    socket
+        .read_exact(&mut header)
+        .await
+        .map_err(|_| Stop::Closed)?;
+    let mbap = Mbap::parse(&header).ok_or(Stop::NotModbus)?;
+    let len = mbap
+        .pdu_len()
+        .filter(|_| mbap.check().is_ok())
+        .ok_or(Stop::NotModbus)?;
+    socket
+        .read_exact(&mut pdu[..len])
+        .await
+        .map_err(|_| Stop::Closed)?;
+    Ok((mbap, len))
+}
+
+/// Why a request is answered here, before the queue.
+enum Refusal {
+    /// Its length or counts do not fit its function: exception 03.
+    Malformed,
+    /// The line can never carry it: exception 01 or 0A.
+    NotCarried(u8),
+}
+
+/// The gateway's own answer to a request the line must not see, if it is one.
+fn refusal(unit: u8, pdu: &[u8], writes: bool) -> Option<Refusal> {
+    if is_write(pdu[0]) && !writes {
+        return Some(Refusal::NotCarried(ILLEGAL_FUNCTION));
+    }
+    let pass = match PassPdu::new(pdu) {
+        Ok(pass) => pass,
+        Err(EncodeError::MalformedRequest { .. }) => return Some(Refusal::Malformed),
+        // A function whose reply cannot be framed (an MBAP header holds 1 to 253 bytes).
+        Err(_) => return Some(Refusal::NotCarried(ILLEGAL_FUNCTION)),
+    };
+    if unit > MAX_SLAVE {
+        return Some(Refusal::NotCarried(PATH_UNAVAILABLE));
+    }
+    if unit == optobus_codec::BROADCAST && !pass.may_broadcast() {
+        return Some(Refusal::NotCarried(ILLEGAL_FUNCTION));
+    }
+    None
+}
+
+/// Serves one client, one request at a time, until it closes, sends what is not Modbus TCP,
+/// stays idle or stops taking its replies, or is closed to admit another.
 async fn connection(
     mut socket: TcpStream,
+    place: Place,
+    settings: Settings,
     queue: mpsc::Sender<GatewayRequest>,
-    counters: &GatewayCounters,
+    counters: Arc<GatewayCounters>,
 ) {
     let _ = socket.set_nodelay(true);
-    let mut header = [0u8; HEADER_LEN];
     let mut pdu = [0u8; MAX_PDU_LEN];
     let mut out = [0u8; HEADER_LEN + MAX_PDU_LEN];
     loop {
-        if socket.read_exact(&mut header).await.is_err() {
+        let (mbap, len) = match timeout(settings.idle, read_request(&mut socket, &mut pdu)).await {
+            Ok(Ok(request)) => request,
+            Ok(Err(Stop::Closed)) => return,
+            Ok(Err(Stop::NotModbus)) => return add(&counters.not_modbus),
+            Err(_) => return add(&counters.idle_closed),
+        };
+        if !place.busy() {
             return;
         }
-        let Some(mbap) = Mbap::parse(&header) else {
-            return;
+        let pdu = &pdu[..len];
+        let function = pdu[0];
+        let reply = match refusal(mbap.unit, pdu, settings.writes) {
+            Some(Refusal::Malformed) => {
+                add(&counters.malformed);
+                exception(function, ILLEGAL_VALUE)
+            }
+            Some(Refusal::NotCarried(code)) => {
+                add(&counters.not_carried);
+                exception(function, code)
+            }
+            None => {
+                let (reply, answer) = oneshot::channel();
+                let request = GatewayRequest {
+                    unit: mbap.unit,
+                    pdu: pdu.to_vec(),
+                    reply,
+                };
+                match queue.try_send(request) {
+                    Ok(()) => {
+                        add(&counters.requests);
+                        match answer.await {
+                            Ok(Some(reply)) => reply,
+                            // A broadcast: nothing goes back.
+                            Ok(None) => {
+                                place.idle();
+                                continue;
+                            }
+                            Err(_) => return,
+                        }
+                    }
+                    Err(TrySendError::Full(_)) => {
+                        add(&counters.busy);
+                        exception(function, BUSY)
+                    }
+                    Err(TrySendError::Closed(_)) => return,
+                }
+            }
         };
-        let Some(len) = mbap.pdu_len().filter(|_| mbap.check().is_ok()) else {
-            // Not Modbus TCP: nothing else on this connection can be trusted to be framed.
-            return;
-        };
-        if socket.read_exact(&mut pdu[..len]).await.is_err() {
-            return;
-        }
-        let (reply, answer) = oneshot::channel();
-        let request = GatewayRequest {
-            unit: mbap.unit,
-            pdu: pdu[..len].to_vec(),
-            reply,
-        };
-        counters.requests.fetch_add(1, Ordering::Relaxed);
-        if queue.send(request).await.is_err() {
-            return;
-        }
-        let Ok(reply) = answer.await else { return };
-        let Some(reply) = reply else { continue };
         let header = Header {
             transaction: mbap.transaction,
             unit: mbap.unit,
@@ -198,8 +466,13 @@ async fn connection(
         let Ok(n) = encode_tcp_reply(&mut out, header, &reply) else {
             return;
         };
-        if socket.write_all(&out[..n]).await.is_err() {
-            return;
+        // The request is answered: a client that does not take its reply is as idle as one
+        // that asks nothing.
+        place.idle();
+        match timeout(settings.idle, socket.write_all(&out[..n])).await {
+            Ok(Ok(())) => {}
+            Ok(Err(_)) => return,
+            Err(_) => return add(&counters.stalled),
         }
     }
 }

@@ -63,6 +63,7 @@ pub use file::{
     BusFile, DeviceConfig, HttpConfig, LineConfig, LoadError, MetricsConfig, MqttConfig, Outputs,
     PollConfig, Port, Rejected, SecretSource, Writable,
 };
+pub use gateway::GatewayCounts;
 pub use handle::{Buffered, Handle, JobError, Source, NETWORK_QUEUE};
 pub use line::NETWORK_SHARE;
 pub use link::Stream;

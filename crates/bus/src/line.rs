@@ -268,7 +268,7 @@ impl LineTask {
     ///
     /// Polls that are due go first. Between them the line serves the network's work in turns
     /// (see [`Turns`]): after each poll every queue gets one turn (the gateway one per request
-    /// that waited through the poll, at most one per client; each [`Source`] one job), then the
+    /// that waited through the poll, at most the gateway's `queue`; each [`Source`] one job), then the
     /// next due poll runs; and on a line with polls that work takes at most [`NETWORK_SHARE`]
     /// of the line's time. The polls keep their schedule however much work is queued, and
     /// however long it takes.
@@ -555,9 +555,17 @@ impl LineTask {
         if let Some(code) = refusal {
             return refused(code);
         }
-        let Ok(pass) = PassPdu::new(pdu) else {
-            return refused(gateway::ILLEGAL_FUNCTION);
+        let pass = match PassPdu::new(pdu) {
+            Ok(pass) => pass,
+            Err(optobus_codec::EncodeError::MalformedRequest { .. }) => {
+                return refused(gateway::ILLEGAL_VALUE)
+            }
+            Err(_) => return refused(gateway::ILLEGAL_FUNCTION),
         };
+        // A write whose width does not fit the device's framing at that address.
+        if pass.check_shape(&shape).is_err() {
+            return refused(gateway::ILLEGAL_VALUE);
+        }
         let mut state = self.state.lock().await;
         let started = Instant::now();
         let result = match state.client_for(index, &settings) {

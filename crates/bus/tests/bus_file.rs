@@ -405,3 +405,48 @@ outputs:
         assert!(rendered.contains(expected), "{expected}: {rendered}");
     }
 }
+
+#[test]
+fn a_gateways_idle_time_and_queue_are_read_with_their_defaults_and_bad_ones_located() {
+    let bus = parse(
+        "
+lines:
+  - { name: a, simulated: true, gateway: 5020 }
+  - { name: b, simulated: true, gateway: { listen: 5021, clients: 4, queue: 2, idle: 1m 30s } }
+devices: [{ name: head, model: p-series, line: a }]
+",
+    )
+    .expect("the file passes");
+    let defaults = bus.lines[0].gateway.as_ref().expect("a gateway");
+    assert_eq!(
+        (defaults.clients, defaults.queue, defaults.idle),
+        (8, 8, Duration::from_secs(60)),
+        "the queue holds a request per client; idle clients go after a minute"
+    );
+    let given = bus.lines[1].gateway.as_ref().expect("a gateway");
+    assert_eq!(
+        (given.clients, given.queue, given.idle),
+        (4, 2, Duration::from_secs(90))
+    );
+    let rendered = parse(
+        "
+lines:
+  - { name: a, simulated: true, gateway: { listen: 5020, clients: 0, queue: 0, idle: 0s } }
+  - { name: b, simulated: true, gateway: { listen: 5021, idle: 60 } }
+devices: [{ name: head, model: p-series, line: a }]
+",
+    )
+    .expect_err("bad limits");
+    for expected in [
+        "`clients` must be a whole number from 1 to 1024, not `0`",
+        "bus.yaml:3:67",
+        "`queue` must be a whole number from 1 to 1024, not `0`",
+        "bus.yaml:3:77",
+        "`idle` must be more than 0s",
+        "bus.yaml:3:86",
+        "`idle` `60` needs a unit (ms, s, m, h)",
+        "bus.yaml:4:64",
+    ] {
+        assert!(rendered.contains(expected), "{expected}: {rendered}");
+    }
+}

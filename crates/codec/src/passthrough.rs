@@ -4,7 +4,11 @@
 //! first bytes. [`PassPdu::new`] takes requests of the public function codes for which it
 //! does (reads and writes of bits and registers, mask write, read/write multiple, FIFO,
 //! exception status, event counter and log, server id, file records) and refuses the others
-//! (a gateway answers those with exception 01 without touching the line). The reply PDU is
+//! (a gateway answers those with exception 01 without touching the line). It refuses as well
+//! a request whose length or counts do not fit its function as the Modbus application
+//! protocol lays it out (a 2-byte FC03, a read of 0 or 126 registers, a byte count that
+//! disagrees with the data): no device could parse it, and a gateway answers it with
+//! exception 03 itself. The reply PDU is
 //! handed back as it came, exceptions included, checked only for its slave, function code and
 //! CRC; a device's own framing (four-byte FC06 data, LC-RS's counted-word exceptions) comes
 //! from its [`FrameShape`].
@@ -26,14 +30,126 @@
 
 use crate::crc::crc16;
 use crate::pdu::{
-    DecodeError, Decoded, EncodeError, ExceptionShape, FrameShape, EXCEPTION_BIT, MAX_SLAVE,
-    WRITE_SINGLE,
+    DecodeError, Decoded, EncodeError, ExceptionShape, FrameShape, EXCEPTION_BIT, MAX_READ_WORDS,
+    MAX_SLAVE, WRITE_SINGLE,
 };
 use crate::rtu::{check_crc, OVERHEAD};
 use crate::tcp::{Header, HEADER_LEN};
 
 /// The longest PDU a frame carries (an RTU frame of 256 bytes less address and CRC).
 pub const MAX_PDU_LEN: usize = 253;
+
+/// The most bits one FC01 or FC02 request reads.
+pub const MAX_READ_BITS: u16 = 2000;
+/// The most bits one FC0F request writes.
+pub const MAX_WRITE_BITS: u16 = 1968;
+/// The most registers one FC16 request writes.
+pub const MAX_WRITE_WORDS: u16 = 123;
+/// The most registers one FC17 (read/write multiple) request writes.
+pub const MAX_READ_WRITE_WORDS: u16 = 121;
+
+/// Whether a request PDU's length, and the counts in it, fit its function as the Modbus
+/// application protocol specification (V1.1b3, section 6) lays the request out; `Err` says
+/// what the function asks for. FC06 takes two or four data bytes here (some devices write
+/// four: their [`FrameShape`] says where, see [`PassPdu::check_shape`]). Functions this module
+/// does not frame are left to [`reply_shape`].
+fn check_request(pdu: &[u8]) -> Result<(), &'static str> {
+    let word = |at: usize| u16::from_be_bytes([pdu[at], pdu[at + 1]]);
+    let len_is = |len: usize, why: &'static str| if pdu.len() == len { Ok(()) } else { Err(why) };
+    let at_least = |len: usize, why: &'static str| if pdu.len() >= len { Ok(()) } else { Err(why) };
+    let count_in = |count: u16, max: u16, why: &'static str| {
+        if (1..=max).contains(&count) {
+            Ok(())
+        } else {
+            Err(why)
+        }
+    };
+    match pdu[0] {
+        0x01 | 0x02 => {
+            len_is(5, "a read of bits is an address and a count (5 bytes)")?;
+            count_in(word(3), MAX_READ_BITS, "a read of bits takes 1 to 2000")
+        }
+        0x03 | 0x04 => {
+            len_is(5, "a read of registers is an address and a count (5 bytes)")?;
+            count_in(
+                word(3),
+                MAX_READ_WORDS,
+                "a read of registers takes 1 to 125",
+            )
+        }
+        0x05 => {
+            len_is(5, "a coil write is an address and a value (5 bytes)")?;
+            match word(3) {
+                0x0000 | 0xFF00 => Ok(()),
+                _ => Err("a coil is written with FF00 (on) or 0000 (off)"),
+            }
+        }
+        WRITE_SINGLE => match pdu.len() {
+            5 | 7 => Ok(()),
+            _ => Err("a register write is an address and 2 (or 4) data bytes"),
+        },
+        // Exception status, event counter and log, server id: the function code alone.
+        0x07 | 0x0B | 0x0C | 0x11 => len_is(1, "the function takes no data"),
+        0x0F => {
+            let why = "a write of bits is an address, a count of 1 to 1968, a byte count of                        one byte per 8 bits and those bytes";
+            at_least(6, why)?;
+            count_in(word(3), MAX_WRITE_BITS, why)?;
+            let bytes = usize::from(word(3).div_ceil(8));
+            (usize::from(pdu[5]) == bytes && pdu.len() == 6 + bytes)
+                .then_some(())
+                .ok_or(why)
+        }
+        0x10 => {
+            let why = "a write of registers is an address, a count of 1 to 123, a byte count                        of 2 per register and those bytes";
+            at_least(6, why)?;
+            count_in(word(3), MAX_WRITE_WORDS, why)?;
+            let bytes = 2 * usize::from(word(3));
+            (usize::from(pdu[5]) == bytes && pdu.len() == 6 + bytes)
+                .then_some(())
+                .ok_or(why)
+        }
+        0x14 => {
+            let why = "a file record read is a byte count of 7 to 245 and that many bytes of                        7-byte sub-requests";
+            at_least(2, why)?;
+            let bytes = usize::from(pdu[1]);
+            ((7..=0xF5).contains(&bytes) && bytes % 7 == 0 && pdu.len() == 2 + bytes)
+                .then_some(())
+                .ok_or(why)
+        }
+        0x15 => {
+            let why = "a file record write is a byte count of 9 to 251 and that many bytes of                        sub-requests, each 7 bytes and its record length's registers";
+            at_least(2, why)?;
+            let bytes = usize::from(pdu[1]);
+            if !(9..=0xFB).contains(&bytes) || pdu.len() != 2 + bytes {
+                return Err(why);
+            }
+            let mut at = 2;
+            while at < pdu.len() {
+                if at + 7 > pdu.len() {
+                    return Err(why);
+                }
+                at += 7 + 2 * usize::from(word(at + 5));
+            }
+            len_is(at, why)
+        }
+        0x16 => len_is(
+            7,
+            "a mask write is an address, an AND and an OR mask (7 bytes)",
+        ),
+        0x17 => {
+            let why = "a read/write of registers is a read address and count (1 to 125), a                        write address and count (1 to 121), a byte count of 2 per register                        written and those bytes";
+            at_least(10, why)?;
+            count_in(word(3), MAX_READ_WORDS, why)?;
+            count_in(word(7), MAX_READ_WRITE_WORDS, why)?;
+            let bytes = 2 * usize::from(word(7));
+            (usize::from(pdu[9]) == bytes && pdu.len() == 10 + bytes)
+                .then_some(())
+                .ok_or(why)
+        }
+        0x18 => len_is(3, "a FIFO read is a pointer address (3 bytes)"),
+        _ => Ok(()),
+    }
+}
 
 /// How the length of a reply follows from its first bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -78,7 +194,8 @@ pub struct PassPdu<'a> {
 
 impl<'a> PassPdu<'a> {
     /// `pdu`, if it is 1 to [`MAX_PDU_LEN`] bytes of a function whose reply can be framed
-    /// (see the module docs).
+    /// ([`EncodeError::UnframedFunction`] else) and its length and counts fit its function
+    /// ([`EncodeError::MalformedRequest`] else; see the module docs).
     pub fn new(pdu: &'a [u8]) -> Result<Self, EncodeError> {
         let Some(&function) = pdu.first() else {
             return Err(EncodeError::PduLength { len: 0 });
@@ -89,7 +206,40 @@ impl<'a> PassPdu<'a> {
         if function & EXCEPTION_BIT != 0 || reply_shape(pdu, &FrameShape::STANDARD).is_none() {
             return Err(EncodeError::UnframedFunction { function });
         }
+        check_request(pdu).map_err(|why| EncodeError::MalformedRequest {
+            function,
+            len: pdu.len(),
+            why,
+        })?;
         Ok(Self { pdu })
+    }
+
+    /// Checks the request against the framing of the device it goes to: an FC06 carries the
+    /// data width `shape` gives its address (two bytes, or four where the device writes four).
+    pub fn check_shape(&self, shape: &FrameShape<'_>) -> Result<(), EncodeError> {
+        if self.function() != WRITE_SINGLE {
+            return Ok(());
+        }
+        let address = u16::from_be_bytes([self.pdu[1], self.pdu[2]]);
+        let expected = shape.write_width(address).write_pdu_len();
+        if self.pdu.len() == expected {
+            return Ok(());
+        }
+        Err(EncodeError::MalformedRequest {
+            function: WRITE_SINGLE,
+            len: self.pdu.len(),
+            why: if expected == 5 {
+                "the device takes 2 data bytes at this address"
+            } else {
+                "the device takes 4 data bytes at this address"
+            },
+        })
+    }
+
+    /// Whether the request may be broadcast (to slave 0): the writes may; nobody answers a
+    /// broadcast, so a read broadcast would be asked for nothing.
+    pub fn may_broadcast(&self) -> bool {
+        matches!(self.function(), 0x05 | 0x06 | 0x0F | 0x10 | 0x15 | 0x16)
     }
 
     /// The function code.
@@ -219,8 +369,11 @@ pub fn decode_rtu_reply<'b>(
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
     use crate::{rtu, ExceptionCode, ReadFunction, Request};
+    use std::string::ToString;
+    use std::vec;
 
     #[test]
     fn a_read_passed_through_frames_like_the_typed_read() {
@@ -303,6 +456,140 @@ mod tests {
             PassPdu::new(&[0x03; 254]),
             Err(EncodeError::PduLength { len: 254 })
         );
+    }
+
+    /// The request examples of the Modbus application protocol specification (V1.1b3,
+    /// section 6), one per function this module frames.
+    const SPEC_REQUESTS: &[&[u8]] = &[
+        &[0x01, 0x00, 0x13, 0x00, 0x13],
+        &[0x02, 0x00, 0xC4, 0x00, 0x16],
+        &[0x03, 0x00, 0x6B, 0x00, 0x03],
+        &[0x04, 0x00, 0x08, 0x00, 0x01],
+        &[0x05, 0x00, 0xAC, 0xFF, 0x00],
+        &[0x06, 0x00, 0x01, 0x00, 0x03],
+        &[0x07],
+        &[0x0B],
+        &[0x0C],
+        &[0x0F, 0x00, 0x13, 0x00, 0x0A, 0x02, 0xCD, 0x01],
+        &[0x10, 0x00, 0x01, 0x00, 0x02, 0x04, 0x00, 0x0A, 0x01, 0x02],
+        &[0x11],
+        &[
+            0x14, 0x0E, 0x06, 0x00, 0x04, 0x00, 0x01, 0x00, 0x02, 0x06, 0x00, 0x03, 0x00, 0x09,
+            0x00, 0x02,
+        ],
+        &[
+            0x15, 0x0D, 0x06, 0x00, 0x04, 0x00, 0x07, 0x00, 0x03, 0x06, 0xAF, 0x04, 0xBE, 0x10,
+            0x0D,
+        ],
+        &[0x16, 0x00, 0x04, 0x00, 0xF2, 0x00, 0x25],
+        &[
+            0x17, 0x00, 0x03, 0x00, 0x06, 0x00, 0x0E, 0x00, 0x03, 0x06, 0x00, 0xFF, 0x00, 0xFF,
+            0x00, 0xFF,
+        ],
+        &[0x18, 0x04, 0xDE],
+    ];
+
+    fn malformed(pdu: &[u8]) -> bool {
+        matches!(
+            PassPdu::new(pdu),
+            Err(EncodeError::MalformedRequest { function, len, .. })
+                if function == pdu[0] && len == pdu.len()
+        )
+    }
+
+    #[test]
+    fn the_specifications_requests_pass_and_a_byte_more_or_less_is_malformed() {
+        for &request in SPEC_REQUESTS {
+            assert_eq!(PassPdu::new(request).map(|p| p.bytes()), Ok(request));
+            if request.len() > 1 {
+                assert!(
+                    malformed(&request[..request.len() - 1]),
+                    "{request:02X?} cut"
+                );
+            }
+            let longer = [request, &[0x00]].concat();
+            assert!(malformed(&longer), "{request:02X?} and a byte");
+        }
+    }
+
+    #[test]
+    fn counts_outside_their_functions_range_are_malformed() {
+        // Reads of 0 and 126 registers, of 2001 coils; the 2-byte FC03 of issue 28.
+        assert!(malformed(&[0x03, 0x00, 0x00, 0x00, 0x00]));
+        assert!(malformed(&[0x04, 0x00, 0x00, 0x00, 0x7E]));
+        assert!(PassPdu::new(&[0x04, 0x00, 0x00, 0x00, 0x7D]).is_ok());
+        assert!(malformed(&[0x01, 0x00, 0x00, 0x07, 0xD1]));
+        assert!(PassPdu::new(&[0x01, 0x00, 0x00, 0x07, 0xD0]).is_ok());
+        assert!(malformed(&[0x03, 0x00]));
+        // A coil is written FF00 or 0000, nothing else.
+        assert!(malformed(&[0x05, 0x00, 0xAC, 0x12, 0x34]));
+        assert!(PassPdu::new(&[0x05, 0x00, 0xAC, 0x00, 0x00]).is_ok());
+        // FC0F: 10 coils take 2 bytes, not 1; FC16: 2 registers take 4 bytes, not 3.
+        assert!(malformed(&[0x0F, 0x00, 0x13, 0x00, 0x0A, 0x01, 0xCD]));
+        assert!(malformed(&[
+            0x10, 0x00, 0x01, 0x00, 0x02, 0x03, 0x00, 0x0A, 0x01
+        ]));
+        // FC16 of 124 registers: one more than a request may write.
+        let mut long = vec![0x10, 0x00, 0x00, 0x00, 124, 248];
+        long.resize(6 + 248, 0);
+        assert_eq!(long.len(), MAX_PDU_LEN + 1);
+        assert_eq!(
+            PassPdu::new(&long),
+            Err(EncodeError::PduLength { len: 254 })
+        );
+        let mut long = vec![0x10, 0x00, 0x00, 0x00, 124, 248];
+        long.resize(6 + 246, 0);
+        assert!(malformed(&long));
+        // FC17 writing 0 registers; FC15 whose record length runs past its byte count.
+        assert!(malformed(&[
+            0x17, 0x00, 0x03, 0x00, 0x06, 0x00, 0x0E, 0x00, 0x00, 0x00
+        ]));
+        assert!(malformed(&[
+            0x15, 0x0D, 0x06, 0x00, 0x04, 0x00, 0x07, 0x00, 0x04, 0x06, 0xAF, 0x04, 0xBE, 0x10,
+            0x0D,
+        ]));
+        // FC14 with a byte count that is not a whole number of sub-requests.
+        assert!(malformed(&[
+            0x14, 0x08, 0x06, 0x00, 0x04, 0x00, 0x01, 0x00, 0x02, 0x06
+        ]));
+        assert_eq!(
+            PassPdu::new(&[0x03, 0x00]).unwrap_err().to_string(),
+            "a request of function 0x03 of 2 bytes is malformed: a read of registers is an \
+             address and a count (5 bytes)"
+        );
+    }
+
+    #[test]
+    fn a_register_write_carries_the_width_its_device_takes_at_its_address() {
+        let wide = FrameShape {
+            exception: ExceptionShape::Standard,
+            four_byte_writes: &[0x0040],
+        };
+        let two = PassPdu::new(&[0x06, 0x00, 0x40, 0x00, 0x01]).unwrap();
+        let four = PassPdu::new(&[0x06, 0x00, 0x40, 0x00, 0x01, 0x86, 0xA0]).unwrap();
+        assert_eq!(two.check_shape(&FrameShape::STANDARD), Ok(()));
+        assert_eq!(four.check_shape(&wide), Ok(()));
+        assert!(matches!(
+            two.check_shape(&wide),
+            Err(EncodeError::MalformedRequest { len: 5, .. })
+        ));
+        assert!(matches!(
+            four.check_shape(&FrameShape::STANDARD),
+            Err(EncodeError::MalformedRequest { len: 7, .. })
+        ));
+        let read = PassPdu::new(&[0x03, 0x00, 0x40, 0x00, 0x02]).unwrap();
+        assert_eq!(read.check_shape(&wide), Ok(()));
+    }
+
+    #[test]
+    fn only_writes_may_be_broadcast() {
+        assert!(PassPdu::new(&[0x06, 0x00, 0x01, 0x00, 0x03])
+            .unwrap()
+            .may_broadcast());
+        assert!(!PassPdu::new(&[0x03, 0x00, 0x6B, 0x00, 0x03])
+            .unwrap()
+            .may_broadcast());
+        assert!(!PassPdu::new(SPEC_REQUESTS[15]).unwrap().may_broadcast());
     }
 
     #[test]

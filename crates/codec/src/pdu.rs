@@ -753,6 +753,17 @@ pub enum EncodeError {
         /// The function code.
         function: u8,
     },
+    /// A request PDU passed on unread whose length or counts do not fit its function (a
+    /// 2-byte FC03, a read of 0 registers, a byte count that disagrees with the data): no
+    /// device could parse it, so it is not sent (a server answers it with exception 03).
+    MalformedRequest {
+        /// The function code.
+        function: u8,
+        /// The PDU's length.
+        len: usize,
+        /// What its function asks for.
+        why: &'static str,
+    },
 }
 
 impl fmt::Display for EncodeError {
@@ -783,6 +794,10 @@ impl fmt::Display for EncodeError {
             Self::UnframedFunction { function } => write!(
                 f,
                 "function {function:#04X} cannot be passed to an RTU line: its reply's length is unknown"
+            ),
+            Self::MalformedRequest { function, len, why } => write!(
+                f,
+                "a request of function {function:#04X} of {len} bytes is malformed: {why}"
             ),
         }
     }

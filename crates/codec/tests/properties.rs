@@ -391,3 +391,147 @@ proptest! {
         }
     }
 }
+
+fn be(word: u16) -> [u8; 2] {
+    word.to_be_bytes()
+}
+
+/// A well-formed request of each function passed through, laid out as the Modbus application
+/// protocol specification (V1.1b3, section 6) lays it out, counts over their whole range.
+fn passed_request() -> impl Strategy<Value = Vec<u8>> {
+    let address = any::<u16>;
+    prop_oneof![
+        (
+            prop::sample::select(vec![0x01u8, 0x02]),
+            address(),
+            1..=2000u16
+        )
+            .prop_map(|(f, a, n)| [&[f][..], &be(a), &be(n)].concat()),
+        (
+            prop::sample::select(vec![0x03u8, 0x04]),
+            address(),
+            1..=125u16
+        )
+            .prop_map(|(f, a, n)| [&[f][..], &be(a), &be(n)].concat()),
+        (address(), prop::sample::select(vec![0x0000u16, 0xFF00])).prop_map(|(a, v)| [
+            &[0x05][..],
+            &be(a),
+            &be(v)
+        ]
+        .concat()),
+        (
+            address(),
+            prop_oneof![
+                prop::collection::vec(any::<u8>(), 2),
+                prop::collection::vec(any::<u8>(), 4)
+            ]
+        )
+            .prop_map(|(a, data)| [&[0x06][..], &be(a), &data].concat()),
+        prop::sample::select(vec![0x07u8, 0x0B, 0x0C, 0x11]).prop_map(|f| vec![f]),
+        (address(), 1..=1968u16).prop_flat_map(|(a, n)| {
+            prop::collection::vec(any::<u8>(), usize::from(n.div_ceil(8))).prop_map(move |data| {
+                [&[0x0F][..], &be(a), &be(n), &[data.len() as u8], &data].concat()
+            })
+        }),
+        (address(), 1..=123u16).prop_flat_map(|(a, n)| {
+            prop::collection::vec(any::<u8>(), 2 * usize::from(n)).prop_map(move |data| {
+                [&[0x10][..], &be(a), &be(n), &[data.len() as u8], &data].concat()
+            })
+        }),
+        prop::collection::vec((any::<u16>(), any::<u16>(), any::<u16>()), 1..=35).prop_map(
+            |subs| {
+                let mut pdu = vec![0x14, (7 * subs.len()) as u8];
+                for (file, record, len) in subs {
+                    pdu.push(6);
+                    pdu.extend(be(file).into_iter().chain(be(record)).chain(be(len)));
+                }
+                pdu
+            }
+        ),
+        prop::collection::vec(
+            (
+                any::<u16>(),
+                any::<u16>(),
+                prop::collection::vec(any::<u16>(), 1..=5)
+            ),
+            1..=14
+        )
+        .prop_map(|subs| {
+            let mut pdu = vec![0x15, 0];
+            for (file, record, words) in subs {
+                pdu.push(6);
+                pdu.extend(
+                    be(file)
+                        .into_iter()
+                        .chain(be(record))
+                        .chain(be(words.len() as u16)),
+                );
+                pdu.extend(words.into_iter().flat_map(be));
+            }
+            pdu[1] = (pdu.len() - 2) as u8;
+            pdu
+        }),
+        (address(), any::<u16>(), any::<u16>()).prop_map(|(a, and, or)| [
+            &[0x16][..],
+            &be(a),
+            &be(and),
+            &be(or)
+        ]
+        .concat()),
+        (address(), 1..=125u16, address(), 1..=121u16).prop_flat_map(|(ra, rn, wa, wn)| {
+            prop::collection::vec(any::<u8>(), 2 * usize::from(wn)).prop_map(move |data| {
+                [
+                    &[0x17][..],
+                    &be(ra),
+                    &be(rn),
+                    &be(wa),
+                    &be(wn),
+                    &[data.len() as u8],
+                    &data,
+                ]
+                .concat()
+            })
+        }),
+        address().prop_map(|a| [&[0x18][..], &be(a)].concat()),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2_000))]
+
+    /// Every well-formed request passes whole, and a byte fewer or one more is refused as
+    /// malformed: its length no longer fits its function.
+    #[test]
+    fn passed_requests_pass_whole_and_a_byte_more_or_less_is_malformed(
+        request in passed_request(),
+        extra in any::<u8>(),
+    ) {
+        use optobus_codec::passthrough::PassPdu;
+        use optobus_codec::EncodeError;
+        prop_assert_eq!(PassPdu::new(&request).map(|p| p.bytes()), Ok(&request[..]));
+        let malformed = |pdu: &[u8]| matches!(
+            PassPdu::new(pdu),
+            Err(EncodeError::MalformedRequest { function, len, .. })
+                if function == pdu[0] && len == pdu.len()
+        );
+        if request.len() > 1 {
+            prop_assert!(malformed(&request[..request.len() - 1]));
+        }
+        let longer = [&request[..], &[extra]].concat();
+        prop_assert!(malformed(&longer));
+    }
+
+    /// Whatever bytes follow a function code, the request check never panics, and what it
+    /// takes is a whole PDU of at most 253 bytes.
+    #[test]
+    fn the_request_check_never_panics(
+        function in prop::sample::select(vec![0x01u8, 0x02, 0x03, 0x04, 0x05, 0x06, 0x07, 0x0B, 0x0C, 0x0F, 0x10, 0x11, 0x14, 0x15, 0x16, 0x17, 0x18]),
+        rest in prop::collection::vec(any::<u8>(), 0..260),
+    ) {
+        use optobus_codec::passthrough::PassPdu;
+        let pdu = [&[function][..], &rest].concat();
+        if let Ok(passed) = PassPdu::new(&pdu) {
+            prop_assert!(passed.bytes().len() <= 253);
+        }
+    }
+}

@@ -58,8 +58,15 @@ pub struct LineConfig {
 pub struct GatewayConfig {
     /// Where it listens (127.0.0.1 unless the file names another address).
     pub listen: SocketAddr,
-    /// Most clients connected at once; one more is closed at once.
+    /// Most clients connected at once; a new one closes the client idle the longest (no
+    /// request in flight), and is closed at once only when every client has one in flight.
     pub clients: usize,
+    /// Most requests waiting for the line (the most the line serves between two polls);
+    /// one more is answered busy (exception 06) at once.
+    pub queue: usize,
+    /// A client that sends no whole request for this long, or does not take its reply
+    /// within it, is closed.
+    pub idle: Duration,
     /// Whether writes pass (Modbus TCP carries no credentials, so they are off by default);
     /// writes to the bus's devices are checked against their specs first.
     pub writes: bool,
@@ -67,6 +74,10 @@ pub struct GatewayConfig {
 
 /// Clients a gateway serves at once unless the file says otherwise.
 pub const DEFAULT_GATEWAY_CLIENTS: usize = 8;
+
+/// How long a gateway keeps a client that sends nothing unless the file says otherwise
+/// (mbusd's default connection timeout).
+pub const DEFAULT_GATEWAY_IDLE: Duration = Duration::from_secs(60);
 
 /// Where a line is.
 #[derive(Clone, Debug, PartialEq, Eq)]

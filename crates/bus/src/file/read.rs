@@ -10,7 +10,7 @@ use super::outputs::Outputs;
 use super::reader::{has_port, listen_address, quoted, scalar, Reader, HELP};
 use super::{
     BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, Writable,
-    DEFAULT_GATEWAY_CLIENTS,
+    DEFAULT_GATEWAY_CLIENTS, DEFAULT_GATEWAY_IDLE,
 };
 
 /// The Modbus serial-line specification's turnaround delay after a broadcast.
@@ -30,7 +30,7 @@ const LINE_KEYS: &[&str] = &[
     "broadcast_turnaround",
     "gateway",
 ];
-const GATEWAY_KEYS: &[&str] = &["listen", "clients", "writes"];
+const GATEWAY_KEYS: &[&str] = &["listen", "clients", "queue", "idle", "writes"];
 const PORT_KEYS: &[&str] = &["serial", "tcp", "rtu_over_tcp", "simulated"];
 const DEVICE_KEYS: &[&str] = &[
     "name",
@@ -276,7 +276,8 @@ impl Reader<'_> {
         ))
     }
 
-    /// `gateway: ADDRESS` or `gateway: { listen: ADDRESS, clients: N, writes: BOOL }`.
+    /// `gateway: ADDRESS` or
+    /// `gateway: { listen: ADDRESS, clients: N, queue: N, idle: DURATION, writes: BOOL }`.
     fn gateway(&mut self, node: &Node) -> Option<(GatewayConfig, Span)> {
         let (listen_node, pairs) = match &node.value {
             Value::Mapping(_) => {
@@ -313,18 +314,28 @@ impl Reader<'_> {
                 .map(|(_, v)| v)
         };
         let clients = match get("clients") {
-            Some(v) => self.number::<usize>(v, "`clients`", (1, 1024))?,
-            None => DEFAULT_GATEWAY_CLIENTS,
+            Some(v) => self.number::<usize>(v, "`clients`", (1, 1024)),
+            None => Some(DEFAULT_GATEWAY_CLIENTS),
+        };
+        let queue = match get("queue") {
+            Some(v) => self.number::<usize>(v, "`queue`", (1, 1024)),
+            None => clients,
+        };
+        let idle = match get("idle") {
+            Some(v) => self.duration(v, "`idle`", Duration::from_nanos(1)),
+            None => Some(DEFAULT_GATEWAY_IDLE),
         };
         let writes = match get("writes") {
-            Some(v) => self.boolean(v, "`writes`")?,
-            None => false,
+            Some(v) => self.boolean(v, "`writes`"),
+            None => Some(false),
         };
         Some((
             GatewayConfig {
                 listen,
-                clients,
-                writes,
+                clients: clients?,
+                queue: queue?,
+                idle: idle?,
+                writes: writes?,
             },
             listen_node.span,
         ))
