@@ -64,7 +64,7 @@ use optobus_http::Limits;
 pub use batch::{BATCH_EVERY, BATCH_QUEUE};
 pub use page::PAGE_BYTES;
 
-/// The limits of the console's listener: [`Limits::DEFAULT`] (a silent or half-sent request
+/// The limits of the console's listener: [`Limits::DEFAULT`] (a silent socket or a half-sent head
 /// closed within 10 s, an idle connection after 15 s, a handler answers within 20 s, at most
 /// 128 connections); the live stream is exempt from the request timeout but holds a
 /// connection.

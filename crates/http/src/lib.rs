@@ -56,7 +56,7 @@ pub struct Limits {
 }
 
 impl Limits {
-    /// What a listener has unless told otherwise: a silent or half-sent request is closed
+    /// What a listener has unless told otherwise: a silent socket or a half-sent head is closed
     /// within 10 s, an idle kept-alive connection after 15 s, a handler answers within 20 s,
     /// and at most 128 connections are open (a process commonly has 1,024 descriptors).
     pub const DEFAULT: Self = Self {

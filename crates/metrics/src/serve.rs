@@ -18,7 +18,7 @@ use crate::exposition::{OPENMETRICS_TYPE, PROMETHEUS_TEXT_TYPE};
 use crate::{Metrics, Reading};
 
 /// The limits of the `/metrics` listener: those of every listener ([`Limits::DEFAULT`]: a
-/// silent or half-sent request closed within 10 s, an idle connection after 15 s, an answer
+/// silent socket or a half-sent head closed within 10 s, an idle connection after 15 s, an answer
 /// within 20 s) with at most 32 connections, which a few scrapers never reach.
 pub const LIMITS: Limits = Limits {
     max_connections: 32,
