@@ -9,8 +9,10 @@
 //!   not begin within it after a response is closed;
 //! - a **request timeout** ([`Limits::request`]) for ordinary requests: a handler that has not
 //!   answered by then is answered `408 Request Timeout` for it, and a client that has not taken
-//!   its whole response within it is closed; a response of server-sent events
-//!   (`text/event-stream`) is long-lived by design and exempt, but holds its connection;
+//!   a streamed response within it is closed (a body given whole is in hyper's hands at once:
+//!   a client that does not take it is closed at the idle timeout); a response of server-sent
+//!   events (`text/event-stream`) is long-lived by design and exempt, but holds its
+//!   connection;
 //! - a **cap on open connections** ([`Limits::max_connections`]), well below the process's
 //!   file descriptors: a connection beyond it is answered `503` at once (best effort, not
 //!   read) and closed.
@@ -192,7 +194,7 @@ impl Server {
         self.tally.counts()
     }
 
-    /// A look at its counts that outlives nothing: it reads the same counters.
+    /// A cloneable look at its counts, for a status route or a metrics source.
     pub fn tally(&self) -> Tally {
         self.tally.clone()
     }
