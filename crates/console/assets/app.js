@@ -47,7 +47,7 @@ async function api(path, body) {
   const json = await response.json().catch(() => ({ error: response.statusText }));
   if (!response.ok) {
     if (response.status === 401 && body !== undefined) {
-      const given = window.prompt("This console needs its token for writes:");
+      const given = window.prompt("This console needs its token for writes and reads of the line:");
       if (given) {
         sessionStorage.setItem("optobus-token", given.trim());
         return api(path, body);
@@ -77,6 +77,12 @@ function card(device) {
   return { node, health, reason, rows, values: new Map() };
 }
 
+// A down device's last values stay on screen, marked as not current until sampled again.
+function markCurrent(row, current) {
+  row.value.classList.toggle("stale", !current);
+  row.value.title = current ? "" : "not current: the device is down; its last value";
+}
+
 function showHealth(entry) {
   const parts = state.cards.get(entry.device);
   if (!parts) return;
@@ -84,6 +90,7 @@ function showHealth(entry) {
   parts.health.textContent = offline ? "offline" : "online";
   parts.health.classList.toggle("offline", offline);
   parts.reason.textContent = offline && entry.reason ? entry.reason : "";
+  if (offline) for (const row of parts.values.values()) markCurrent(row, false);
 }
 
 function showSample(sample) {
@@ -99,6 +106,8 @@ function showSample(sample) {
     parts.rows.append(el("tr", {}, el("td", {}, sample.register), value, el("td", {}, chart)));
   }
   row.value.textContent = sample.text;
+  // Live samples are current; /api/values says so of the last ones.
+  markCurrent(row, sample.current !== false);
   if (typeof sample.number === "number") {
     let points = state.series.get(key);
     if (!points) state.series.set(key, (points = []));
@@ -254,9 +263,9 @@ function showMap() {
       edit.append(input, el("button", { type: "button", data: { action: "set" }, onclick: set }, "Set"), message);
     }
     const readable = !r.access.startsWith("w");
-    const read = el("button", { type: "button", hidden: !readable, onclick: async () => {
+    const read = el("button", { type: "button", hidden: !readable, data: { action: "read" }, onclick: async () => {
       try {
-        const got = await api(`/api/devices/${encodeURIComponent(state.detail)}/read/${r.name}`);
+        const got = await api(`/api/devices/${encodeURIComponent(state.detail)}/read`, { register: r.name });
         current.textContent = got.text;
       } catch (e) { current.textContent = e.message; }
     } }, "Read");

@@ -11,9 +11,14 @@
 //!    (p50, p99, max) in the first and the last third of the run, batches dropped.
 //! 3. The page's weight, and its first load in headless Chromium (navigation start to the
 //!    first live value shown) against a reload of the same page (if chromedriver is here).
+//! 4. A flood of line reads: 16 clients, each on its own keep-alive connection, reading a
+//!    register through the console (`POST /api/devices/head/read`) as fast as they are
+//!    answered, beside a device polled every 100 ms on a 115200 baud line: the polls' samples
+//!    per second during the flood against their rate without it (anchor), trials of 2 s
+//!    interleaved, reads answered and refused (`429`) per second.
 //!
-//! `cargo bench -p optobus-console --bench console`; `OPTOBUS_BENCH_SECS` sets the stream's
-//! run (default 15 s).
+//! `cargo bench -p optobus-console --bench console [-- values|stream|page|flood]`;
+//! `OPTOBUS_BENCH_SECS` sets the stream's run (default 15 s).
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -354,6 +359,120 @@ async fn page_load() {
     let _ = driver.wait();
 }
 
+/// One client of the flood: POSTs reads on one keep-alive connection until `stop`; (answered,
+/// refused as busy).
+fn flood_client(address: std::net::SocketAddr, stop: &std::sync::atomic::AtomicBool) -> (u64, u64) {
+    let body = r#"{"register": "distance_1"}"#;
+    let request = format!(
+        "POST /api/devices/head/read HTTP/1.1\r\nHost: {address}\r\ncontent-type: application/json\r\ncontent-length: {}\r\n\r\n{body}",
+        body.len()
+    );
+    let mut connection = Connection::open(address);
+    let (mut answered, mut refused) = (0, 0);
+    let mut line = String::new();
+    while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+        connection
+            .reader
+            .get_mut()
+            .write_all(request.as_bytes())
+            .unwrap();
+        let mut status = 0;
+        let mut length = 0;
+        loop {
+            line.clear();
+            connection.reader.read_line(&mut line).unwrap();
+            if line == "\r\n" {
+                break;
+            }
+            if let Some(code) = line.strip_prefix("HTTP/1.1 ") {
+                status = code[..3].parse().unwrap_or(0);
+            }
+            if let Some(value) = line.to_ascii_lowercase().strip_prefix("content-length:") {
+                length = value.trim().parse().unwrap();
+            }
+        }
+        let mut reply = vec![0; length];
+        connection.reader.read_exact(&mut reply).unwrap();
+        match status {
+            200 => answered += 1,
+            429 => refused += 1,
+            other => panic!(
+                "a read answered {other}: {}",
+                String::from_utf8_lossy(&reply)
+            ),
+        }
+    }
+    (answered, refused)
+}
+
+async fn read_flood(runtime: &tokio::runtime::Handle) {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let text = "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 100ms, poll: [{ read: distance_1, every: 100ms }] }
+";
+    let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);
+    let file = BusFile::parse("flood.yaml", text, Path::new("."), &catalogue)
+        .unwrap_or_else(|e| panic!("{}", e.render()));
+    let running = Bus::new(file).start().unwrap();
+    let server = optobus_console::serve(&running, &HttpConfig::new("127.0.0.1:0".parse().unwrap()))
+        .await
+        .unwrap();
+    let address = server.address();
+    let trial = Duration::from_secs(2);
+    let (mut quiet, mut flooded) = (Vec::new(), Vec::new());
+    let (mut answered, mut refused) = (0u64, 0u64);
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    for _ in 0..5 {
+        for flood in [false, true] {
+            let stop = Arc::new(AtomicBool::new(false));
+            let clients: Vec<_> = (0..if flood { 16 } else { 0 })
+                .map(|_| {
+                    let stop = Arc::clone(&stop);
+                    runtime.spawn_blocking(move || flood_client(address, &stop))
+                })
+                .collect();
+            let mut events = running.subscribe();
+            let until = tokio::time::Instant::now() + trial;
+            let mut samples = 0u64;
+            while let Ok(Ok(event)) = tokio::time::timeout_at(until, events.recv()).await {
+                if matches!(event, Event::Sample(_)) {
+                    samples += 1;
+                }
+            }
+            stop.store(true, Ordering::Relaxed);
+            for client in clients {
+                let (a, r) = client.await.unwrap();
+                answered += a;
+                refused += r;
+            }
+            let rate = samples as f64 / trial.as_secs_f64();
+            if flood {
+                flooded.push(rate)
+            } else {
+                quiet.push(rate)
+            }
+        }
+    }
+    let mean = |rates: &[f64]| rates.iter().sum::<f64>() / rates.len() as f64;
+    let flood_secs = 5.0 * trial.as_secs_f64();
+    println!("4. 16 clients reading through the console as fast as they are answered, 5 × 2 s interleaved:");
+    println!(
+        "  poll samples/s without the flood (anchor) {:.1}, during it {:.1}: {:.2} of the rate (issue: ≥ 0.30, goal ≥ 0.90); trials {quiet:?} / {flooded:?}",
+        mean(&quiet),
+        mean(&flooded),
+        mean(&flooded) / mean(&quiet)
+    );
+    println!(
+        "  reads answered {:.1}/s, refused 429 {:.1}/s; the console counted {} busy refusals",
+        answered as f64 / flood_secs,
+        refused as f64 / flood_secs,
+        running.handle().busy_refusals(optobus_bus::Source::Console)
+    );
+}
+
 fn main() {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -366,11 +485,27 @@ fn main() {
         .unwrap_or(15);
     println!("optobus-console bench; load average {}", load_average());
     let handle = runtime.handle().clone();
+    // `cargo bench -p optobus-console --bench console -- flood` runs one part (values, stream,
+    // page, flood).
+    let only: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    let runs = |part: &str| only.is_empty() || only.iter().any(|o| o == part);
     runtime.block_on(async {
-        latest_values(&handle, 115_200).await;
-        latest_values(&handle, 4_000_000).await;
-        live_stream(&handle, seconds).await;
-        page_load().await;
+        if runs("values") {
+            latest_values(&handle, 115_200).await;
+            latest_values(&handle, 4_000_000).await;
+        }
+        if runs("stream") {
+            live_stream(&handle, seconds).await;
+        }
+        if runs("page") {
+            page_load().await;
+        }
+        if runs("flood") {
+            read_flood(&handle).await;
+        }
     });
     println!("load average afterwards {}", load_average());
 }

@@ -3,11 +3,12 @@
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
+use axum::extract::rejection::JsonRejection;
 use axum::extract::{DefaultBodyLimit, Path, State};
 use axum::http::StatusCode;
-use axum::routing::{get, post};
+use axum::routing::{any, get, post};
 use axum::{Json, Router};
-use optobus_bus::{rfc3339, Direction};
+use optobus_bus::{rfc3339, Direction, Source};
 use optobus_inspect::hex;
 use serde_json::{json, Value as Json_};
 
@@ -26,7 +27,8 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
         .route("/api/stream", get(stream::stream))
         .route("/api/devices/{device}", get(device_map))
         .route("/api/devices/{device}/frames", get(frames))
-        .route("/api/devices/{device}/read/{register}", get(read))
+        .route("/api/devices/{device}/read", post(read))
+        .route("/api/devices/{device}/read/{register}", any(read_moved))
         .route("/api/devices/{device}/set", post(write::set))
         .route("/api/devices/{device}/do", post(write::run))
         .route("/api/devices/{device}/buffer", post(write::buffer))
@@ -62,28 +64,47 @@ async fn devices(State(shared): State<Arc<Shared>>) -> Json<Json_> {
 }
 
 /// `GET /api/values`: the latest sample of every register polled, per device, in the map's
-/// order.
+/// order, each saying whether it is `current`: a down device's last values are not.
 async fn values(State(shared): State<Arc<Shared>>) -> Json<Json_> {
     let board = shared.board();
     let mut devices = serde_json::Map::new();
     for device in &board.devices {
-        let values: Vec<&Json_> = device
+        let values: Vec<Json_> = device
             .info
             .registers
             .iter()
             .filter_map(|r| device.values.get(r.name))
+            .map(|(sample, current)| {
+                let mut sample = sample.clone();
+                sample["current"] = (*current).into();
+                sample
+            })
             .collect();
         devices.insert(device.id.device.to_string(), json!(values));
     }
     Json(Json_::Object(devices))
 }
 
-/// `GET /api/status`: the live stream's clients and what was dropped.
+/// `GET /api/status`: the live stream's clients and what was dropped, the console's requests
+/// the lines refused as busy (answered `429`), and the listener's connections.
 async fn status(State(shared): State<Arc<Shared>>) -> Json<Json_> {
+    let connections = shared.connections.get().map(|tally| {
+        let counts = tally.counts();
+        json!({
+            "open": counts.open,
+            "accepted": counts.accepted,
+            "refused": counts.refused,
+            "header_timeouts": counts.header_timeouts,
+            "idle_closed": counts.idle_closed,
+            "request_timeouts": counts.request_timeouts,
+        })
+    });
     Json(json!({
-        "stream_clients": shared.clients.load(Ordering::Relaxed),
+        "stream_clients": shared.clients().len(),
         "dropped_batches": shared.dropped(),
         "missed_events": shared.missed.load(Ordering::Relaxed),
+        "busy_refusals": shared.handle.busy_refusals(Source::Console),
+        "connections": connections,
     }))
 }
 
@@ -127,12 +148,24 @@ async fn frames(
     Ok(Json(json!(frames)))
 }
 
-/// `GET /api/devices/{device}/read/{register}`: reads the register now, ahead of the polls
-/// (a register whose read changes the device is refused).
+/// `POST /api/devices/{device}/read`.
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct Read {
+    register: String,
+}
+
+/// `POST /api/devices/{device}/read` with `{"register": "light_power"}`: reads the register
+/// now, between the polls (a register whose read changes the device is refused). A POST with
+/// a JSON body, never a simple cross-site request (an `<img>` or a form of another site cannot
+/// send it), and with the token where writes need it: a read takes the line's time. A line
+/// that already has the console's share of work waiting answers `429`.
 async fn read(
     State(shared): State<Arc<Shared>>,
-    Path((device, register)): Path<(String, String)>,
+    Path(device): Path<String>,
+    body: Result<Json<Read>, JsonRejection>,
 ) -> Result<Json<Json_>, ApiError> {
+    let Json(Read { register }) = body.map_err(write::body_error)?;
     let info = shared
         .handle
         .device_info(&device)
@@ -153,7 +186,7 @@ async fn read(
         .handle
         .read(&device, vec![found])
         .await
-        .map_err(|e| ApiError::new(StatusCode::BAD_GATEWAY, e.to_string()))?;
+        .map_err(|e| write::job_error(&device, e))?;
     let value = values
         .into_iter()
         .next()
@@ -163,4 +196,14 @@ async fn read(
         "text": value.to_string(),
         "value": value,
     })))
+}
+
+/// `/api/devices/{device}/read/{register}`, which a GET once read: refused, with where reads
+/// went.
+async fn read_moved() -> ApiError {
+    ApiError::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        "a register is read with POST /api/devices/{device}/read and a JSON body \
+         {\"register\": \"…\"}",
+    )
 }

@@ -1,5 +1,6 @@
 //! Who may ask what: the `Host` a loopback console answers to, the origins whose pages may call
-//! it, and the token every write must carry when one is set or the console listens beyond the
+//! it, and the token every request for the line's time (a write, a command, a read now: each a
+//! POST with a JSON body) must carry when one is set or the console listens beyond the
 //! loopback.
 
 use std::net::SocketAddr;
@@ -60,14 +61,14 @@ impl Guard {
         own || self.origins.iter().any(|o| o == origin)
     }
 
-    /// Why a write is refused, if it is.
+    /// Why a request for the line (a POST: write, command, read now) is refused, if it is.
     fn refuses_write(&self, headers: &HeaderMap) -> Option<ApiError> {
         let Some(token) = &self.token else {
             return (!self.loopback).then(|| {
                 ApiError::new(
                     StatusCode::FORBIDDEN,
-                    "writes are off: the console listens beyond 127.0.0.1 and the bus file \
-                     gives it no `token_file`",
+                    "writes and reads of the line are off: the console listens beyond \
+                     127.0.0.1 and the bus file gives it no `token_file`",
                 )
             });
         };
@@ -83,12 +84,13 @@ impl Guard {
             )),
             None => Some(ApiError::new(
                 StatusCode::UNAUTHORIZED,
-                "writes need the console's token (Authorization: Bearer …)",
+                "writes and reads of the line need the console's token (Authorization: \
+                 Bearer …)",
             )),
         }
     }
 
-    /// Whether writes need a token (the page asks for one).
+    /// Whether writes and reads of the line need a token (the page asks for one).
     pub(crate) fn needs_token(&self) -> bool {
         self.token.is_some() || !self.loopback
     }
@@ -114,7 +116,8 @@ fn read_token(path: &std::path::Path) -> Result<String, ConsoleError> {
     Ok(token.to_owned())
 }
 
-/// Checks every request: its `Host` (on the loopback), its `Origin`, a write's token; answers
+/// Checks every request: its `Host` (on the loopback), its `Origin`, the token of a request for
+/// the line (every POST); answers
 /// a listed origin's preflight and marks its replies.
 pub(crate) async fn check(
     State(guard): State<Arc<Guard>>,

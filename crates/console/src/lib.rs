@@ -10,23 +10,28 @@
 //! |---|---|
 //! | `GET /` | the page |
 //! | `GET /api/devices` | the devices with their health and errors, and the lines' statistics |
-//! | `GET /api/values` | the latest value of every register polled, per device |
+//! | `GET /api/values` | the latest value of every register polled, per device; `current` is false once the device is down |
 //! | `GET /api/devices/{device}` | the device's register map, commands and groups, from its spec |
 //! | `GET /api/devices/{device}/frames` | its recent frames: direction, hex, time, reply delay |
-//! | `GET /api/devices/{device}/read/{register}` | the register read now, ahead of the polls |
+//! | `POST /api/devices/{device}/read` | `{"register": "distance_1"}`: the register read now, between the polls (a line with the console's share already waiting answers `429` with `Retry-After`) |
 //! | `POST /api/devices/{device}/set` | `{"register": "light_power", "value": "12.5 %"}`: set as `optobus set` does, if the bus file's `writable` lists it; the value read back |
 //! | `POST /api/devices/{device}/do` | `{"command": "zero_position_1"}`: run as `optobus do` does, if listed (a drastic one only when named there) |
 //! | `POST /api/devices/{device}/buffer` | its data buffer read out (if `writable` lists the buffer's lock and unlock), as CSV: `index,time_s,value_UNIT` |
 //! | `GET /api/stream` | server-sent events: a batch of samples, health and line statistics every 100 ms |
-//! | `GET /api/status` | the stream's clients and the batches dropped for slow ones |
+//! | `GET /api/status` | the stream's clients and the batches dropped for slow ones, requests refused as busy, the listener's connections |
 //!
 //! Safe by default: it listens on 127.0.0.1 and then answers only requests addressed to the
 //! loopback (`Host`), against DNS rebinding; a request from a page of another origin is refused
 //! unless the bus file lists that origin; bodies are limited to [`BODY_LIMIT`] bytes; every
 //! refusal is a 4xx whose JSON `error` is the tool's one-line message. Writes are checked
-//! by the bus ([`optobus_bus::Handle::set_listed`]): nothing refused reaches the line. A
-//! console given a token file, or listening beyond the loopback, takes writes only with its
-//! token (`Authorization: Bearer …`); beyond the loopback without a token file it takes none.
+//! by the bus ([`optobus_bus::Handle::set_listed`]): nothing refused reaches the line.
+//! Everything that takes the line's time (writes, commands, reads now) is a POST with a JSON
+//! body, which no page of another site can send without asking; a console given a token file,
+//! or listening beyond the loopback, takes them only with its token (`Authorization: Bearer
+//! …`); beyond the loopback without a token file it takes none. The console's jobs have their
+//! own bounded queue on each line ([`optobus_bus::Source::Console`]): beyond it a request is
+//! answered `429` at once and counted. The listener has the limits of [`optobus_http`]
+//! ([`LIMITS`]): header, idle and request timeouts and a cap on connections.
 //!
 //! ```no_run
 //! # async fn demo(running: &optobus_bus::Running) -> Result<(), Box<dyn std::error::Error>> {
@@ -53,11 +58,17 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use axum::Router;
-use optobus_bus::{HttpConfig, Running};
-use tokio::task::JoinHandle;
+use optobus_bus::{HttpConfig, Running, Source};
+use optobus_http::Limits;
 
 pub use batch::{BATCH_EVERY, BATCH_QUEUE};
 pub use page::PAGE_BYTES;
+
+/// The limits of the console's listener: [`Limits::DEFAULT`] (a silent socket or a half-sent head
+/// closed within 10 s, an idle connection after 15 s, a handler answers within 20 s, at most
+/// 128 connections); the live stream is exempt from the request timeout but holds a
+/// connection.
+pub const LIMITS: Limits = Limits::DEFAULT;
 
 /// The largest request body accepted, in bytes.
 pub const BODY_LIMIT: usize = 4096;
@@ -115,7 +126,8 @@ impl Console {
         address: SocketAddr,
     ) -> Result<Self, ConsoleError> {
         let guard = guard::Guard::new(config, address)?;
-        let shared = Arc::new(state::Shared::new(running.handle(), guard));
+        let handle = running.handle().for_source(Source::Console);
+        let shared = Arc::new(state::Shared::new(handle, guard));
         tokio::spawn(state::collect(Arc::downgrade(&shared), running.subscribe()));
         Ok(Self {
             router: api::router(Arc::clone(&shared)),
@@ -134,42 +146,54 @@ impl Console {
     }
 }
 
-/// A console serving on its address; dropping it stops it.
+/// A console serving on its address; dropping it stops it and closes its connections.
 #[derive(Debug)]
 pub struct Server {
-    address: SocketAddr,
     console: Console,
-    task: JoinHandle<()>,
+    server: optobus_http::Server,
 }
 
 impl Server {
     /// Where it listens (its port, when the configuration asked for port 0).
     pub fn address(&self) -> SocketAddr {
-        self.address
+        self.server.address()
     }
 
     /// The page's address, for people.
     pub fn url(&self) -> String {
-        format!("http://{}/", self.address)
+        format!("http://{}/", self.address())
     }
 
     /// The console it serves.
     pub fn console(&self) -> &Console {
         &self.console
     }
+
+    /// What the listener did with its connections so far.
+    pub fn connections(&self) -> optobus_http::Counts {
+        self.server.counts()
+    }
 }
 
 impl Drop for Server {
     fn drop(&mut self) {
-        self.task.abort();
-        // Connections outlive the listening task: end the live streams, as a stopped process
-        // would.
+        // The live streams end, as a stopped process's would.
         self.console.shared.stopped.send_replace(true);
     }
 }
 
-/// Serves the console of `running` on `config.listen` (within a tokio runtime).
+/// Serves the console of `running` on `config.listen` (within a tokio runtime), with the
+/// listener's [`LIMITS`].
 pub async fn serve(running: &Running, config: &HttpConfig) -> Result<Server, ConsoleError> {
+    serve_with_limits(running, config, LIMITS).await
+}
+
+/// Serves the console of `running` on `config.listen` with `limits` for its listener.
+pub async fn serve_with_limits(
+    running: &Running,
+    config: &HttpConfig,
+    limits: Limits,
+) -> Result<Server, ConsoleError> {
     let listen_error = |source| ConsoleError::Listen {
         address: config.listen,
         source,
@@ -179,15 +203,8 @@ pub async fn serve(running: &Running, config: &HttpConfig) -> Result<Server, Con
         .map_err(listen_error)?;
     let address = listener.local_addr().map_err(listen_error)?;
     let console = Console::new(running, config, address)?;
-    let router = console.router();
-    let task = tokio::spawn(async move {
-        if let Err(error) = axum::serve(listener, router).await {
-            tracing::warn!(target: "optobus_console", "the console stopped: {error}");
-        }
-    });
-    Ok(Server {
-        address,
-        console,
-        task,
-    })
+    let server =
+        optobus_http::Server::start(listener, console.router(), limits).map_err(listen_error)?;
+    let _ = console.shared.connections.set(server.tally());
+    Ok(Server { console, server })
 }

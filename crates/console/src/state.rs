@@ -1,10 +1,11 @@
 //! What the console knows of the bus: the latest value of every register polled, each
 //! device's health and each line's statistics, kept up to date from the bus's events by one
-//! task, which also gathers them into the live stream's batches.
+//! task, which also gathers them into the live stream's batches and hands each batch to every
+//! client's own bounded queue (a full queue loses its oldest batch then, counted).
 
-use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, Weak};
+use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use optobus_bus::{DeviceId, ErrorCounts, Event, Handle, Health, HealthEvent, LineStats, Sample};
@@ -12,7 +13,7 @@ use optobus_device::DeviceInfo;
 use optobus_inspect::Value;
 use serde_json::{json, Value as Json};
 use tokio::sync::broadcast::error::RecvError;
-use tokio::sync::{broadcast, watch};
+use tokio::sync::{broadcast, watch, Notify};
 
 use crate::batch::{Batch, Kind, BATCH_EVERY, BATCH_QUEUE};
 use crate::guard::Guard;
@@ -23,16 +24,66 @@ pub(crate) struct Shared {
     pub(crate) handle: Handle,
     pub(crate) guard: Arc<Guard>,
     pub(crate) board: Mutex<Board>,
-    /// The live stream's batches, as JSON text.
-    pub(crate) batches: broadcast::Sender<Arc<str>>,
-    /// Batches dropped for clients that fell behind.
+    /// The live stream's clients now, each with its queue of batches.
+    pub(crate) clients: Mutex<Vec<Arc<ClientQueue>>>,
+    /// Batches dropped for clients that fell behind, counted when dropped.
     pub(crate) dropped: AtomicU64,
     /// Events of the bus the console itself missed (it fell behind the bus).
     pub(crate) missed: AtomicU64,
-    /// Clients of the live stream now.
-    pub(crate) clients: AtomicUsize,
     /// Set when the server stops: the live streams end (their browsers reconnect).
     pub(crate) stopped: watch::Sender<bool>,
+    /// The listener's connection counts, once it serves.
+    pub(crate) connections: OnceLock<optobus_http::Tally>,
+}
+
+/// One client's batches not yet sent: at most [`BATCH_QUEUE`]; the oldest goes when a new one
+/// finds it full.
+#[derive(Debug, Default)]
+pub(crate) struct ClientQueue {
+    queue: Mutex<Queued>,
+    /// A batch arrived.
+    pub(crate) ready: Notify,
+}
+
+#[derive(Debug, Default)]
+struct Queued {
+    batches: VecDeque<Arc<str>>,
+    /// Batches dropped that the client has not been told of yet.
+    untold: u64,
+}
+
+/// What a client is sent next.
+#[derive(Debug, PartialEq)]
+pub(crate) enum Next {
+    /// How many batches it lost since it was last told.
+    Dropped(u64),
+    /// A batch.
+    Batch(Arc<str>),
+}
+
+impl ClientQueue {
+    /// Queues `batch`; whether the oldest was dropped to make room.
+    fn push(&self, batch: Arc<str>) -> bool {
+        let mut queued = self.queue.lock().unwrap_or_else(|e| e.into_inner());
+        let full = queued.batches.len() >= BATCH_QUEUE;
+        if full {
+            queued.batches.pop_front();
+            queued.untold += 1;
+        }
+        queued.batches.push_back(batch);
+        drop(queued);
+        self.ready.notify_one();
+        full
+    }
+
+    /// The client's next message, if any: the drops it has not been told of first.
+    pub(crate) fn next(&self) -> Option<Next> {
+        let mut queued = self.queue.lock().unwrap_or_else(|e| e.into_inner());
+        if queued.untold > 0 {
+            return Some(Next::Dropped(std::mem::take(&mut queued.untold)));
+        }
+        queued.batches.pop_front().map(Next::Batch)
+    }
 }
 
 /// A device's latest state.
@@ -43,8 +94,9 @@ pub(crate) struct DeviceState {
     pub(crate) health: Health,
     pub(crate) errors: ErrorCounts,
     pub(crate) reason: Option<String>,
-    /// The latest sample of each register, as the stream sends it.
-    pub(crate) values: HashMap<&'static str, Json>,
+    /// The latest sample of each register, as the stream sends it, and whether it is current:
+    /// a value stops being current when its device goes down, until it is sampled again.
+    pub(crate) values: HashMap<&'static str, (Json, bool)>,
 }
 
 /// The latest of everything.
@@ -76,11 +128,37 @@ impl Shared {
                 devices,
                 lines: Vec::new(),
             }),
-            batches: broadcast::channel(BATCH_QUEUE).0,
+            clients: Mutex::new(Vec::new()),
             dropped: AtomicU64::new(0),
             missed: AtomicU64::new(0),
-            clients: AtomicUsize::new(0),
             stopped: watch::channel(false).0,
+            connections: OnceLock::new(),
+        }
+    }
+
+    /// A new client of the stream, with its own queue.
+    pub(crate) fn join(&self) -> Arc<ClientQueue> {
+        let client = Arc::new(ClientQueue::default());
+        self.clients().push(Arc::clone(&client));
+        client
+    }
+
+    /// The client gone.
+    pub(crate) fn leave(&self, client: &Arc<ClientQueue>) {
+        self.clients().retain(|c| !Arc::ptr_eq(c, client));
+    }
+
+    pub(crate) fn clients(&self) -> std::sync::MutexGuard<'_, Vec<Arc<ClientQueue>>> {
+        self.clients.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Hands `batch` to every client; a client whose queue is full loses its oldest batch,
+    /// counted now rather than when (if ever) it reads again.
+    fn publish(&self, batch: Arc<str>) {
+        for client in self.clients().iter() {
+            if client.push(Arc::clone(&batch)) {
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+            }
         }
     }
 
@@ -153,7 +231,9 @@ impl Board {
             Event::Sample(sample) => {
                 let json = sample_json(sample);
                 let device = self.device(&sample.source.device)?;
-                device.values.insert(sample.register.name, json.clone());
+                device
+                    .values
+                    .insert(sample.register.name, (json.clone(), true));
                 Some((Kind::Sample, json))
             }
             Event::Health(health) => {
@@ -165,6 +245,12 @@ impl Board {
                 } = &**health;
                 let device = self.device(&source.device)?;
                 device.health = *health;
+                if *health == Health::Offline {
+                    // Its last values stand until it answers again, but no longer as current.
+                    for (_, current) in device.values.values_mut() {
+                        *current = false;
+                    }
+                }
                 device.errors = *errors;
                 device.reason.clone_from(reason);
                 Some((Kind::Health, health_json(device)))
@@ -210,8 +296,7 @@ pub(crate) async fn collect(shared: Weak<Shared>, mut events: broadcast::Receive
             },
             None => {
                 if let Some(text) = batch.take() {
-                    // No client is no error.
-                    let _ = shared.batches.send(text);
+                    shared.publish(text);
                 }
             }
         }

@@ -33,7 +33,7 @@ pub(crate) struct Do {
 }
 
 /// A body that is not the JSON asked for (or too large): its status and axum's one line.
-fn body_error(rejection: JsonRejection) -> ApiError {
+pub(crate) fn body_error(rejection: JsonRejection) -> ApiError {
     let status = rejection.status();
     let message = match status {
         StatusCode::PAYLOAD_TOO_LARGE => {
@@ -44,10 +44,12 @@ fn body_error(rejection: JsonRejection) -> ApiError {
     ApiError::new(status, message)
 }
 
-/// The status of a job's refusal or failure; its message is the bus's.
-fn job_error(device: &str, error: JobError) -> ApiError {
+/// The status of a job's refusal or failure; its message is the bus's. A busy line is a
+/// `429` with `Retry-After`.
+pub(crate) fn job_error(device: &str, error: JobError) -> ApiError {
     let status = match &error {
         JobError::UnknownDevice(_) => return ApiError::unknown_device(device),
+        JobError::Busy { .. } => return ApiError::busy(error.to_string()),
         JobError::NotListed { .. } => StatusCode::FORBIDDEN,
         JobError::Stopped => StatusCode::SERVICE_UNAVAILABLE,
         JobError::Device(_) => StatusCode::BAD_GATEWAY,

@@ -56,9 +56,10 @@ fn get(path: &str) -> Request<Body> {
         .unwrap()
 }
 
-/// Waits until `path` gives what `ready` accepts.
+/// Waits until `path` gives what `ready` accepts (30 s at most).
 async fn until(router: &Router, path: &str, ready: impl Fn(&Value) -> bool) -> Value {
-    for _ in 0..200 {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
+    while tokio::time::Instant::now() < deadline {
         let (status, json) = call(router, get(path)).await;
         assert_eq!(status, StatusCode::OK, "{json}");
         if ready(&json) {
@@ -179,7 +180,11 @@ async fn frames_show_the_requests_and_replies_of_a_device() {
 async fn a_register_is_read_on_demand_and_unknown_names_are_refused() {
     let running = start(TWO);
     let router = console(&running, &loopback()).router();
-    let (status, json) = call(&router, get("/api/devices/head/read/light_power")).await;
+    let (status, json) = call(
+        &router,
+        post("/api/devices/head/read", r#"{"register": "light_power"}"#),
+    )
+    .await;
     assert_eq!(status, StatusCode::OK, "{json}");
     let simulator = running.simulator("head").unwrap();
     let power = optobus_p_series::DEVICE.register("light_power").unwrap();
@@ -193,7 +198,11 @@ async fn a_register_is_read_on_demand_and_unknown_names_are_refused() {
     let (status, json) = call(&router, get("/api/devices/tail/frames")).await;
     assert_eq!(status, StatusCode::NOT_FOUND);
     assert_eq!(json["error"], "the bus has no device `tail`");
-    let (status, json) = call(&router, get("/api/devices/head/read/lihgt_power")).await;
+    let (status, json) = call(
+        &router,
+        post("/api/devices/head/read", r#"{"register": "lihgt_power"}"#),
+    )
+    .await;
     assert_eq!(status, StatusCode::NOT_FOUND);
     assert_eq!(json["error"], "p-series has no register `lihgt_power`");
 }
@@ -465,7 +474,7 @@ async fn beyond_the_loopback_writes_need_the_token_from_the_file() {
     assert!(json["error"]
         .as_str()
         .unwrap()
-        .starts_with("writes are off: the console listens beyond 127.0.0.1"));
+        .starts_with("writes and reads of the line are off: the console listens beyond 127.0.0.1"));
     let token = std::env::temp_dir().join(format!("optobus-console-{}.token", std::process::id()));
     std::fs::write(&token, "correct-horse-battery-staple\n").unwrap();
     let mut guarded = open.clone();
@@ -636,4 +645,415 @@ devices:
     assert_eq!(devices[0]["health"], "online");
     assert_eq!(devices[1]["health"], "offline");
     assert_eq!(devices[1]["reason"], reason);
+}
+
+/// The frames the head was sent that read `register` (FC03/FC04 at its address).
+fn read_frames(running: &Running, register: &str) -> usize {
+    let info = optobus_p_series::DEVICE.register(register).unwrap();
+    let [high, low] = info.address.to_be_bytes();
+    running
+        .handle()
+        .frames("head")
+        .unwrap()
+        .iter()
+        .filter(|f| {
+            f.direction == optobus_bus::Direction::Sent
+                && matches!(f.bytes[1], 3 | 4)
+                && f.bytes[2..4] == [high, low]
+        })
+        .count()
+}
+
+/// Point 3 of issue 28: a line read is no simple cross-site request (an `<img>` of another
+/// site is a GET without `Origin`; a form of another site posts text, not JSON), and off the
+/// loopback it needs the token as writes do.
+#[tokio::test]
+async fn console_line_reads_need_post_and_the_token_off_loopback() {
+    let running = start(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms }
+",
+    );
+    let router = console(&running, &loopback()).router();
+    // What an `<img src=…>` of another page sends: a GET, no Origin.
+    let (status, json) = call(&router, get("/api/devices/head/read/light_power")).await;
+    assert_eq!(status, StatusCode::METHOD_NOT_ALLOWED, "{json}");
+    assert!(
+        json["error"]
+            .as_str()
+            .unwrap()
+            .contains("POST /api/devices/{device}/read"),
+        "{json}"
+    );
+    // What a form of another page sends: a POST of text.
+    let form = Request::post("/api/devices/head/read")
+        .header("host", ADDRESS)
+        .header("content-type", "text/plain")
+        .body(Body::from(r#"{"register": "light_power"}"#))
+        .unwrap();
+    let (status, json) = call(&router, form).await;
+    assert_eq!(status, StatusCode::UNSUPPORTED_MEDIA_TYPE, "{json}");
+    assert_eq!(read_frames(&running, "light_power"), 0, "nothing was read");
+    let (status, json) = call(
+        &router,
+        post("/api/devices/head/read", r#"{"register": "light_power"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    assert_eq!(read_frames(&running, "light_power"), 1);
+
+    // Off the loopback: no token file, no reads; with one, only with its token.
+    let body = r#"{"register": "light_power"}"#;
+    let open = HttpConfig::new("0.0.0.0:8080".parse().unwrap());
+    let router = console(&running, &open).router();
+    let (status, json) = call(&router, post("/api/devices/head/read", body)).await;
+    assert_eq!(status, StatusCode::FORBIDDEN, "{json}");
+    let token = std::env::temp_dir().join(format!("optobus-reads-{}.token", std::process::id()));
+    std::fs::write(&token, "correct-horse-battery-staple\n").unwrap();
+    let mut guarded = open.clone();
+    guarded.token_file = Some(token.clone());
+    let router = console(&running, &guarded).router();
+    let (status, json) = call(&router, post("/api/devices/head/read", body)).await;
+    assert_eq!(status, StatusCode::UNAUTHORIZED, "{json}");
+    assert_eq!(
+        json["error"],
+        "writes and reads of the line need the console's token (Authorization: Bearer …)"
+    );
+    assert_eq!(
+        read_frames(&running, "light_power"),
+        1,
+        "nothing more was read"
+    );
+    let mut right = post("/api/devices/head/read", body);
+    right.headers_mut().insert(
+        "authorization",
+        "Bearer correct-horse-battery-staple".parse().unwrap(),
+    );
+    let (status, json) = call(&router, right).await;
+    assert_eq!(status, StatusCode::OK, "{json}");
+    assert_eq!(read_frames(&running, "light_power"), 2);
+    let _ = std::fs::remove_file(token);
+}
+
+/// Point 3 of issue 28: 16 clients reading through the console as fast as they can get `429`
+/// with `Retry-After` beyond the console's queue on the line, counted, and the polls go on.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_flood_of_console_reads_is_answered_429_and_the_polls_go_on() {
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    use std::sync::Arc;
+    let running = start(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 500ms, poll: [{ read: distance_1, every: 100ms }] }
+",
+    );
+    let router = console(&running, &loopback()).router();
+    let mut events = running.subscribe();
+    let stop = Arc::new(AtomicBool::new(false));
+    let busy = Arc::new(AtomicU64::new(0));
+    let mut clients = Vec::new();
+    for _ in 0..16 {
+        let (router, stop, busy) = (router.clone(), Arc::clone(&stop), Arc::clone(&busy));
+        clients.push(tokio::spawn(async move {
+            while !stop.load(Ordering::Relaxed) {
+                let request = post("/api/devices/head/read", r#"{"register": "distance_1"}"#);
+                let response = router.clone().oneshot(request).await.unwrap();
+                match response.status() {
+                    StatusCode::OK => {}
+                    StatusCode::TOO_MANY_REQUESTS => {
+                        assert_eq!(response.headers()["retry-after"], "1");
+                        let body = axum::body::to_bytes(response.into_body(), 4096)
+                            .await
+                            .unwrap();
+                        let json: Value = serde_json::from_slice(&body).unwrap();
+                        let error = json["error"].as_str().unwrap();
+                        assert!(error.starts_with("line `rs485` is busy"), "{error}");
+                        busy.fetch_add(1, Ordering::Relaxed);
+                        tokio::task::yield_now().await;
+                    }
+                    other => panic!("a read answered {other}"),
+                }
+            }
+        }));
+    }
+    // Poll samples keep coming while the flood goes on (reads send no samples).
+    let mut polled = 0;
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(60);
+    while polled < 20 || busy.load(Ordering::Relaxed) == 0 {
+        match tokio::time::timeout_at(deadline, events.recv()).await {
+            Ok(Ok(optobus_bus::Event::Sample(_))) => polled += 1,
+            Ok(_) => {}
+            Err(_) => panic!(
+                "{polled} poll samples and {} refusals within 60 s of the flood",
+                busy.load(Ordering::Relaxed)
+            ),
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    for client in clients {
+        client.await.unwrap();
+    }
+    let (_, status) = call(&router, get("/api/status")).await;
+    assert_eq!(
+        status["busy_refusals"].as_u64(),
+        Some(busy.load(Ordering::Relaxed)),
+        "every 429 is counted: {status}"
+    );
+}
+
+/// Point 8 of issue 28: a client of the live stream that stops reading loses its oldest
+/// batches, counted as they are dropped (not when it reads again), and is told how many when
+/// it reads.
+#[tokio::test]
+async fn a_stalled_stream_client_counts_its_drops_as_they_happen() {
+    use futures_util::StreamExt;
+    let running = start(TWO);
+    let console = console(&running, &loopback());
+    let router = console.router();
+    // A client that never reads its stream.
+    let stalled = router.clone().oneshot(get("/api/stream")).await.unwrap();
+    assert_eq!(stalled.status(), StatusCode::OK);
+    let status = until(&router, "/api/status", |json| {
+        json["dropped_batches"].as_u64().is_some_and(|n| n >= 3)
+    })
+    .await;
+    assert_eq!(status["stream_clients"], 1);
+    // It reads again: first told what it lost, as the console counted it.
+    let mut body = stalled.into_body().into_data_stream();
+    let chunk = tokio::time::timeout(Duration::from_secs(5), body.next())
+        .await
+        .expect("the stream answers")
+        .unwrap()
+        .unwrap();
+    let text = std::str::from_utf8(&chunk).unwrap();
+    let told: u64 = text
+        .strip_prefix("event: dropped\ndata: ")
+        .unwrap_or_else(|| panic!("told of its drops first: {text}"))
+        .trim()
+        .parse()
+        .unwrap();
+    assert!(told >= 3, "{text}");
+    assert!(told <= console.dropped_batches());
+    let chunk = tokio::time::timeout(Duration::from_secs(5), body.next())
+        .await
+        .expect("then a batch")
+        .unwrap()
+        .unwrap();
+    assert!(std::str::from_utf8(&chunk).unwrap().starts_with("data: {"));
+    drop(body);
+    let status = until(&router, "/api/status", |json| json["stream_clients"] == 0).await;
+    assert!(status["dropped_batches"].as_u64().unwrap() >= told);
+}
+
+/// Point 7 of issue 28: a down device's last values are not presented as current; its next
+/// sample is.
+#[tokio::test]
+async fn a_down_devices_values_are_not_current_on_the_console() {
+    let running = start(TWO);
+    let router = console(&running, &loopback()).router();
+    let current = |json: &Value, device: &str| -> Vec<Value> {
+        json[device]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v["current"].clone())
+            .collect()
+    };
+    let json = until(&router, "/api/values", |json| {
+        json["head"].as_array().is_some_and(|v| !v.is_empty())
+    })
+    .await;
+    assert!(current(&json, "head").iter().all(|c| *c == true), "{json}");
+    running.simulator("head").unwrap().set_silent(true);
+    let json = until(&router, "/api/devices", |json| {
+        json["devices"][0]["health"] == "offline"
+    })
+    .await;
+    assert_eq!(json["devices"][0]["device"], "head");
+    let (_, json) = call(&router, get("/api/values")).await;
+    let head = current(&json, "head");
+    assert!(
+        !head.is_empty() && head.iter().all(|c| *c == false),
+        "{json}"
+    );
+    assert!(current(&json, "confocal").iter().all(|c| *c == true));
+    running.simulator("head").unwrap().set_silent(false);
+    until(&router, "/api/values", |json| {
+        current(json, "head").iter().all(|c| *c == true)
+    })
+    .await;
+}
+
+// ---- the listener's limits, over real sockets (point 4 of issue 28) ----
+
+/// Short limits, so that the tests wait little.
+fn short(max_connections: usize) -> optobus_http::Limits {
+    optobus_http::Limits {
+        header_read: Duration::from_millis(300),
+        idle: Duration::from_millis(300),
+        request: Duration::from_millis(500),
+        max_connections,
+    }
+}
+
+/// Reads until the server closes the connection (or 20 s pass): what it sent.
+async fn until_closed(stream: &mut tokio::net::TcpStream) -> String {
+    use tokio::io::AsyncReadExt;
+    let mut reply = Vec::new();
+    let read = tokio::time::timeout(Duration::from_secs(20), stream.read_to_end(&mut reply));
+    match read.await {
+        Ok(Ok(_)) => {}
+        Ok(Err(error)) if error.kind() == std::io::ErrorKind::ConnectionReset => {}
+        Ok(Err(error)) => panic!("{error}"),
+        Err(_) => panic!("the server kept the connection open for 20 s"),
+    }
+    String::from_utf8_lossy(&reply).into_owned()
+}
+
+/// One request on a new connection; the reply's text.
+async fn over_socket(address: SocketAddr, request: &str) -> String {
+    use tokio::io::AsyncWriteExt;
+    let mut stream = tokio::net::TcpStream::connect(address).await.unwrap();
+    stream.write_all(request.as_bytes()).await.unwrap();
+    until_closed(&mut stream).await
+}
+
+fn status_request(address: SocketAddr) -> String {
+    format!("GET /api/status HTTP/1.1\r\nHost: {address}\r\nConnection: close\r\n\r\n")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn silent_http_connections_are_closed_after_the_header_timeout() {
+    use tokio::io::AsyncWriteExt;
+    let running = start(TWO);
+    let config = HttpConfig::new("127.0.0.1:0".parse().unwrap());
+    let server = optobus_console::serve_with_limits(&running, &config, short(16))
+        .await
+        .unwrap();
+    let address = server.address();
+    // Says nothing.
+    let mut silent = tokio::net::TcpStream::connect(address).await.unwrap();
+    assert_eq!(until_closed(&mut silent).await, "");
+    // Half a head, never finished.
+    let mut half = tokio::net::TcpStream::connect(address).await.unwrap();
+    half.write_all(format!("GET /api/status HTTP/1.1\r\nHost: {address}\r\n").as_bytes())
+        .await
+        .unwrap();
+    assert_eq!(until_closed(&mut half).await, "");
+    // A kept-alive connection, idle after its answer.
+    let mut idle = tokio::net::TcpStream::connect(address).await.unwrap();
+    idle.write_all(format!("GET /api/status HTTP/1.1\r\nHost: {address}\r\n\r\n").as_bytes())
+        .await
+        .unwrap();
+    assert!(until_closed(&mut idle).await.starts_with("HTTP/1.1 200"));
+    let counts = server.connections();
+    assert_eq!(counts.header_timeouts, 2, "{counts:?}");
+    assert_eq!(counts.idle_closed, 1, "{counts:?}");
+    // The live stream is long-lived: it outlasts the request timeout.
+    let mut stream = tokio::net::TcpStream::connect(address).await.unwrap();
+    stream
+        .write_all(format!("GET /api/stream HTTP/1.1\r\nHost: {address}\r\n\r\n").as_bytes())
+        .await
+        .unwrap();
+    let mut seen = Vec::new();
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(3);
+    while tokio::time::Instant::now() < deadline {
+        use tokio::io::AsyncReadExt;
+        let mut buffer = [0; 4096];
+        match tokio::time::timeout_at(deadline, stream.read(&mut buffer)).await {
+            Ok(Ok(0)) => panic!("the stream was closed"),
+            Ok(Ok(n)) => seen.extend_from_slice(&buffer[..n]),
+            Ok(Err(error)) => panic!("{error}"),
+            Err(_) => break,
+        }
+    }
+    let seen = String::from_utf8_lossy(&seen);
+    assert!(seen.starts_with("HTTP/1.1 200"), "{seen}");
+    assert!(seen.matches("data: {").count() >= 3, "{seen}");
+    let status = over_socket(address, &status_request(address)).await;
+    let body: Value = serde_json::from_str(status.split_once("\r\n\r\n").unwrap().1).unwrap();
+    assert_eq!(body["connections"]["header_timeouts"], 2, "{body}");
+    assert_eq!(body["connections"]["request_timeouts"], 0, "{body}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_request_not_answered_in_time_is_answered_408() {
+    let running = start(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 3s }
+",
+    );
+    running.simulator("head").unwrap().set_silent(true);
+    let config = HttpConfig::new("127.0.0.1:0".parse().unwrap());
+    let server = optobus_console::serve_with_limits(&running, &config, short(16))
+        .await
+        .unwrap();
+    let address = server.address();
+    let body = r#"{"register": "light_power"}"#;
+    let reply = over_socket(
+        address,
+        &format!(
+            "POST /api/devices/head/read HTTP/1.1\r\nHost: {address}\r\ncontent-type: application/json\r\ncontent-length: {}\r\n\r\n{body}",
+            body.len()
+        ),
+    )
+    .await;
+    assert!(reply.starts_with("HTTP/1.1 408"), "{reply}");
+    assert!(
+        reply.ends_with(r#"{"error": "the request was not answered within 0.5 s"}"#),
+        "{reply}"
+    );
+    assert_eq!(server.connections().request_timeouts, 1);
+}
+
+/// The descriptors this process has open.
+fn descriptors() -> usize {
+    std::fs::read_dir("/proc/self/fd").map_or(0, |dir| dir.count())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn http_connections_beyond_the_cap_do_not_exhaust_descriptors() {
+    let running = start(TWO);
+    let config = HttpConfig::new("127.0.0.1:0".parse().unwrap());
+    let mut limits = short(4);
+    limits.header_read = Duration::from_secs(60);
+    let server = optobus_console::serve_with_limits(&running, &config, limits)
+        .await
+        .unwrap();
+    let address = server.address();
+    let before = descriptors();
+    let mut silent = Vec::new();
+    for _ in 0..40 {
+        silent.push(tokio::net::TcpStream::connect(address).await.unwrap());
+    }
+    for _ in 0..1000 {
+        let counts = server.connections();
+        if counts.accepted + counts.refused == 40 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let counts = server.connections();
+    // 40 client sockets of the test, 4 on the server's side: the refused are closed.
+    let held = descriptors() - before;
+    assert!(held <= 40 + 4 + 4, "{held} descriptors for 40 connections");
+    assert_eq!((counts.open, counts.refused), (4, 36), "{counts:?}");
+    let refused = until_closed(silent.last_mut().unwrap()).await;
+    assert!(refused.starts_with("HTTP/1.1 503"), "{refused}");
+    assert!(refused.contains("retry-after: 1"), "{refused}");
+    drop(silent);
+    // Once they are gone, a client is served again.
+    for _ in 0..1000 {
+        if server.connections().open == 0 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let status = over_socket(address, &status_request(address)).await;
+    assert!(status.starts_with("HTTP/1.1 200"), "{status}");
 }

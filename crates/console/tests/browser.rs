@@ -208,6 +208,52 @@ async fn an_out_of_range_edit_shows_the_refusal_and_changes_nothing(
     assert_eq!(head.peek(Table::Holding, power.address), Some(vec![125]));
 }
 
+/// The page reads a register now with a POST (a line read is no simple cross-site request).
+async fn a_register_is_read_with_a_post(client: &Client) {
+    let row = "tr[data-register='light_power']";
+    client
+        .find(Locator::Css(&format!("{row} button[data-action='read']")))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    let read = until_text(client, &format!("{row} td.num"), |t| !t.is_empty()).await;
+    assert_eq!(read, "12.5 %");
+}
+
+/// The class of the element at `css`.
+async fn class_of(client: &Client, css: &str) -> String {
+    let element = client.wait().for_element(Locator::Css(css)).await.unwrap();
+    element.attr("class").await.unwrap().unwrap_or_default()
+}
+
+/// Point 7 of issue 28: a down device's last values stay on screen marked as not current,
+/// until it answers again.
+async fn a_down_devices_values_are_marked_not_current(client: &Client, running: &Running) {
+    let value = "[data-value='head/distance_1']";
+    assert!(!class_of(client, value).await.contains("stale"));
+    let head = running.simulator("head").unwrap();
+    head.set_silent(true);
+    until_text(client, "article[data-device='head'] .health", |t| {
+        t == "offline"
+    })
+    .await;
+    let class = class_of(client, value).await;
+    assert!(class.contains("stale"), "{class}");
+    // Another device's values are current still.
+    let other = class_of(client, "[data-value='confocal/distance_1']").await;
+    assert!(!other.contains("stale"), "{other}");
+    head.set_silent(false);
+    for _ in 0..100 {
+        if !class_of(client, value).await.contains("stale") {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    panic!("the head's values never became current again");
+}
+
 /// Whether the head's frames hold a write of the command register of `command`.
 fn wrote_command(running: &Running, command: &str) -> bool {
     let info = optobus_p_series::DEVICE
@@ -318,6 +364,7 @@ async fn the_page_in_a_real_browser() {
     let errors = console_errors(&client).await;
     assert!(errors.is_empty(), "the page logged errors: {errors:?}");
     an_out_of_range_edit_shows_the_refusal_and_changes_nothing(&client, &running).await;
+    a_register_is_read_with_a_post(&client).await;
     a_drastic_command_asks_before_it_acts(&client, &running).await;
     a_screenshot_is_written(&client).await;
     // Chromium logs the refused edit's 422 as a failed resource: that one is expected.
@@ -332,6 +379,7 @@ async fn the_page_in_a_real_browser() {
         })
         .collect();
     assert!(errors.is_empty(), "the page logged errors: {errors:?}");
+    a_down_devices_values_are_marked_not_current(&client, &running).await;
     // Last, as the browser logs the refused connections while the server is away.
     let server = the_stream_reconnects_after_the_server_restarts(&client, server, &running).await;
     client.close().await.unwrap();

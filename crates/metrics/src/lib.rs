@@ -38,7 +38,7 @@ mod sources;
 
 pub use exposition::{prometheus_text, OPENMETRICS_TYPE, PROMETHEUS_TEXT_TYPE};
 pub use metrics::Metrics;
-pub use serve::{serve, Exporter};
+pub use serve::{serve, Exporter, LIMITS};
 pub use sources::{Reading, ReadingValue, Source, SourceError};
 
 pub use optobus_bus::Event;

@@ -1,7 +1,8 @@
 //! The registry and how each bus event changes it.
 
+use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::AtomicU64;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::UNIX_EPOCH;
 
 use optobus_bus::{BusFile, DeviceId, ErrorCounts, Event, Health, LineStats, Sample};
@@ -82,6 +83,9 @@ pub struct Metrics {
     names: Vec<&'static str>,
     /// Series of other outputs, read at every scrape.
     sources: Arc<Sources>,
+    /// The `register` labels of each device's reading series, to remove them all when the
+    /// device goes down.
+    shown: Mutex<HashMap<String, BTreeSet<String>>>,
 }
 
 impl Metrics {
@@ -164,6 +168,7 @@ impl Metrics {
             ),
             names,
             registry,
+            shown: Mutex::default(),
         };
         for device in &file.devices {
             let line = &file.lines[device.line].name;
@@ -184,10 +189,13 @@ impl Metrics {
         match event {
             Event::Sample(sample) => self.sample(sample),
             Event::Health(health) => {
-                let up = i64::from(health.health == Health::Online);
+                let up = health.health == Health::Online;
                 self.up
                     .get_or_create(&device_labels(&health.source))
-                    .set(up);
+                    .set(i64::from(up));
+                if !up {
+                    self.take_down(&health.source);
+                }
             }
             Event::Line(stats) => self.line(stats),
         }
@@ -218,6 +226,32 @@ impl Metrics {
         }
     }
 
+    /// Removes every reading series of a device that went down: a last value is not shown as
+    /// a current one while `optobus_device_up` is 0. Its next sample brings them back.
+    fn take_down(&self, source: &DeviceId) {
+        let shown = self
+            .shown
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(&*source.device)
+            .unwrap_or_default();
+        for register in shown {
+            self.remove(&ReadingLabels {
+                device: source.device.to_string(),
+                register,
+                model: source.model.to_string(),
+            });
+        }
+    }
+
+    /// Removes the series `labels` from every reading family.
+    fn remove(&self, labels: &ReadingLabels) {
+        for family in self.readings.iter().chain([&self.plain]) {
+            family.remove(labels);
+        }
+        self.codes.remove(labels);
+    }
+
     /// Sets the series of `register` of `source` to `value` (fields as `register.field`); an
     /// invalid reading removes its series, so that no stale number stands for it.
     fn set(&self, source: &DeviceId, register: &str, value: &Value) {
@@ -226,6 +260,13 @@ impl Metrics {
             register: register.to_owned(),
             model: source.model.to_string(),
         };
+        if !matches!(value, Value::Fields(_) | Value::Ipv4(_) | Value::Version(_)) {
+            let mut shown = self.shown.lock().unwrap_or_else(|e| e.into_inner());
+            let registers = shown.entry(source.device.to_string()).or_default();
+            if !registers.contains(register) {
+                registers.insert(register.to_owned());
+            }
+        }
         match value {
             Value::Quantity(number, unit) => {
                 let converted = unit.and_then(|unit| in_base_unit(*number, unit));
@@ -257,13 +298,7 @@ impl Metrics {
                     self.set(source, &format!("{register}.{name}"), value);
                 }
             }
-            Value::Invalid => {
-                let labels = labels();
-                for family in self.readings.iter().chain([&self.plain]) {
-                    family.remove(&labels);
-                }
-                self.codes.remove(&labels);
-            }
+            Value::Invalid => self.remove(&labels()),
             // Addresses and versions are settings, not readings.
             Value::Ipv4(_) | Value::Version(_) => {}
         }

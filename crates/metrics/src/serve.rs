@@ -9,21 +9,34 @@ use axum::response::IntoResponse;
 use axum::routing::get;
 use axum::Router;
 use optobus_bus::{BusFile, Event, MetricsConfig};
+use optobus_http::Limits;
 use tokio::net::TcpListener;
 use tokio::sync::broadcast::{self, error::RecvError};
 use tokio::task::JoinHandle;
 
 use crate::exposition::{OPENMETRICS_TYPE, PROMETHEUS_TEXT_TYPE};
-use crate::Metrics;
+use crate::{Metrics, Reading};
 
-/// Answers `GET /metrics` on `listener` with `metrics` until the task is dropped: OpenMetrics
-/// to a scraper that asks for it (`Accept: application/openmetrics-text`), the Prometheus text
-/// format otherwise.
-pub async fn serve(listener: TcpListener, metrics: Arc<Metrics>) -> std::io::Result<()> {
-    let router = Router::new()
+/// The limits of the `/metrics` listener: those of every listener ([`Limits::DEFAULT`]: a
+/// silent socket or a half-sent head closed within 10 s, an idle connection after 15 s, an answer
+/// within 20 s) with at most 32 connections, which a few scrapers never reach.
+pub const LIMITS: Limits = Limits {
+    max_connections: 32,
+    ..Limits::DEFAULT
+};
+
+fn router(metrics: Arc<Metrics>) -> Router {
+    Router::new()
         .route("/metrics", get(scrape))
-        .with_state(metrics);
-    axum::serve(listener, router).await
+        .with_state(metrics)
+}
+
+/// Answers `GET /metrics` on `listener` with `metrics`, with the listener's [`LIMITS`], until
+/// the task is dropped: OpenMetrics to a scraper that asks for it (`Accept:
+/// application/openmetrics-text`), the Prometheus text format otherwise.
+pub async fn serve(listener: TcpListener, metrics: Arc<Metrics>) -> std::io::Result<()> {
+    optobus_http::serve(listener, router(metrics), LIMITS).await;
+    Ok(())
 }
 
 async fn scrape(State(metrics): State<Arc<Metrics>>, headers: HeaderMap) -> impl IntoResponse {
@@ -49,9 +62,9 @@ async fn scrape(State(metrics): State<Arc<Metrics>>, headers: HeaderMap) -> impl
 /// it stops both.
 #[derive(Debug)]
 pub struct Exporter {
-    address: SocketAddr,
     metrics: Arc<Metrics>,
-    tasks: [JoinHandle<()>; 2],
+    follow: JoinHandle<()>,
+    server: optobus_http::Server,
 }
 
 impl Exporter {
@@ -62,28 +75,62 @@ impl Exporter {
         file: &BusFile,
         events: broadcast::Receiver<Event>,
     ) -> std::io::Result<Self> {
+        Self::start_with_limits(config, file, events, LIMITS).await
+    }
+
+    /// As [`Exporter::start`], with `limits` for the listener. Its connections are series of
+    /// the metrics too: `optobus_metrics_http_connections` open now, and the counters
+    /// `optobus_metrics_http_connections_refused_total` (beyond the cap) and
+    /// `optobus_metrics_http_connections_timed_out_total` (closed at a header, idle or
+    /// request timeout).
+    pub async fn start_with_limits(
+        config: &MetricsConfig,
+        file: &BusFile,
+        events: broadcast::Receiver<Event>,
+        limits: Limits,
+    ) -> std::io::Result<Self> {
         let listener = TcpListener::bind(config.listen).await?;
-        let address = listener.local_addr()?;
         let metrics = Arc::new(Metrics::new(file));
-        let follow = tokio::spawn(follow(events, Arc::clone(&metrics)));
-        let server = {
-            let metrics = Arc::clone(&metrics);
-            tokio::spawn(async move {
-                if let Err(error) = serve(listener, metrics).await {
-                    tracing::error!(%error, "/metrics stopped");
-                }
+        let server = optobus_http::Server::start(listener, router(Arc::clone(&metrics)), limits)?;
+        let tally = server.tally();
+        metrics
+            .add_source(move || {
+                let counts = tally.counts();
+                vec![
+                    Reading::gauge(
+                        "optobus_metrics_http_connections",
+                        "Connections open to /metrics.",
+                        i64::try_from(counts.open).unwrap_or(i64::MAX),
+                    ),
+                    Reading::counter(
+                        "optobus_metrics_http_connections_refused",
+                        "Connections to /metrics refused beyond its cap.",
+                        counts.refused,
+                    ),
+                    Reading::counter(
+                        "optobus_metrics_http_connections_timed_out",
+                        "Connections to /metrics closed at a header, idle or request timeout.",
+                        counts.header_timeouts + counts.idle_closed + counts.request_timeouts,
+                    ),
+                ]
             })
-        };
+            .map_err(|error| std::io::Error::other(error.to_string()))?;
+        let follow = tokio::spawn(follow(events, Arc::clone(&metrics)));
         Ok(Self {
-            address,
             metrics,
-            tasks: [follow, server],
+            follow,
+            server,
         })
     }
 
     /// Where `/metrics` is served.
     pub fn address(&self) -> SocketAddr {
-        self.address
+        self.server.address()
+    }
+
+    /// What the listener did with its connections so far.
+    pub fn connections(&self) -> optobus_http::Counts {
+        self.server.counts()
     }
 
     /// The metrics it serves.
@@ -94,9 +141,7 @@ impl Exporter {
 
 impl Drop for Exporter {
     fn drop(&mut self) {
-        for task in &self.tasks {
-            task.abort();
-        }
+        self.follow.abort();
     }
 }
 

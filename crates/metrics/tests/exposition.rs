@@ -411,3 +411,187 @@ async fn the_exporter_counts_the_bus_events_it_missed_exactly() {
         "{sent} events sent, {capacity} kept\n{text}"
     );
 }
+
+/// Point 7 of issue 28: while a device is down its readings are not exported (Home Assistant
+/// or Grafana would show the last values as current); its next sample brings them back.
+#[test]
+fn a_down_device_has_no_current_reading_on_metrics() {
+    use std::sync::Arc;
+    use std::time::SystemTime;
+
+    use optobus_bus::{DeviceId, ErrorCounts, Health, HealthEvent, Sample};
+    use optobus_codec::value::{Fixed, Scale};
+
+    let metrics = Metrics::new(&file());
+    let model = optobus_p_series::DEVICE.model_name().to_string();
+    let top = Arc::new(DeviceId {
+        device: "top".into(),
+        model: model.as_str().into(),
+        line: "rs485".into(),
+        slave: 1,
+    });
+    let sample = |register: &str, value: Value| {
+        Event::Sample(Arc::new(Sample {
+            source: Arc::clone(&top),
+            register: optobus_p_series::DEVICE.register(register).unwrap(),
+            value,
+            requested: SystemTime::now(),
+            replied: SystemTime::now(),
+        }))
+    };
+    let distance = Value::Quantity(Fixed::new(49_692, Scale::ONE), Some("um"));
+    metrics.observe(&sample("distance_1", distance.clone()));
+    metrics.observe(&sample("laser_enabled", Value::Bool(true)));
+    let reading = format!("device=\"top\",register=\"distance_1\",model=\"{model}\"");
+    let flag = format!("device=\"top\",register=\"laser_enabled\",model=\"{model}\"");
+    let up = format!("device=\"top\",model=\"{model}\",line=\"rs485\"");
+    let text = metrics.prometheus();
+    assert_eq!(
+        series(&text, "optobus_reading_meters", &reading),
+        Some(0.049692)
+    );
+    assert_eq!(series(&text, "optobus_reading", &flag), Some(1.0));
+    assert_eq!(series(&text, "optobus_device_up", &up), Some(1.0));
+
+    metrics.observe(&Event::Health(Arc::new(HealthEvent {
+        source: Arc::clone(&top),
+        health: Health::Offline,
+        errors: ErrorCounts::default(),
+        reason: Some("the line's port is closed".into()),
+    })));
+    let text = metrics.prometheus();
+    assert_eq!(series(&text, "optobus_device_up", &up), Some(0.0));
+    assert_eq!(
+        series(&text, "optobus_reading_meters", &reading),
+        None,
+        "{text}"
+    );
+    assert_eq!(series(&text, "optobus_reading", &flag), None, "{text}");
+    assert!(!text.contains("device=\"top\",register="), "{text}");
+    assert!(
+        series(&text, "optobus_device_last_sample_timestamp_seconds", &up).is_some(),
+        "when it last answered is still known"
+    );
+    assert_promtool_accepts(&text);
+
+    metrics.observe(&sample("distance_1", distance));
+    let text = metrics.prometheus();
+    assert_eq!(series(&text, "optobus_device_up", &up), Some(1.0));
+    assert_eq!(
+        series(&text, "optobus_reading_meters", &reading),
+        Some(0.049692)
+    );
+    assert_eq!(
+        series(&text, "optobus_reading", &flag),
+        None,
+        "only what was sampled again"
+    );
+}
+
+/// Short limits, so that the tests wait little.
+fn short(max_connections: usize) -> optobus_http::Limits {
+    optobus_http::Limits {
+        header_read: Duration::from_millis(300),
+        idle: Duration::from_millis(300),
+        request: Duration::from_millis(500),
+        max_connections,
+    }
+}
+
+/// Reads until the server closes the connection (or 20 s pass): what it sent.
+async fn until_closed(stream: &mut tokio::net::TcpStream) -> String {
+    let mut reply = Vec::new();
+    let read = tokio::time::timeout(Duration::from_secs(20), stream.read_to_end(&mut reply));
+    match read.await {
+        Ok(Ok(_)) => {}
+        Ok(Err(error)) if error.kind() == std::io::ErrorKind::ConnectionReset => {}
+        Ok(Err(error)) => panic!("{error}"),
+        Err(_) => panic!("the server kept the connection open for 20 s"),
+    }
+    String::from_utf8_lossy(&reply).into_owned()
+}
+
+/// Point 4 of issue 28: `/metrics` closes a connection that says nothing, or half a request,
+/// after its header timeout, and counts it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn silent_http_connections_are_closed_after_the_header_timeout() {
+    let file = file();
+    let config = file.outputs.metrics.clone().expect("metrics are on");
+    let bus = Bus::new(file.clone());
+    let exporter = Exporter::start_with_limits(&config, &file, bus.subscribe(), short(8))
+        .await
+        .expect("listens");
+    let address = exporter.address();
+    let mut silent = tokio::net::TcpStream::connect(address).await.unwrap();
+    assert_eq!(until_closed(&mut silent).await, "");
+    let mut half = tokio::net::TcpStream::connect(address).await.unwrap();
+    half.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n")
+        .await
+        .unwrap();
+    assert_eq!(until_closed(&mut half).await, "");
+    assert_eq!(exporter.connections().header_timeouts, 2);
+    let (head, text) = scrape(address, "text/plain").await;
+    assert!(head.starts_with("HTTP/1.1 200"), "{head}");
+    assert_eq!(
+        series(
+            &text,
+            "optobus_metrics_http_connections_timed_out_total",
+            ""
+        ),
+        Some(2.0),
+        "{text}"
+    );
+    assert_promtool_accepts(&text);
+}
+
+/// The descriptors this process has open.
+fn descriptors() -> usize {
+    std::fs::read_dir("/proc/self/fd").map_or(0, |dir| dir.count())
+}
+
+/// Point 4 of issue 28: beyond its cap `/metrics` answers 503 and closes at once, so a flood of
+/// silent sockets holds no more descriptors than the cap.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn http_connections_beyond_the_cap_do_not_exhaust_descriptors() {
+    let file = file();
+    let config = file.outputs.metrics.clone().expect("metrics are on");
+    let bus = Bus::new(file.clone());
+    let mut limits = short(4);
+    limits.header_read = Duration::from_secs(60);
+    let exporter = Exporter::start_with_limits(&config, &file, bus.subscribe(), limits)
+        .await
+        .expect("listens");
+    let address = exporter.address();
+    let before = descriptors();
+    let mut silent = Vec::new();
+    for _ in 0..40 {
+        silent.push(tokio::net::TcpStream::connect(address).await.unwrap());
+    }
+    for _ in 0..1000 {
+        let counts = exporter.connections();
+        if counts.accepted + counts.refused == 40 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let counts = exporter.connections();
+    let held = descriptors() - before;
+    assert!(held <= 40 + 4 + 4, "{held} descriptors for 40 connections");
+    assert_eq!((counts.open, counts.refused), (4, 36), "{counts:?}");
+    let refused = until_closed(silent.last_mut().unwrap()).await;
+    assert!(refused.starts_with("HTTP/1.1 503"), "{refused}");
+    drop(silent);
+    for _ in 0..1000 {
+        if exporter.connections().open == 0 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let (head, text) = scrape(address, "text/plain").await;
+    assert!(head.starts_with("HTTP/1.1 200"), "{head}");
+    assert_eq!(
+        series(&text, "optobus_metrics_http_connections_refused_total", ""),
+        Some(36.0),
+        "{text}"
+    );
+}
