@@ -46,8 +46,9 @@ impl Sink<String> for Stderr {
 }
 
 /// The outlet of stderr, started with the first line.
+static STDERR: OnceLock<Outlet<String, Stderr>> = OnceLock::new();
+
 fn outlet() -> &'static Outlet<String, Stderr> {
-    static STDERR: OnceLock<Outlet<String, Stderr>> = OnceLock::new();
     STDERR.get_or_init(|| Outlet::start("optobus-stderr", CAPACITY, Stderr::default()))
 }
 
@@ -59,7 +60,9 @@ pub(crate) fn stderr(args: fmt::Arguments<'_>) {
 /// Waits, at most `within`, until what was said so far is on stderr (before the process
 /// ends; stderr may be a pipe nobody reads).
 pub(crate) fn flush(within: Duration) {
-    outlet().flush(within);
+    if let Some(outlet) = STDERR.get() {
+        outlet.flush(within);
+    }
 }
 
 /// `eprintln!` that never panics and never waits: a line for stderr, written by a thread of
