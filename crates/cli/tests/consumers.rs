@@ -1,6 +1,6 @@
 //! `optobus run`'s own consumers of the bus (stdout, `--record`, its notes on stderr) follow it
 //! without ever holding up the runtime: a stdout nobody reads costs its own oldest lines, and
-//! the gateway, /metrics and the schedule go on.
+//! the gateway, /metrics, the console and the schedule go on.
 
 mod common;
 
@@ -119,13 +119,13 @@ fn read_settings(stream: &mut TcpStream, transaction: u16) -> Result<Vec<u8>, St
     Ok(reply[2..].to_vec())
 }
 
-/// A GET of `/metrics` at `address`: the status line and the body.
-fn scrape(address: &str) -> Result<String, String> {
+/// A GET of `path` at `address`: the whole reply.
+fn get(address: &str, path: &str) -> Result<String, String> {
     let mut stream = TcpStream::connect(address).map_err(|e| format!("connect: {e}"))?;
     stream.set_read_timeout(Some(REPLY_WITHIN)).unwrap();
     write!(
         stream,
-        "GET /metrics HTTP/1.1\r\nHost: {address}\r\nConnection: close\r\n\r\n"
+        "GET {path} HTTP/1.1\r\nHost: {address}\r\nConnection: close\r\n\r\n"
     )
     .map_err(|e| format!("send: {e}"))?;
     let mut reply = String::new();
@@ -140,12 +140,23 @@ fn a_stalled_stdout_freezes_nothing() {
     let mut demo = Demo::start(&[
         "--prometheus",
         "127.0.0.1:0",
+        "--http",
+        "127.0.0.1:0",
         "--json",
         "--duration",
         "120s",
     ]);
     let (gateway, metrics) = demo.addresses();
     let metrics = metrics.expect("the metrics address on stderr");
+    let console = demo
+        .said("optobus: the console is on http://", PATIENCE)
+        .unwrap_or_else(|heard| panic!("no console address on stderr: {heard}"));
+    let console = console
+        .split("http://")
+        .nth(1)
+        .and_then(|rest| rest.split('/').next())
+        .expect("an address")
+        .to_owned();
     // The P series' settings, as the gateway reads them before stdout is full: well formed,
     // light power (holding 2) in its range 5 ..= 1000.
     let mut client = TcpStream::connect(&gateway).expect("the gateway listens");
@@ -187,8 +198,8 @@ fn a_stalled_stdout_freezes_nothing() {
             .and_then(|n| n.parse().ok())
             .unwrap_or_else(|| panic!("no optobus_line_transactions in {reply}"))
     };
-    let scraped =
-        scrape(&metrics).unwrap_or_else(|why| panic!("/metrics while stdout is full: {why}"));
+    let scraped = get(&metrics, "/metrics")
+        .unwrap_or_else(|why| panic!("/metrics while stdout is full: {why}"));
     assert!(scraped.starts_with("HTTP/1.1 200"), "{scraped}");
     assert!(
         scraped.contains("optobus_device_up{device=\"head\","),
@@ -197,8 +208,8 @@ fn a_stalled_stdout_freezes_nothing() {
     let first = transactions(&scraped);
     let started = Instant::now();
     loop {
-        let now =
-            scrape(&metrics).unwrap_or_else(|why| panic!("/metrics while stdout is full: {why}"));
+        let now = get(&metrics, "/metrics")
+            .unwrap_or_else(|why| panic!("/metrics while stdout is full: {why}"));
         if transactions(&now) > first {
             break;
         }
@@ -208,6 +219,10 @@ fn a_stalled_stdout_freezes_nothing() {
         );
         std::thread::sleep(Duration::from_millis(200));
     }
+    // So does the console.
+    let status = get(&console, "/api/status")
+        .unwrap_or_else(|why| panic!("/api/status while stdout is full: {why}"));
+    assert!(status.starts_with("HTTP/1.1 200"), "{status}");
     // The run says, once, that stdout is dropping its oldest lines.
     demo.said(
         "optobus: stdout is not being read: dropping its oldest lines",
