@@ -74,9 +74,9 @@ fn lock<G>(mutex: &Mutex<G>) -> MutexGuard<'_, G> {
 }
 
 impl<T: Send + 'static, S: Sink<T>> Outlet<T, S> {
-    /// Starts a thread called `name` that writes to `sink`, holding back at most `capacity`
-    /// items (at least 1). If no thread can be started, items are written on the caller's
-    /// thread instead, as without an outlet.
+    /// Starts a thread called `name` that writes to `sink`, queueing at most `capacity` items
+    /// (at least 1) besides the batch being written. If no thread can be started, items are
+    /// written on the caller's thread instead, as without an outlet.
     pub(crate) fn start(name: &str, capacity: usize, sink: S) -> Self {
         let shared = Arc::new(Shared {
             state: Mutex::new(State {
