@@ -1,28 +1,72 @@
-//! Writing to stderr without panicking, and the simulator's exchange log, which never blocks
-//! the runtime.
+//! Writing to stderr without panicking and without ever blocking the runtime.
 //!
 //! `eprintln!` panics when stderr is closed, and any write to stderr blocks while nobody reads
-//! a full pipe. Messages of the tool go through [`note!`] (errors ignored). The simulator logs
-//! every exchange from inside its connection tasks, so those lines go to a [`Log`]: a bounded
-//! channel to a writer thread of its own; when the channel is full, lines are dropped and
-//! counted, and the writer says how many as soon as it can.
+//! a full pipe: on `optobus run`'s runtime that would freeze the gateway and every output.
+//! Every message of the tool ([`note!`]), every exchange the simulator logs and every
+//! `--verbose` line goes to one [`Outlet`]: a writer thread of its own, fed through a bounded
+//! queue. When stderr does not keep up, the oldest lines are dropped and counted, and the
+//! writer says how many before the next line that gets through.
 //!
-//! `--verbose` installs a `tracing` subscriber on stderr ([`show_frames`]): the transport's
-//! frame events and the driver's register events, one line each with the local time.
+//! `--verbose` installs a `tracing` subscriber ([`show_frames`]): the transport's frame events
+//! and the driver's register events, one line each with the local time.
 
 use std::fmt;
 use std::io::Write;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
-use std::sync::Arc;
+use std::sync::OnceLock;
 use std::time::Duration;
 
-/// Writes `args` to stderr, ignoring errors: a closed or broken stderr is no reason to stop.
-pub(crate) fn stderr(args: fmt::Arguments<'_>) {
-    let _ = std::io::stderr().lock().write_fmt(args);
+use crate::outlet::{Outlet, Sink};
+
+/// Lines stderr's writer may hold back; beyond, the oldest are dropped.
+const CAPACITY: usize = 1024;
+
+/// Writes the lines of the tool to stderr, each batch at once; write errors ignored (a closed
+/// or broken stderr is no reason to stop).
+#[derive(Default)]
+struct Stderr {
+    /// Dropped lines already told about.
+    told: u64,
 }
 
-/// `eprintln!` that never panics: a line on stderr, write errors ignored.
+impl Sink<String> for Stderr {
+    fn write(&mut self, lines: Vec<String>, dropped: u64) {
+        let mut text = String::new();
+        if dropped > self.told {
+            text += &format!(
+                "optobus: stderr is not being read: {} of its oldest lines dropped\n",
+                dropped - self.told
+            );
+            self.told = dropped;
+        }
+        text.extend(lines);
+        let mut out = std::io::stderr().lock();
+        let _ = out.write_all(text.as_bytes());
+        let _ = out.flush();
+    }
+}
+
+/// The outlet of stderr, started with the first line.
+static STDERR: OnceLock<Outlet<String, Stderr>> = OnceLock::new();
+
+fn outlet() -> &'static Outlet<String, Stderr> {
+    STDERR.get_or_init(|| Outlet::start("optobus-stderr", CAPACITY, Stderr::default()))
+}
+
+/// Hands `args` to stderr's writer; never waits.
+pub(crate) fn stderr(args: fmt::Arguments<'_>) {
+    outlet().push(args.to_string());
+}
+
+/// Waits, at most `within`, until what was said so far is on stderr (before the process
+/// ends; stderr may be a pipe nobody reads).
+pub(crate) fn flush(within: Duration) {
+    if let Some(outlet) = STDERR.get() {
+        outlet.flush(within);
+    }
+}
+
+/// `eprintln!` that never panics and never waits: a line for stderr, written by a thread of
+/// its own.
 macro_rules! note {
     () => {
         $crate::log::stderr(format_args!("\n"))
@@ -32,6 +76,29 @@ macro_rules! note {
     };
 }
 pub(crate) use note;
+
+/// A `--verbose` line being formatted, handed to stderr's writer whole when done.
+#[derive(Default)]
+struct TracedLine(Vec<u8>);
+
+impl Write for TracedLine {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        self.0.extend_from_slice(bytes);
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Drop for TracedLine {
+    fn drop(&mut self) {
+        if !self.0.is_empty() {
+            outlet().push(String::from_utf8_lossy(&self.0).into_owned());
+        }
+    }
+}
 
 /// `--verbose`: every frame the transport sends and receives (TRACE, `optobus_transport`) and
 /// every register the driver reads or writes (DEBUG, `optobus_driver`), on stderr, as
@@ -51,7 +118,7 @@ pub(crate) fn show_frames() {
     let lines = tracing_subscriber::fmt::layer()
         .event_format(EventLine)
         .log_internal_errors(false)
-        .with_writer(std::io::stderr);
+        .with_writer(TracedLine::default);
     let subscriber = tracing_subscriber::registry().with(lines).with(targets);
     // Only fails if a subscriber is already installed, which then shows the events.
     let _ = tracing::subscriber::set_global_default(subscriber);
@@ -104,114 +171,5 @@ where
             write!(writer, " ({}.{:03} ms)", us / 1000, us % 1000)?;
         }
         writeln!(writer)
-    }
-}
-
-/// Lines the writer thread may hold back before new ones are dropped.
-const CAPACITY: usize = 1024;
-
-enum Message {
-    Line(String),
-    /// Say how many lines were dropped, then stop.
-    Finish(mpsc::Sender<()>),
-}
-
-/// A log whose lines a thread of its own writes to stderr.
-#[derive(Clone)]
-pub(crate) struct Log {
-    sender: SyncSender<Message>,
-    dropped: Arc<AtomicU64>,
-}
-
-impl fmt::Debug for Log {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("Log")
-            .field("dropped", &self.dropped.load(Ordering::Relaxed))
-            .finish()
-    }
-}
-
-impl Log {
-    /// Starts the writer thread. If no thread can be started, lines are dropped and counted.
-    pub(crate) fn start() -> Self {
-        let (sender, receiver) = mpsc::sync_channel(CAPACITY);
-        let dropped = Arc::new(AtomicU64::new(0));
-        let count = Arc::clone(&dropped);
-        let _ = std::thread::Builder::new()
-            .name("optobus-log".into())
-            .spawn(move || write_lines(&receiver, &count));
-        Self { sender, dropped }
-    }
-
-    /// Hands `line` to the writer; never waits. A line that does not fit is dropped and
-    /// counted.
-    pub(crate) fn line(&self, line: impl Into<String>) {
-        let mut line = line.into();
-        line.push('\n');
-        match self.sender.try_send(Message::Line(line)) {
-            Ok(()) => {}
-            Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) => {
-                self.dropped.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-    }
-
-    /// Lines dropped so far.
-    #[cfg_attr(not(test), allow(dead_code))]
-    pub(crate) fn dropped(&self) -> u64 {
-        self.dropped.load(Ordering::Relaxed)
-    }
-
-    /// Lets the writer say how many lines were dropped, waiting for it at most `within` (it
-    /// may be stuck on a stderr nobody reads).
-    pub(crate) fn finish(&self, within: Duration) {
-        let (done, finished) = mpsc::channel();
-        if self.sender.try_send(Message::Finish(done)).is_ok() {
-            let _ = finished.recv_timeout(within);
-        }
-    }
-}
-
-/// The writer thread: every line in order, a note of dropped lines before the next line
-/// that gets through; write errors ignored.
-fn write_lines(receiver: &Receiver<Message>, dropped: &AtomicU64) {
-    let mut reported = 0u64;
-    for message in receiver {
-        let now = dropped.load(Ordering::Relaxed);
-        if now > reported {
-            stderr(format_args!(
-                "optobus: {} log lines dropped: stderr is not keeping up\n",
-                now - reported
-            ));
-            reported = now;
-        }
-        match message {
-            Message::Line(line) => stderr(format_args!("{line}")),
-            Message::Finish(done) => {
-                let _ = done.send(());
-                return;
-            }
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn lines_beyond_the_capacity_are_dropped_and_counted_never_waited_for() {
-        // A channel nobody drains: the writer thread is not started.
-        let (sender, _receiver) = mpsc::sync_channel(CAPACITY);
-        let log = Log {
-            sender,
-            dropped: Arc::new(AtomicU64::new(0)),
-        };
-        for i in 0..CAPACITY + 10 {
-            log.line(format!("line {i}"));
-        }
-        assert_eq!(log.dropped(), 10);
-        // Finishing does not wait for a writer that cannot take the message.
-        log.finish(Duration::from_secs(60));
     }
 }

@@ -13,6 +13,7 @@ mod link;
 mod log;
 mod models;
 mod mqtt_metrics;
+mod outlet;
 mod render;
 
 use std::process::ExitCode;
@@ -34,6 +35,9 @@ struct Cli {
     #[command(subcommand)]
     command: Command,
 }
+
+/// How long the process waits at its end for stderr to take its last notes.
+const STDERR_AT_EXIT: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// Commands that take no model (`frame` names its model with each subcommand): their help does
 /// not show `--model`.
@@ -172,21 +176,23 @@ fn main() -> ExitCode {
             };
         }
     };
-    let runtime = match tokio::runtime::Builder::new_current_thread()
+    let code = match tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
     {
-        Ok(runtime) => runtime,
+        Ok(runtime) => match runtime.block_on(commands::run(cli.options, cli.command)) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(error) => {
+                log::note!("optobus: {error}");
+                error.exit().code()
+            }
+        },
         Err(error) => {
             log::note!("optobus: cannot start: {error}");
-            return Exit::Failed.code();
+            Exit::Failed.code()
         }
     };
-    match runtime.block_on(commands::run(cli.options, cli.command)) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(error) => {
-            log::note!("optobus: {error}");
-            error.exit().code()
-        }
-    }
+    // The last notes, if stderr takes them soon (nobody may be reading it).
+    log::flush(STDERR_AT_EXIT);
+    code
 }

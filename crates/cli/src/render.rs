@@ -65,8 +65,9 @@ pub(crate) fn values_json(values: &[(&'static RegisterInfo, Value)]) -> Json {
 }
 
 /// A progress bar on stderr drawn from `template` (indicatif's), hidden when stderr is not a
-/// terminal.
+/// terminal. The notes said before it are written first (they have a thread of their own).
 pub(crate) fn progress_bar(length: u64, template: &str) -> ProgressBar {
+    crate::log::flush(std::time::Duration::from_secs(1));
     let style = ProgressStyle::with_template(template)
         .unwrap_or_else(|_| ProgressStyle::default_bar())
         .progress_chars("#-");

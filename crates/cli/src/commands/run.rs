@@ -4,22 +4,25 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
+use std::future::Future;
 use std::io::{BufWriter, IsTerminal, Write};
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
 use clap::Args;
 use optobus_bus::{Bus, BusFile, Event, Health, HttpConfig, MetricsConfig, MqttConfig, Sample};
 use optobus_device::RegisterInfo;
 use optobus_inspect::Value;
-use tokio::sync::broadcast::error::RecvError;
+use tokio::sync::broadcast::{self, error::RecvError, error::TryRecvError};
 
 use crate::commands::bus::load;
 use crate::error::CliError;
 use crate::inputs;
 use crate::log::note;
 use crate::models;
+use crate::outlet::{Outlet, Sink};
 use crate::render::{csv_cell, csv_header, redraw, screen, time_of_day, values_text};
 
 /// The demo bus: a sensor of every built-in model on one simulated line, with a gateway.
@@ -27,6 +30,16 @@ const DEMO: &str = include_str!("../demo.yaml");
 
 /// How often the terminal view is redrawn.
 const REDRAW_EVERY: Duration = Duration::from_millis(250);
+
+/// Lines stdout may fall behind by (seconds of a busy bus) before its oldest are dropped.
+const STDOUT_LINES: usize = 4096;
+
+/// Samples the CSVs of `--record` may fall behind by before their oldest are dropped.
+const RECORD_SAMPLES: usize = 4096;
+
+/// How long the end of a run waits for stdout and the CSVs to take what is still queued: a
+/// reader that stalled for good must not hold the exit forever.
+const DRAIN_AT_END: Duration = Duration::from_secs(2);
 
 #[derive(Debug, Args)]
 pub(crate) struct RunArgs {
@@ -163,9 +176,13 @@ impl Board {
 }
 
 /// A CSV per device: a row per poll, columns for every register the device's polls read.
+/// It writes on a thread of its own (an [`Outlet`]): a slow disk costs its own oldest samples,
+/// never the runtime's time.
 struct Recorder {
     started: SystemTime,
     files: HashMap<String, DeviceCsv>,
+    /// The first write that failed: the recording stopped there.
+    failed: Option<CliError>,
 }
 
 struct DeviceCsv {
@@ -209,6 +226,7 @@ impl Recorder {
         Ok(Self {
             started: SystemTime::now(),
             files,
+            failed: None,
         })
     }
 
@@ -233,7 +251,11 @@ impl Recorder {
         Ok(())
     }
 
+    /// Writes the last rows; gives the first failure of the whole recording.
     fn finish(mut self) -> Result<(), CliError> {
+        if let Some(failed) = self.failed {
+            return Err(failed);
+        }
         for csv in self.files.values_mut() {
             csv.flush_row(self.started)?;
             csv.out.flush().map_err(|e| {
@@ -241,6 +263,83 @@ impl Recorder {
             })?;
         }
         Ok(())
+    }
+}
+
+impl Sink<Arc<Sample>> for Recorder {
+    fn write(&mut self, samples: Vec<Arc<Sample>>, _: u64) {
+        if self.failed.is_some() {
+            return;
+        }
+        for sample in samples {
+            if let Err(error) = self.add(&sample) {
+                // Said now (the run goes on for its other outputs), and again at the end.
+                note!("optobus: --record stopped: {error}");
+                self.failed = Some(error);
+                return;
+            }
+        }
+    }
+}
+
+/// Stdout: a line per item, or on a terminal the newest board drawn over the last one.
+enum Stdout {
+    Lines,
+    Screen { drawn: u16 },
+}
+
+impl Sink<String> for Stdout {
+    fn write(&mut self, items: Vec<String>, _: u64) {
+        let mut out = std::io::stdout().lock();
+        match self {
+            Self::Lines => {
+                let mut text = String::with_capacity(items.iter().map(|i| i.len() + 1).sum());
+                for line in items {
+                    text += &line;
+                    text.push('\n');
+                }
+                // A closed pipe (`| head`) is not an error worth a message.
+                let _ = out.write_all(text.as_bytes());
+            }
+            Self::Screen { drawn } => {
+                // Only the newest board matters.
+                if let Some(board) = items.last() {
+                    let size = screen(crossterm::terminal::size().ok());
+                    *drawn = redraw(&mut out, *drawn, board, size);
+                }
+            }
+        }
+        let _ = out.flush();
+    }
+}
+
+/// Takes `events` as they come until `stop` ends, then what the receiver already holds (the
+/// samples of the last poll before the stop, which a stop that won the race would leave
+/// behind); gives how many events it fell too far behind to see.
+async fn follow<E: Clone>(
+    events: &mut broadcast::Receiver<E>,
+    stop: impl Future<Output = ()>,
+    mut take: impl FnMut(E),
+) -> u64 {
+    let mut missed = 0;
+    tokio::pin!(stop);
+    loop {
+        let event = tokio::select! {
+            event = events.recv() => event,
+            () = &mut stop => break,
+        };
+        match event {
+            Ok(event) => take(event),
+            Err(RecvError::Lagged(count)) => missed += count,
+            Err(RecvError::Closed) => return missed,
+        }
+    }
+    loop {
+        match events.try_recv() {
+            Ok(event) => take(event),
+            Err(TryRecvError::Lagged(count)) => missed += count,
+            Err(TryRecvError::Empty | TryRecvError::Closed) => return missed,
+        }
     }
 }
 
@@ -287,8 +386,12 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     };
     command_line_outputs(&mut bus_file, args)?;
     let mut board = Board::new(&bus_file);
-    let mut recorder = match &args.record {
-        Some(dir) => Some(Recorder::create(dir, &bus_file)?),
+    let recorder = match &args.record {
+        Some(dir) => Some(Outlet::start(
+            "optobus-record",
+            RECORD_SAMPLES,
+            Recorder::create(dir, &bus_file)?,
+        )),
         None => None,
     };
     let http = bus_file.outputs.http.clone();
@@ -361,47 +464,52 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
         None => None,
     };
     let terminal = std::io::stdout().is_terminal() && !json;
-    let ctrl_c = tokio::signal::ctrl_c();
-    tokio::pin!(ctrl_c);
+    let stdout = if terminal {
+        // The newest board only: one waiting drawing is replaced by the next.
+        Outlet::start("optobus-stdout", 1, Stdout::Screen { drawn: 0 })
+    } else {
+        Outlet::start("optobus-stdout", STDOUT_LINES, Stdout::Lines)
+    };
     let stop = async {
+        let ctrl_c = tokio::signal::ctrl_c();
         match args.duration {
-            Some(duration) => tokio::time::sleep(duration).await,
-            None => std::future::pending().await,
+            Some(duration) => {
+                tokio::select! {
+                    _ = ctrl_c => {},
+                    () = tokio::time::sleep(duration) => {},
+                }
+            }
+            None => {
+                let _ = ctrl_c.await;
+            }
         }
     };
-    tokio::pin!(stop);
     let mut redraw_at = tokio::time::Instant::now();
-    let mut drawn = 0u16;
-    let mut dropped = 0u64;
-    loop {
-        let event = tokio::select! {
-            event = events.recv() => event,
-            _ = &mut ctrl_c => break,
-            () = &mut stop => break,
-        };
-        let event = match event {
-            Ok(event) => event,
-            Err(RecvError::Lagged(missed)) => {
-                dropped += missed;
-                continue;
-            }
-            Err(RecvError::Closed) => break,
-        };
+    let take = |event: Event| {
         match &event {
             Event::Sample(sample) => {
-                if let Some(recorder) = recorder.as_mut() {
-                    recorder.add(sample)?;
+                if let Some(recorder) = &recorder {
+                    if recorder.push(Arc::clone(sample)).first_drop() {
+                        note!("optobus: --record is not keeping up: dropping its oldest samples");
+                    }
                 }
-                if json {
-                    crate::render::print(&sample_json(sample));
+                let line = if json {
+                    Some(sample_json(sample))
                 } else if !terminal {
-                    crate::render::print(&format!(
+                    Some(format!(
                         "{}  {}  {}  {}",
                         time_of_day(),
                         sample.source.device,
                         sample.register.name,
                         sample.value
-                    ));
+                    ))
+                } else {
+                    None
+                };
+                if let Some(line) = line {
+                    if stdout.push(line).first_drop() {
+                        note!("optobus: stdout is not being read: dropping its oldest lines");
+                    }
                 }
                 if let Some(shown) = board.device(&sample.source.device) {
                     let key = (
@@ -438,13 +546,11 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
             Event::Line(_) => {}
         }
         if terminal && tokio::time::Instant::now() >= redraw_at {
-            let mut out = std::io::stdout().lock();
-            let size = screen(crossterm::terminal::size().ok());
-            drawn = redraw(&mut out, drawn, &board.text(&header), size);
-            let _ = out.flush();
+            stdout.push(board.text(&header));
             redraw_at = tokio::time::Instant::now() + REDRAW_EVERY;
         }
-    }
+    };
+    let missed = follow(&mut events, stop, take).await;
     drop(console);
     drop(running);
     if let Some(publisher) = publisher {
@@ -460,11 +566,69 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
         publisher.stop(Duration::from_secs(2)).await;
     }
     drop(exporter);
-    if let Some(recorder) = recorder {
-        recorder.finish()?;
+    // Stdout and the CSVs are waited for on a thread of the blocking pool: meanwhile the
+    // runtime goes on closing the gateway and the other listeners.
+    let (unwritten, stdout_dropped, recording) = tokio::task::spawn_blocking(move || {
+        let unwritten = stdout.flush(DRAIN_AT_END);
+        let recording = recorder.map(|r| (r.dropped(), r.finish(DRAIN_AT_END)));
+        (unwritten, stdout.dropped(), recording)
+    })
+    .await
+    .map_err(|e| CliError::failed(format!("the end of the run: {e}")))?;
+    if !terminal {
+        if stdout_dropped > 0 {
+            note!("optobus: stdout fell behind: its {stdout_dropped} oldest lines were dropped");
+        }
+        if unwritten > 0 {
+            note!("optobus: stdout is not being read: its last {unwritten} lines were not written");
+        }
     }
-    if dropped > 0 {
-        note!("optobus: the display fell behind and skipped {dropped} events");
+    if missed > 0 {
+        note!("optobus: the display fell behind and skipped {missed} events");
+    }
+    if let Some((dropped, recorder)) = recording {
+        if dropped > 0 {
+            note!("optobus: --record fell behind: its {dropped} oldest samples were dropped");
+        }
+        match recorder {
+            Some(recorder) => recorder.finish()?,
+            None => {
+                return Err(CliError::failed(
+                    "--record: the CSVs did not take their last rows in time",
+                ))
+            }
+        }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test]
+    async fn with_duration_the_last_polls_samples_are_taken_at_the_stop() {
+        // The last poll's events are in the receiver when the stop comes, in the same turn
+        // of the runtime: every one of them is still taken.
+        let (sender, mut events) = broadcast::channel(256);
+        for event in 0..100u32 {
+            sender.send(event).unwrap();
+        }
+        let mut taken = Vec::new();
+        let missed = follow(&mut events, std::future::ready(()), |e| taken.push(e)).await;
+        assert_eq!(missed, 0);
+        assert_eq!(taken, (0..100).collect::<Vec<_>>());
+    }
+
+    #[tokio::test]
+    async fn events_beyond_the_channel_are_counted_as_missed() {
+        let (sender, mut events) = broadcast::channel(4);
+        for event in 0..10u32 {
+            sender.send(event).unwrap();
+        }
+        let mut taken = Vec::new();
+        let missed = follow(&mut events, std::future::ready(()), |e| taken.push(e)).await;
+        assert_eq!(missed, 6);
+        assert_eq!(taken, [6, 7, 8, 9]);
+    }
 }

@@ -96,6 +96,9 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
                 progress.suspend(|| {
                     if global.json {
                         note!("optobus: {line}");
+                        // Written before the bar is drawn again (notes have a thread of
+                        // their own).
+                        crate::log::flush(std::time::Duration::from_secs(1));
                     } else {
                         print(&line);
                     }

@@ -13,7 +13,7 @@ use optobus_simulator::{Bus, Faults, FaultsError, Line, Reply, Simulator};
 
 use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
-use crate::log::Log;
+use crate::log::note;
 use crate::render::print;
 use crate::{inputs, link, models};
 
@@ -83,8 +83,8 @@ fn line(device: &DeviceInfo, global: &Global, args: &SimulateArgs) -> Result<Lin
 
 /// `optobus simulate`: serves a virtual device, or a line of several, until Ctrl-C or
 /// `--duration`, with `--faults` in its replies and, on RTU, `--line-timing`. Every exchange
-/// is logged on stderr by a thread of its own ([`Log`]), so a slow or closed stderr never
-/// holds up a reply.
+/// is logged on stderr through [`note!`] (a thread of its own writes it), so a slow or
+/// closed stderr never holds up a reply.
 pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliError> {
     if global.target.sim_speed.is_some() {
         return Err(CliError::new(
@@ -93,30 +93,24 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
         .hint("time a served RTU line with --line-timing"));
     }
     let several = args.bus.is_some() || args.models.len() > 1;
-    let log = Log::start();
-    let served = if several {
-        serve_several(global, args, &log).await
+    if several {
+        serve_several(global, args).await
     } else {
-        serve_one(global, args, &log).await
-    };
-    // The summary and whether lines were dropped, if stderr takes them.
-    log.finish(Duration::from_millis(200));
-    served
+        serve_one(global, args).await
+    }
 }
 
-/// `sim` logging each exchange it sees on `log`, but a request it leaves unanswered only when
+/// `sim` logging each exchange it sees on stderr, but a request it leaves unanswered only when
 /// `logs_silence_to` its slave address (on a line of several, each device logs what it was
 /// asked, not every other device's traffic).
 fn logged(
     sim: Simulator,
-    log: &Log,
     logs_silence_to: impl Fn(u8) -> bool + Send + Sync + 'static,
 ) -> Simulator {
-    let log = log.clone();
     sim.observe(move |exchange| {
         let silent = matches!(exchange.reply, Reply::Silent);
         if !silent || exchange.slave.is_none_or(&logs_silence_to) {
-            log.line(format!("{} {exchange}", crate::render::time_of_day()));
+            note!("{} {exchange}", crate::render::time_of_day());
         }
     })
 }
@@ -147,14 +141,13 @@ fn timed_text(line: Option<&Line>, args: &SimulateArgs) -> String {
 }
 
 /// One device, at `--slave` or its factory address, over TCP, a pty or a serial port.
-async fn serve_one(global: &Global, args: &SimulateArgs, log: &Log) -> Result<(), CliError> {
+async fn serve_one(global: &Global, args: &SimulateArgs) -> Result<(), CliError> {
     let named = args.models.first().map(String::as_str);
     if let Some((model, slave)) = named.and_then(|n| n.rsplit_once('@')) {
         // One MODEL@SLAVE is one device at that slave.
         return serve_list(
             global,
             args,
-            log,
             &[(models::find(model)?, slave_of(model, slave)?)],
         )
         .await;
@@ -177,7 +170,7 @@ async fn serve_one(global: &Global, args: &SimulateArgs, log: &Log) -> Result<()
     };
     let faulty = faults.as_ref().map(|f| format!(", faults {f}"));
     let extras = faulty.unwrap_or_default() + &timed_text(line.as_ref(), args);
-    let mut sim = logged(Simulator::new(device).slave(slave), log, |_| true);
+    let mut sim = logged(Simulator::new(device).slave(slave), |_| true);
     if let Some(faults) = &faults {
         sim = sim.faults(faults.clone());
     }
@@ -189,18 +182,18 @@ async fn serve_one(global: &Global, args: &SimulateArgs, log: &Log) -> Result<()
     } else {
         serve_tcp(global, |address| sim.serve_tcp(address)).await?
     };
-    log.line(format!(
+    note!(
         "optobus: simulating {} (slave {slave}) on {place}{extras}",
         crate::models::name(device)
-    ));
+    );
     let _ = std::io::Write::flush(&mut std::io::stdout());
     until_stopped(args.duration).await;
     drop(server);
     if let (Some(faults), Some(stats)) = (&faults, sim.fault_stats()) {
-        log.line(format!("optobus: {}", stats.summary(faults)));
+        note!("optobus: {}", stats.summary(faults));
     }
     if let Some(stats) = line_stats {
-        log.line(format!("optobus: {stats}"));
+        note!("optobus: {stats}");
     }
     Ok(())
 }
@@ -231,7 +224,7 @@ fn slave_of(model: &str, slave: &str) -> Result<u8, CliError> {
 }
 
 /// Several devices on one RTU line: the `MODEL@SLAVE` list or a line of `--bus`.
-async fn serve_several(global: &Global, args: &SimulateArgs, log: &Log) -> Result<(), CliError> {
+async fn serve_several(global: &Global, args: &SimulateArgs) -> Result<(), CliError> {
     if global.slave.is_some() {
         return Err(CliError::new(
             "--slave serves one device; on a line of several each has its own address",
@@ -239,7 +232,7 @@ async fn serve_several(global: &Global, args: &SimulateArgs, log: &Log) -> Resul
         .hint("name each as MODEL@SLAVE, or give `slave:` in the bus file"));
     }
     if let Some(path) = &args.bus {
-        return serve_bus_line(global, args, log, path).await;
+        return serve_bus_line(global, args, path).await;
     }
     let mut devices = Vec::new();
     for item in &args.models {
@@ -251,14 +244,13 @@ async fn serve_several(global: &Global, args: &SimulateArgs, log: &Log) -> Resul
         })?;
         devices.push((models::find(model)?, slave_of(model, slave)?));
     }
-    serve_list(global, args, log, &devices).await
+    serve_list(global, args, &devices).await
 }
 
 /// The `MODEL@SLAVE` devices on one line, `--faults` in every reply on it.
 async fn serve_list(
     global: &Global,
     args: &SimulateArgs,
-    log: &Log,
     devices: &[(&'static DeviceInfo, u8)],
 ) -> Result<(), CliError> {
     let mut slaves = BTreeSet::new();
@@ -289,14 +281,13 @@ async fn serve_list(
         })
         .collect();
     let line = Several { members, format };
-    serve_line_of(global, args, log, line, faults(args)?).await
+    serve_line_of(global, args, line, faults(args)?).await
 }
 
 /// The devices of one line of the bus file at `path`, each with its own faults.
 async fn serve_bus_line(
     global: &Global,
     args: &SimulateArgs,
-    log: &Log,
     path: &std::path::Path,
 ) -> Result<(), CliError> {
     let target = &global.target;
@@ -328,7 +319,7 @@ async fn serve_bus_line(
         members,
         format: file.lines.get(index).and_then(|line| line.format),
     };
-    serve_line_of(global, args, log, line, None).await
+    serve_line_of(global, args, line, None).await
 }
 
 /// The line of the bus file `--line` names, or its only line, or its only simulated line.
@@ -381,7 +372,6 @@ struct Several {
 async fn serve_line_of(
     global: &Global,
     args: &SimulateArgs,
-    log: &Log,
     several: Several,
     line_faults: Option<Faults>,
 ) -> Result<(), CliError> {
@@ -426,7 +416,7 @@ async fn serve_line_of(
             let own = sim.address();
             let addresses = addresses.clone();
             let logs = move |slave| slave == own || (index == 0 && !addresses.contains(&slave));
-            let sim = logged(sim, log, logs);
+            let sim = logged(sim, logs);
             match &each_faults {
                 Some(each) => (name, sim.faults(each.clone()), Some(each.clone())),
                 None => (name, sim, faults),
@@ -452,24 +442,24 @@ async fn serve_line_of(
         .map(|(name, sim, _)| format!("slave {}: {name}", sim.address()))
         .collect();
     print(&who.join("\n"));
-    log.line(format!(
+    note!(
         "optobus: simulating {} devices ({}) on {place}{extras}",
         who.len(),
         who.join(", ")
-    ));
+    );
     let _ = std::io::Write::flush(&mut std::io::stdout());
     until_stopped(args.duration).await;
     drop(server);
     if let (Some(faults), Some(stats)) = (&line_faults, bus.fault_stats()) {
-        log.line(format!("optobus: {}", stats.summary(faults)));
+        note!("optobus: {}", stats.summary(faults));
     }
     for (name, sim, faults) in &members {
         if let (Some(faults), Some(stats)) = (faults, sim.fault_stats()) {
-            log.line(format!("optobus: {name}: {}", stats.summary(faults)));
+            note!("optobus: {name}: {}", stats.summary(faults));
         }
     }
     if let Some(stats) = line_stats {
-        log.line(format!("optobus: {stats}"));
+        note!("optobus: {stats}");
     }
     Ok(())
 }
