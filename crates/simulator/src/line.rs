@@ -14,8 +14,9 @@
 //!   wait cannot beat the line.
 //!
 //! Bytes are scheduled on a computed timeline, not on the sum of sleeps, and each wait ends
-//! with a short spin on the system clock, so bytes arrive within tens of microseconds of
-//! their times although tokio's timer counts milliseconds. A busy machine can make a byte
+//! on a kernel timer of microsecond precision (the transport's `sleep_until_precise`), so
+//! bytes arrive within tens of microseconds of their times although tokio's timer counts
+//! milliseconds. A busy machine can make a byte
 //! late, never early, and lateness does not add up: the next byte keeps its own time.
 
 use std::collections::VecDeque;
