@@ -102,7 +102,11 @@ impl Alarm {
     /// Makes the thread wake within `rest` (called with the queue locked).
     fn arm(&self, rest: Duration) {
         match self {
-            Self::Condvar(changed) => changed.notify_one(),
+            Self::Condvar(changed) => {
+                // The thread computes its own timeout.
+                let _ = rest;
+                changed.notify_one();
+            }
             #[cfg(target_os = "linux")]
             Self::Fd(timer) => {
                 use nix::sys::time::TimeSpec;
