@@ -104,6 +104,18 @@ pub async fn sleep_until_precise(deadline: Instant) {
     }
 }
 
+/// As [`sleep_until_precise`], but the kernel's timer wakes the task `spin` before the
+/// deadline and the rest is spent yielding while watching the clock: on time within a few
+/// microseconds even where a woken thread waits tens of microseconds for a core, for the price
+/// of a core busy for `spin`. For instruments that must keep time more than they must save
+/// CPU (the simulator's line emulation), not for clients.
+pub async fn sleep_until_precise_spinning(deadline: Instant, spin: Duration) {
+    if let Some(early) = deadline.checked_sub(spin) {
+        sleep_until_precise(early).await;
+    }
+    spin_until(deadline).await;
+}
+
 /// Which of two futures finished first.
 #[derive(PartialEq, Eq)]
 enum Finished {
@@ -251,6 +263,22 @@ mod tests {
         let next = Instant::now() + Duration::from_micros(300);
         sleep_until_precise(next).await;
         assert!(Instant::now() >= next);
+    }
+
+    #[tokio::test]
+    async fn waits_that_spin_their_last_stretch_never_end_early() {
+        for micros in [0u64, 30, 86, 304, 4_010] {
+            let deadline = Instant::now() + Duration::from_micros(micros);
+            sleep_until_precise_spinning(deadline, Duration::from_micros(50)).await;
+            assert!(Instant::now() >= deadline);
+        }
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn under_a_paused_clock_waits_that_spin_end_at_the_deadline() {
+        let deadline = Instant::now() + Duration::from_secs(3_600);
+        sleep_until_precise_spinning(deadline, Duration::from_micros(50)).await;
+        assert!(Instant::now() >= deadline);
     }
 
     #[tokio::test]
