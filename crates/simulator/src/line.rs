@@ -14,8 +14,9 @@
 //!   wait cannot beat the line.
 //!
 //! Bytes are scheduled on a computed timeline, not on the sum of sleeps, and each wait ends
-//! with a short spin on the system clock, so bytes arrive within tens of microseconds of
-//! their times although tokio's timer counts milliseconds. A busy machine can make a byte
+//! on a kernel timer with the last 50 µs watched on the clock (the transport's
+//! `sleep_until_precise_spinning`), so bytes arrive within microseconds of their times
+//! although tokio's timer counts milliseconds. A busy machine can make a byte
 //! late, never early, and lateness does not add up: the next byte keeps its own time.
 
 use std::collections::VecDeque;
@@ -25,7 +26,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use optobus_codec::{rtu, LineFormat};
-use optobus_transport::timing::sleep_until_precise;
+use optobus_transport::timing::sleep_until_precise_spinning;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, DuplexStream};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
@@ -33,6 +34,11 @@ use tokio::time::Instant;
 use crate::faults::Plan;
 use crate::rtu::Bus;
 use crate::sim::Simulator;
+
+/// How long before each of its times the line stops sleeping on a kernel timer and watches the
+/// clock: a woken thread may wait that long for a core, and the line is the instrument the
+/// clients are measured against.
+const SPIN: Duration = Duration::from_micros(50);
 
 /// Most request bytes kept while a client sends without a pause.
 const MAX_REQUEST: usize = 4 * rtu::MAX_FRAME_LEN;
@@ -258,7 +264,7 @@ impl Bus {
             let next = wire.next_event();
             tokio::select! {
                 biased;
-                () = sleep_until_precise(next.unwrap_or_else(Instant::now)), if next.is_some() => {
+                () = sleep_until_precise_spinning(next.unwrap_or_else(Instant::now), SPIN), if next.is_some() => {
                     let now = Instant::now();
                     self.end_request(&mut wire, now, &line.stats);
                     let due = wire.take_due(now);

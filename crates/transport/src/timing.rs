@@ -1,12 +1,23 @@
 //! Deadlines that never overflow, and waits finer than tokio's 1 ms timer.
 
+use std::future::{poll_fn, Future};
+use std::pin::{pin, Pin};
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::task::Poll;
 use std::time::Duration;
 
 use tokio::time::{sleep_until, Instant};
 
-/// tokio's timer wakes on whole milliseconds, late by up to one tick plus scheduling: sleeping
-/// stops this long before a deadline and the rest is waited out precisely.
-const TIMER_SLACK: Duration = Duration::from_micros(2_000);
+mod kernel;
+
+/// Waits up to this long are left to a kernel timer whole; longer ones sleep on tokio's timer
+/// until this long before the deadline (tokio wakes on whole milliseconds, late by up to one
+/// tick plus scheduling), so a kernel timer never holds a far deadline.
+const KERNEL_SPAN: Duration = Duration::from_millis(20);
+
+/// The spinning wait's stretch: tokio's timer sleeps until this long before the deadline and
+/// the rest is spent yielding while watching the clock.
+const SPIN_SPAN: Duration = Duration::from_micros(2_000);
 
 /// Waiting that long or longer is waiting forever (about 30 years, as tokio's own far future).
 const FOREVER: Duration = Duration::from_secs(86_400 * 365 * 30);
@@ -25,19 +36,119 @@ pub fn deadline_from(from: Instant, wait: Duration) -> Instant {
         .unwrap_or_else(|| from + Duration::from_secs(86_400))
 }
 
-/// Waits until `deadline` and returns within a few microseconds of it: tokio's timer sleeps
-/// the coarse part, and the last `TIMER_SLACK` is spent yielding to other tasks while
-/// watching the clock, so the runtime keeps running meanwhile.
+/// How [`sleep_until_precise`] waits out the fine part of a wait. Only the benches choose:
+/// they compare the ways in one run.
+#[doc(hidden)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PreciseWait {
+    /// The process's timer thread (the default), which wakes the waiting task: on Linux it
+    /// sleeps on a timerfd that the waiting task arms, elsewhere on a condition variable.
+    TimerThread,
+    /// The timer thread on a condition variable's timed wait (a futex with a timer slack of
+    /// 1 ns on Linux): as `clock_nanosleep`, with a notification for an earlier deadline.
+    CondvarThread,
+    /// A timerfd per wait, registered with tokio's reactor (Linux; panics in a runtime
+    /// without IO enabled; elsewhere the timer thread).
+    TimerFd,
+    /// Yielding to other tasks while watching the clock for the last 2 ms (the wait before
+    /// the timer thread; a core busy the whole time).
+    Spin,
+}
+
+static PRECISE_WAIT: AtomicU8 = AtomicU8::new(0);
+
+/// Chooses how every [`sleep_until_precise`] of the process waits from now on (benches only).
+#[doc(hidden)]
+pub fn set_precise_wait(wait: PreciseWait) {
+    PRECISE_WAIT.store(wait as u8, Ordering::Relaxed);
+}
+
+fn precise_wait() -> PreciseWait {
+    match PRECISE_WAIT.load(Ordering::Relaxed) {
+        1 => PreciseWait::CondvarThread,
+        2 => PreciseWait::TimerFd,
+        3 => PreciseWait::Spin,
+        _ => PreciseWait::TimerThread,
+    }
+}
+
+/// Waits until `deadline` and returns at it or a little later, never earlier: a kernel timer
+/// of microsecond precision wakes the task, so the thread sleeps meanwhile instead of
+/// spinning; the runtime keeps running other tasks. Waits longer than a few milliseconds
+/// sleep on tokio's timer first. Cancel-safe: dropping the future drops its timer.
 ///
-/// Under tokio's paused test clock the coarse part is skipped by auto-advance and the fine
-/// part takes real time (at most the slack).
+/// Under tokio's paused test clock the wait ends when the clock reaches the deadline (which
+/// auto-advance does at once when nothing else is running), as `tokio::time::sleep_until`.
 pub async fn sleep_until_precise(deadline: Instant) {
+    let kernel = match precise_wait() {
+        PreciseWait::Spin => return spin_until(deadline).await,
+        PreciseWait::TimerThread => kernel::Kernel::Thread,
+        PreciseWait::CondvarThread => kernel::Kernel::CondvarThread,
+        PreciseWait::TimerFd => kernel::Kernel::ReactorFd,
+    };
+    if deadline.saturating_duration_since(Instant::now()) > KERNEL_SPAN {
+        sleep_until(deadline - KERNEL_SPAN).await;
+    }
+    // tokio's timer beside the kernel's: under a paused clock it is the one that ends the
+    // wait; on the real clock it wakes later than the kernel's, if ever.
+    loop {
+        let rest = deadline.saturating_duration_since(Instant::now());
+        if rest.is_zero() {
+            return;
+        }
+        let kernel = pin!(kernel::sleep(rest, kernel));
+        let tokio = pin!(sleep_until(deadline));
+        if first_of(kernel, tokio).await == Finished::Second {
+            return;
+        }
+    }
+}
+
+/// As [`sleep_until_precise`], but the kernel's timer wakes the task `spin` before the
+/// deadline and the rest is spent yielding while watching the clock: on time within a few
+/// microseconds even where a woken thread waits tens of microseconds for a core, for the price
+/// of a core busy for `spin`. For instruments that must keep time more than they must save
+/// CPU (the simulator's line emulation), not for clients.
+pub async fn sleep_until_precise_spinning(deadline: Instant, spin: Duration) {
+    if let Some(early) = deadline.checked_sub(spin) {
+        sleep_until_precise(early).await;
+    }
+    spin_until(deadline).await;
+}
+
+/// Which of two futures finished first.
+#[derive(PartialEq, Eq)]
+enum Finished {
+    First,
+    Second,
+}
+
+/// Polls `first`, then `second`, until one finishes.
+async fn first_of(
+    mut first: Pin<&mut impl Future<Output = ()>>,
+    mut second: Pin<&mut impl Future<Output = ()>>,
+) -> Finished {
+    poll_fn(|cx| {
+        if first.as_mut().poll(cx).is_ready() {
+            Poll::Ready(Finished::First)
+        } else if second.as_mut().poll(cx).is_ready() {
+            Poll::Ready(Finished::Second)
+        } else {
+            Poll::Pending
+        }
+    })
+    .await
+}
+
+/// The wait before the kernel's timers: tokio's timer sleeps the coarse part, and the last
+/// `SPIN_SPAN` is spent yielding to other tasks while watching the system clock.
+async fn spin_until(deadline: Instant) {
     let now = Instant::now();
     if deadline <= now {
         return;
     }
-    if deadline - now > TIMER_SLACK {
-        sleep_until(deadline - TIMER_SLACK).await;
+    if deadline - now > SPIN_SPAN {
+        sleep_until(deadline - SPIN_SPAN).await;
     }
     // The rest on the system clock, which moves even when tokio's test clock is paused.
     let rest = deadline.saturating_duration_since(Instant::now());
@@ -62,9 +173,117 @@ mod tests {
         let _ = deadline_from(far, Duration::MAX);
     }
 
+    /// A future that counts how often it is polled.
+    struct Counted<F> {
+        inner: Pin<Box<F>>,
+        polls: u32,
+    }
+
+    impl<F: Future<Output = ()>> Future for Counted<F> {
+        type Output = u32;
+
+        fn poll(mut self: Pin<&mut Self>, cx: &mut std::task::Context<'_>) -> Poll<u32> {
+            self.polls += 1;
+            match self.inner.as_mut().poll(cx) {
+                Poll::Ready(()) => Poll::Ready(self.polls),
+                Poll::Pending => Poll::Pending,
+            }
+        }
+    }
+
+    /// Issue 28, point 9: the wait sleeps in the kernel and is woken once at its deadline; a
+    /// spinning wait is polled again and again (thousands of times in 2 ms).
+    #[tokio::test]
+    async fn precise_waits_without_spinning() {
+        for micros in [304u64, 2_000, 4_010, 25_000] {
+            let deadline = Instant::now() + Duration::from_micros(micros);
+            let polls = Counted {
+                inner: Box::pin(sleep_until_precise(deadline)),
+                polls: 0,
+            }
+            .await;
+            assert!(Instant::now() >= deadline);
+            // Once to arm the timer, once when it fires; after a long wait also once for
+            // tokio's coarse timer.
+            assert!(polls <= 4, "a wait of {micros} µs was polled {polls} times");
+        }
+    }
+
+    #[test]
+    fn precise_waits_need_no_io_driver() {
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_time()
+            .build()
+            .unwrap();
+        runtime.block_on(async {
+            let deadline = Instant::now() + Duration::from_micros(500);
+            sleep_until_precise(deadline).await;
+            assert!(Instant::now() >= deadline);
+        });
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn under_a_paused_clock_precise_waits_end_at_the_deadline() {
+        for wait in [Duration::from_micros(300), Duration::from_secs(3_600)] {
+            let deadline = Instant::now() + wait;
+            let real = std::time::Instant::now();
+            sleep_until_precise(deadline).await;
+            assert!(Instant::now() >= deadline);
+            // An hour of the paused clock passes without an hour of real time.
+            assert!(real.elapsed() < Duration::from_secs(60));
+        }
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn many_tasks_wait_at_once_and_each_ends_at_its_deadline() {
+        let waits: Vec<_> = (0..64u64)
+            .map(|i| {
+                tokio::spawn(async move {
+                    let deadline = Instant::now() + Duration::from_micros(100 + 37 * i);
+                    sleep_until_precise(deadline).await;
+                    Instant::now() >= deadline
+                })
+            })
+            .collect();
+        for wait in waits {
+            assert!(wait.await.unwrap());
+        }
+    }
+
+    #[tokio::test]
+    async fn a_cancelled_wait_leaves_the_next_ones_on_time() {
+        let far = Instant::now() + Duration::from_millis(15);
+        let near = Instant::now() + Duration::from_micros(200);
+        let cancelled = tokio::time::timeout_at(far, async {
+            sleep_until_precise(far + Duration::from_millis(5)).await;
+        });
+        // The near wait ends first; the far one is dropped by its timeout, unfinished.
+        let (_, ()) = tokio::join!(cancelled, sleep_until_precise(near));
+        assert!(Instant::now() >= near);
+        let next = Instant::now() + Duration::from_micros(300);
+        sleep_until_precise(next).await;
+        assert!(Instant::now() >= next);
+    }
+
+    #[tokio::test]
+    async fn waits_that_spin_their_last_stretch_never_end_early() {
+        for micros in [0u64, 30, 86, 304, 4_010] {
+            let deadline = Instant::now() + Duration::from_micros(micros);
+            sleep_until_precise_spinning(deadline, Duration::from_micros(50)).await;
+            assert!(Instant::now() >= deadline);
+        }
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn under_a_paused_clock_waits_that_spin_end_at_the_deadline() {
+        let deadline = Instant::now() + Duration::from_secs(3_600);
+        sleep_until_precise_spinning(deadline, Duration::from_micros(50)).await;
+        assert!(Instant::now() >= deadline);
+    }
+
     #[tokio::test]
     async fn precise_waits_never_end_early() {
-        for micros in [0u64, 150, 300, 1_750, 4_010] {
+        for micros in [0u64, 150, 300, 1_750, 4_010, 25_000] {
             let deadline = Instant::now() + Duration::from_micros(micros);
             sleep_until_precise(deadline).await;
             assert!(Instant::now() >= deadline);

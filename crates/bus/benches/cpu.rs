@@ -1,0 +1,308 @@
+//! The bus's CPU per transaction on a saturated 115200 baud line: the 8 mixed devices of
+//! `line_share` polled as fast as the line allows, served by `optobus simulate --bus FILE
+//! --pty --line-timing` in another process (a pty timed as the line), the bus reading them
+//! through the pty as through a serial port.
+//!
+//! Each trial runs the bus for a few seconds with one of the ways `sleep_until_precise` can
+//! wait out t3.5 (trials interleaved): the spinning wait the transport had before (the anchor),
+//! the timer thread (the default) and a timerfd in tokio's reactor. For each it prints the
+//! process's CPU time (user + system, every thread, `getrusage`) per transaction, counted
+//! between two of the line's statistics events, the transactions per second and their share
+//! of the line limit (characters both ways plus 2 t3.5 per transaction, over the time taken),
+//! and the simulator's own CPU per transaction (`/proc`, in clock ticks). The simulator's
+//! summary (its gap violations) ends the run.
+//!
+//! Needs the `optobus` binary: `cargo build --release -p optobus-cli` first (or name it in
+//! `OPTOBUS_BIN`). Run with `cargo bench -p optobus-bus --bench cpu`.
+
+#[cfg(target_os = "linux")]
+mod common;
+
+#[cfg(not(target_os = "linux"))]
+fn main() {
+    println!("the cpu bench needs Linux (ptys, getrusage)");
+}
+
+#[cfg(target_os = "linux")]
+fn main() {
+    linux::main();
+}
+
+#[cfg(target_os = "linux")]
+mod linux {
+    use std::io::{BufRead, BufReader};
+    use std::path::PathBuf;
+    use std::process::{Child, Command, Stdio};
+    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::sync::{Arc, Mutex};
+    use std::time::{Duration, Instant};
+
+    use optobus_bus::Event;
+    use optobus_codec::LineFormat;
+    use optobus_transport::timing::{set_precise_wait, PreciseWait};
+    use optobus_transport::{Flow, SerialSettings, Tap};
+
+    use super::common::{self, load, median, model_name, models};
+
+    const BAUD: u32 = 115_200;
+    const TRIALS: usize = 4;
+    /// Statistics events (one a second) a trial measures between, after one to warm up.
+    const SECONDS: u64 = 3;
+
+    const WAYS: [(&str, PreciseWait); 4] = [
+        ("spin", PreciseWait::Spin),
+        ("timer thread", PreciseWait::TimerThread),
+        ("condvar", PreciseWait::CondvarThread),
+        ("timerfd", PreciseWait::TimerFd),
+    ];
+
+    /// The devices as a bus file writes them: every group of measurements, as fast as the
+    /// line allows.
+    fn devices() -> Vec<String> {
+        models()
+            .iter()
+            .enumerate()
+            .map(|(i, model)| {
+                format!(
+                    "{{ name: d{}, model: {}, slave: {}, timeout: 500ms, poll: [{{ read: measurements }}] }}",
+                    i + 1,
+                    model_name(model),
+                    i + 1
+                )
+            })
+            .collect()
+    }
+
+    /// The `optobus` binary: `OPTOBUS_BIN`, else the workspace's release or debug build.
+    fn optobus() -> Option<PathBuf> {
+        if let Some(path) = std::env::var_os("OPTOBUS_BIN") {
+            return Some(path.into());
+        }
+        let target = std::env::var_os("CARGO_TARGET_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target"));
+        ["release", "debug"]
+            .iter()
+            .map(|profile| target.join(profile).join("optobus"))
+            .find(|path| path.is_file())
+    }
+
+    /// `optobus simulate` serving the devices on a line-timed pty; its path, and the
+    /// `optobus:` summary lines it logs, kept by a thread reading its stderr.
+    struct Simulator {
+        child: Child,
+        path: String,
+        summary: Arc<Mutex<Vec<String>>>,
+        _file: PathBuf,
+    }
+
+    impl Simulator {
+        fn start(binary: &PathBuf, timed: bool) -> Self {
+            let file = std::env::temp_dir()
+                .join(format!("optobus-cpu-{}-{timed}.yaml", std::process::id()));
+            let mut text = format!(
+                "lines:\n  - {{ name: bench, serial: /dev/null, baud: {BAUD}, any_format: true }}\ndevices:\n"
+            );
+            for device in devices() {
+                text += &format!("  - {device}\n");
+            }
+            std::fs::write(&file, text).expect("write the bus file");
+            let mut child = Command::new(binary)
+                .arg("simulate")
+                .arg("--bus")
+                .arg(&file)
+                .args(["--pty", "--duration", "10m"])
+                .args(timed.then_some("--line-timing"))
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .expect("start optobus simulate");
+            let mut lines = BufReader::new(child.stdout.take().expect("stdout")).lines();
+            let path = lines.next().expect("the pty's path").expect("text");
+            // Keep draining stdout (the slaves' lines) so the simulator never blocks on it.
+            std::thread::spawn(move || lines.for_each(drop));
+            let summary = Arc::new(Mutex::new(Vec::new()));
+            let kept = Arc::clone(&summary);
+            let stderr = child.stderr.take().expect("stderr");
+            std::thread::spawn(move || {
+                for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                    if line.starts_with("optobus:") {
+                        kept.lock().unwrap().push(line);
+                    }
+                }
+            });
+            Self {
+                child,
+                path,
+                summary,
+                _file: file,
+            }
+        }
+
+        /// Its CPU time so far (user + system, in clock ticks of 10 ms).
+        fn cpu_time(&self) -> Duration {
+            let stat = std::fs::read_to_string(format!("/proc/{}/stat", self.child.id()))
+                .unwrap_or_default();
+            // Fields after the command's closing parenthesis; utime and stime are 14 and 15.
+            let after = stat.rsplit(')').next().unwrap_or("");
+            let fields: Vec<&str> = after.split_whitespace().collect();
+            let ticks = |i: usize| {
+                fields
+                    .get(i)
+                    .and_then(|f| f.parse::<u64>().ok())
+                    .unwrap_or(0)
+            };
+            Duration::from_millis((ticks(11) + ticks(12)) * 10)
+        }
+
+        /// Stops it (as Ctrl-C does) and gives its summary.
+        fn stop(mut self) -> Vec<String> {
+            let _ = Command::new("kill")
+                .args(["-INT", &self.child.id().to_string()])
+                .status();
+            let _ = self.child.wait();
+            std::thread::sleep(Duration::from_millis(200));
+            let _ = std::fs::remove_file(&self._file);
+            let summary = self.summary.lock().unwrap().clone();
+            summary
+        }
+    }
+
+    /// The process's CPU time so far (user + system, every thread).
+    fn cpu_time() -> Duration {
+        let usage = nix::sys::resource::getrusage(nix::sys::resource::UsageWho::RUSAGE_SELF)
+            .expect("getrusage");
+        let time = |t: nix::sys::time::TimeVal| {
+            Duration::from_secs(t.tv_sec() as u64) + Duration::from_micros(t.tv_usec() as u64)
+        };
+        time(usage.user_time()) + time(usage.system_time())
+    }
+
+    /// The process's voluntary context switches so far: how often its threads slept.
+    fn sleeps() -> u64 {
+        nix::sys::resource::getrusage(nix::sys::resource::UsageWho::RUSAGE_SELF)
+            .map(|usage| usage.voluntary_context_switches() as u64)
+            .unwrap_or(0)
+    }
+
+    #[derive(Default)]
+    struct Totals {
+        sleeps: u64,
+        cpu: Duration,
+        simulator_cpu: Duration,
+        transactions: u64,
+        errors: u64,
+        elapsed: Duration,
+        ratios: Vec<f64>,
+    }
+
+    /// The moment a statistics event came: the counters then.
+    struct Mark {
+        at: Instant,
+        sleeps: u64,
+        cpu: Duration,
+        simulator_cpu: Duration,
+        transactions: u64,
+        errors: u64,
+        bytes: u64,
+    }
+
+    async fn trial(simulator: &Simulator, totals: &mut Totals) {
+        let format = LineFormat::new(BAUD);
+        let port = SerialSettings {
+            path: simulator.path.clone(),
+            line: format,
+        }
+        .open()
+        .expect("open the pty");
+        let bytes = Arc::new(AtomicU64::new(0));
+        let counter = Arc::clone(&bytes);
+        let stream = Tap::new(port, move |_: Flow, chunk: &[u8]| {
+            counter.fetch_add(chunk.len() as u64, Ordering::Relaxed);
+        });
+        let file = common::bus_file(&format!("serial: bench, baud: {BAUD}"), &devices());
+        let bus = optobus_bus::Bus::new(file).with_stream("bench", stream);
+        let mut events = bus.subscribe();
+        let running = bus.start().expect("starts");
+        let mut marks = Vec::new();
+        while marks.len() < SECONDS as usize + 2 {
+            match tokio::time::timeout(Duration::from_secs(5), events.recv()).await {
+                Ok(Ok(Event::Line(line))) => marks.push(Mark {
+                    at: Instant::now(),
+                    sleeps: sleeps(),
+                    cpu: cpu_time(),
+                    simulator_cpu: simulator.cpu_time(),
+                    transactions: line.transactions,
+                    errors: line.errors.total(),
+                    bytes: bytes.load(Ordering::Relaxed),
+                }),
+                Ok(Ok(_)) | Ok(Err(tokio::sync::broadcast::error::RecvError::Lagged(_))) => {}
+                Ok(Err(e)) => panic!("{e}"),
+                Err(_) => panic!("no statistics from the line in 5 s"),
+            }
+        }
+        drop(running);
+        // The first event ends the warm-up (the port opened, the schedule settled).
+        let (first, last) = (&marks[1], &marks[marks.len() - 1]);
+        let transactions = last.transactions - first.transactions;
+        let elapsed = last.at - first.at;
+        totals.cpu += last.cpu - first.cpu;
+        totals.sleeps += last.sleeps - first.sleeps;
+        totals.simulator_cpu += last.simulator_cpu - first.simulator_cpu;
+        totals.transactions += transactions;
+        totals.errors += last.errors - first.errors;
+        totals.elapsed += elapsed;
+        let ideal = format.transmit_time((last.bytes - first.bytes) as usize)
+            + format.frame_gap() * 2 * transactions as u32;
+        totals
+            .ratios
+            .push(ideal.as_secs_f64() / elapsed.as_secs_f64());
+        // Let a request cut short be answered or dropped before the next trial.
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+
+    pub(super) fn main() {
+        let Some(binary) = optobus() else {
+            println!(
+                "no optobus binary: build it with `cargo build --release -p optobus-cli` (or name it in OPTOBUS_BIN)"
+            );
+            return;
+        };
+        let runtime = common::runtime();
+        println!(
+            "{BAUD} baud, 8 devices, served on a pty by {} ({TRIALS} trials of {SECONDS} s per way, interleaved)",
+            binary.display()
+        );
+        for (line, timed) in [("untimed pty", false), ("line-timed pty", true)] {
+            let simulator = Simulator::start(&binary, timed);
+            let mut totals: Vec<Totals> = WAYS.iter().map(|_| Totals::default()).collect();
+            for _ in 0..TRIALS {
+                for ((_, way), totals) in WAYS.iter().zip(&mut totals) {
+                    set_precise_wait(*way);
+                    runtime.block_on(trial(&simulator, totals));
+                }
+            }
+            set_precise_wait(PreciseWait::TimerThread);
+            let per = |count: f64, totals: &Totals| count / totals.transactions.max(1) as f64;
+            let anchor = per(totals[0].cpu.as_secs_f64() * 1e6, &totals[0]);
+            for ((name, _), totals) in WAYS.iter().zip(&totals) {
+                let cpu = per(totals.cpu.as_secs_f64() * 1e6, totals);
+                println!(
+                    "{line:<14} {name:<12} bus CPU {cpu:>6.1} µs a transaction ({:.3} of the spin's), {:>5.1} sleeps a transaction  {:>5.0} transactions/s  line limit ratio median {:.3}  errors {}  simulator CPU {:>6.1} µs a transaction  (load {})",
+                    cpu / anchor,
+                    per(totals.sleeps as f64, totals),
+                    totals.transactions as f64 / totals.elapsed.as_secs_f64(),
+                    median(&totals.ratios),
+                    totals.errors,
+                    per(totals.simulator_cpu.as_secs_f64() * 1e6, totals),
+                    load()
+                );
+            }
+            for summary in simulator.stop() {
+                if summary.contains("requests") {
+                    println!("{line:<14} simulator: {summary}");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,93 @@
+//! The precise wait alone: back-to-back waits of one t3.5 at 115200 baud (304 µs) and at
+//! 9600 baud (4.01 ms) on a current-thread runtime, by each way `sleep_until_precise` can wait
+//! (trials interleaved). For each it prints how late the wait ended (p50, p99, max; never
+//! early is checked) and the process's CPU time (user + system, the timer thread included)
+//! per wait; the anchor is the spinning wait, measured in the same run.
+//! Run with `cargo bench -p optobus-transport --bench precise_wait`.
+
+use std::time::Duration;
+
+use optobus_transport::timing::{set_precise_wait, sleep_until_precise, PreciseWait};
+use tokio::time::Instant;
+
+/// The process's CPU time so far (user + system, every thread).
+fn cpu_time() -> Duration {
+    let usage = nix::sys::resource::getrusage(nix::sys::resource::UsageWho::RUSAGE_SELF)
+        .expect("getrusage");
+    let micros = |t: nix::sys::time::TimeVal| {
+        Duration::from_secs(t.tv_sec() as u64) + Duration::from_micros(t.tv_usec() as u64)
+    };
+    micros(usage.user_time()) + micros(usage.system_time())
+}
+
+fn load() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().map(str::to_owned))
+        .unwrap_or_else(|| "?".to_owned())
+}
+
+fn quantile(sorted: &[f64], q: f64) -> f64 {
+    let rank = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
+    sorted[rank - 1]
+}
+
+#[derive(Default)]
+struct Totals {
+    late_us: Vec<f64>,
+    cpu: Duration,
+    waits: u64,
+}
+
+async fn trial(wait: Duration, count: u32, totals: &mut Totals) {
+    let cpu = cpu_time();
+    for _ in 0..count {
+        let deadline = Instant::now() + wait;
+        sleep_until_precise(deadline).await;
+        let now = Instant::now();
+        assert!(now >= deadline, "a precise wait ended early");
+        totals.late_us.push((now - deadline).as_secs_f64() * 1e6);
+    }
+    totals.cpu += cpu_time() - cpu;
+    totals.waits += u64::from(count);
+}
+
+fn main() {
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let ways = [
+        ("spin", PreciseWait::Spin),
+        ("timer thread", PreciseWait::TimerThread),
+        ("condvar", PreciseWait::CondvarThread),
+        ("timerfd", PreciseWait::TimerFd),
+    ];
+    for (name, wait, count) in [
+        ("115200 t3.5", Duration::from_nanos(303_820), 300),
+        ("9600 t3.5", Duration::from_nanos(4_010_417), 25),
+    ] {
+        let mut totals: Vec<Totals> = ways.iter().map(|_| Totals::default()).collect();
+        for _ in 0..10 {
+            for ((_, way), totals) in ways.iter().zip(&mut totals) {
+                set_precise_wait(*way);
+                runtime.block_on(trial(wait, count, totals));
+            }
+        }
+        let spin_cpu = totals[0].cpu.as_secs_f64() / totals[0].waits as f64;
+        for ((way, _), totals) in ways.iter().zip(&mut totals) {
+            totals.late_us.sort_by(f64::total_cmp);
+            let cpu = totals.cpu.as_secs_f64() / totals.waits as f64;
+            println!(
+                "{name:<12} {way:<12} late p50 {:>6.1} µs  p99 {:>7.1} µs  max {:>7.1} µs  CPU {:>6.1} µs a wait ({:.3} of the spin's)  (load {})",
+                quantile(&totals.late_us, 0.5),
+                quantile(&totals.late_us, 0.99),
+                quantile(&totals.late_us, 1.0),
+                cpu * 1e6,
+                cpu / spin_cpu,
+                load()
+            );
+        }
+    }
+    set_precise_wait(PreciseWait::TimerThread);
+}
