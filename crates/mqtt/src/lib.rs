@@ -26,7 +26,10 @@ mod tls;
 mod topics;
 mod writes;
 
-pub use outbox::Counts;
+pub use outbox::{Counts, REPLY_QUEUE};
 pub use payload::{sample_json, value_json};
-pub use publisher::{CountsReader, Publisher, StartError, FIRST_BACKOFF, MAX_BACKOFF};
+pub use publisher::{
+    CountsReader, Publisher, StartError, FIRST_BACKOFF, MAX_BACKOFF, MAX_INCOMING_PACKET,
+};
 pub use secret::{Secret, SecretError};
+pub use writes::{MAX_WRITE_PAYLOAD, WRITE_QUEUE};
