@@ -15,6 +15,12 @@
 //! oldest dropped and counted beyond its size) and the client reconnects with backoff
 //! ([`FIRST_BACKOFF`] doubling up to [`MAX_BACKOFF`]); each new connection publishes the
 //! availability and discovery again before the samples that waited.
+//!
+//! What the broker hands over is bounded too: a write's payload over [`MAX_WRITE_PAYLOAD`] is
+//! refused on `…/error` without being repeated; writes wait in a queue of [`WRITE_QUEUE`],
+//! done one at a time by one task (one more is refused as busy); answers wait in a queue of
+//! [`REPLY_QUEUE`] (the oldest dropped); Home Assistant's births make at most one waiting
+//! re-announcement; retained writes are refused. [`Counts`] counts each.
 #![forbid(unsafe_code)]
 
 pub mod discovery;
