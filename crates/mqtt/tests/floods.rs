@@ -444,3 +444,53 @@ async fn a_retained_set_is_refused_and_not_carried_out() {
     controller.abort();
     running.stop();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_payload_over_the_incoming_limit_breaks_one_connection_and_publishing_goes_on() {
+    if !mosquitto_installed() {
+        return;
+    }
+    let broker = Broker::start("over-incoming").await;
+    let watcher = Watcher::start(broker.port, "watcher-over", "plant/top/distance_1").await;
+    let file = file(broker.port, false);
+    let (running, publisher) = start(&file);
+    subscribed(&publisher).await;
+    let (client, controller) = controller(broker.port);
+    client
+        .publish(
+            "plant/top/light_power/set",
+            QoS::AtLeastOnce,
+            false,
+            vec![b'9'; optobus_mqtt::MAX_INCOMING_PACKET + 1000],
+        )
+        .await
+        .unwrap();
+    wait_counts(&publisher, "the break counted and connected again", |c| {
+        c.incoming_too_large == 1 && c.connected && c.connections == 2
+    })
+    .await;
+    let since = SystemTime::now();
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(20), |heard| heard_since(
+                heard,
+                "plant/top/distance_1",
+                since
+            ) >= 10)
+            .await,
+        "{:?}",
+        publisher.counts()
+    );
+    let counts = publisher.counts();
+    assert_eq!(
+        (
+            counts.connections,
+            counts.writes_taken,
+            counts.writes_too_large
+        ),
+        (2, 0, 0),
+        "{counts:?}"
+    );
+    controller.abort();
+    running.stop();
+}
