@@ -54,6 +54,56 @@ fn readings(counts: &Counts) -> Vec<Reading> {
             "Bus events the MQTT publisher fell too far behind to see.",
             counts.missed_events,
         ),
+        Reading::counter(
+            "optobus_mqtt_writes_taken",
+            "Writes from MQTT topics handed to the bus (which may still refuse them).",
+            counts.writes_taken,
+        ),
+        Reading::counter(
+            "optobus_mqtt_writes_too_large",
+            "Writes from MQTT refused because their payload was over the limit.",
+            counts.writes_too_large,
+        ),
+        Reading::counter(
+            "optobus_mqtt_writes_busy",
+            "Writes from MQTT refused as busy: the queue of writes was full.",
+            counts.writes_busy,
+        ),
+        Reading::counter(
+            "optobus_mqtt_writes_retained",
+            "Writes from MQTT refused because they came retained.",
+            counts.writes_retained,
+        ),
+        Reading::counter(
+            "optobus_mqtt_replies_dropped",
+            "Answers to MQTT writes dropped, oldest first, because the queue of answers was full.",
+            counts.replies_dropped,
+        ),
+        Reading::counter(
+            "optobus_mqtt_oversize_dropped",
+            "MQTT messages dropped unsent because their packet was over the client's limit.",
+            counts.oversize_dropped,
+        ),
+        Reading::counter(
+            "optobus_mqtt_incoming_too_large",
+            "MQTT connections broken because the broker sent a packet over the client's limit.",
+            counts.incoming_too_large,
+        ),
+        Reading::counter(
+            "optobus_mqtt_homeassistant_births",
+            "Times Home Assistant announced itself online.",
+            counts.homeassistant_births,
+        ),
+        Reading::counter(
+            "optobus_mqtt_rediscoveries_coalesced",
+            "Home Assistant births folded into a re-announcement already waiting.",
+            counts.rediscoveries_coalesced,
+        ),
+        Reading::gauge(
+            "optobus_mqtt_control_queue_messages",
+            "MQTT announcements and answers to writes waiting.",
+            gauge(counts.control_queued),
+        ),
     ]
 }
 
@@ -227,6 +277,34 @@ outputs:
             ("optobus_mqtt_connected", u64::from(counts.connected)),
             ("optobus_mqtt_connections_total", counts.connections),
             ("optobus_mqtt_events_missed_total", counts.missed_events),
+            ("optobus_mqtt_writes_taken_total", counts.writes_taken),
+            (
+                "optobus_mqtt_writes_too_large_total",
+                counts.writes_too_large,
+            ),
+            ("optobus_mqtt_writes_busy_total", counts.writes_busy),
+            ("optobus_mqtt_writes_retained_total", counts.writes_retained),
+            ("optobus_mqtt_replies_dropped_total", counts.replies_dropped),
+            (
+                "optobus_mqtt_oversize_dropped_total",
+                counts.oversize_dropped,
+            ),
+            (
+                "optobus_mqtt_incoming_too_large_total",
+                counts.incoming_too_large,
+            ),
+            (
+                "optobus_mqtt_homeassistant_births_total",
+                counts.homeassistant_births,
+            ),
+            (
+                "optobus_mqtt_rediscoveries_coalesced_total",
+                counts.rediscoveries_coalesced,
+            ),
+            (
+                "optobus_mqtt_control_queue_messages",
+                counts.control_queued as u64,
+            ),
         ];
         for (name, value) in expected {
             assert_eq!(

@@ -15,6 +15,12 @@
 //! oldest dropped and counted beyond its size) and the client reconnects with backoff
 //! ([`FIRST_BACKOFF`] doubling up to [`MAX_BACKOFF`]); each new connection publishes the
 //! availability and discovery again before the samples that waited.
+//!
+//! What the broker hands over is bounded too: a write's payload over [`MAX_WRITE_PAYLOAD`] is
+//! refused on `…/error` without being repeated; writes wait in a queue of [`WRITE_QUEUE`],
+//! done one at a time by one task (one more is refused as busy); answers wait in a queue of
+//! [`REPLY_QUEUE`] (the oldest dropped); Home Assistant's births make at most one waiting
+//! re-announcement; retained writes are refused. [`Counts`] counts each.
 #![forbid(unsafe_code)]
 
 pub mod discovery;
@@ -26,7 +32,10 @@ mod tls;
 mod topics;
 mod writes;
 
-pub use outbox::Counts;
+pub use outbox::{Counts, REPLY_QUEUE};
 pub use payload::{sample_json, value_json};
-pub use publisher::{CountsReader, Publisher, StartError, FIRST_BACKOFF, MAX_BACKOFF};
+pub use publisher::{
+    CountsReader, Publisher, StartError, FIRST_BACKOFF, MAX_BACKOFF, MAX_INCOMING_PACKET,
+};
 pub use secret::{Secret, SecretError};
+pub use writes::{MAX_WRITE_PAYLOAD, WRITE_QUEUE};

@@ -4,20 +4,21 @@
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use optobus_bus::{BusFile, Event, Handle, Health, MqttConfig};
+use optobus_bus::{BusFile, Event, Handle, Health, MqttConfig, Source};
 use rumqttc::{
-    AsyncClient, Event as MqttEvent, EventLoop, LastWill, MqttOptions, Outgoing, Packet, QoS,
-    TlsConfiguration, Transport,
+    AsyncClient, ConnectionError, Event as MqttEvent, EventLoop, LastWill, MqttOptions, Outgoing,
+    Packet, QoS, StateError, TlsConfiguration, Transport,
 };
 use tokio::sync::broadcast::{self, error::RecvError};
-use tokio::sync::Notify;
+use tokio::sync::{mpsc, Notify};
 use tokio::task::JoinHandle;
 
 use crate::discovery;
-use crate::outbox::{Counts, Kind, Message, Outbox};
+use crate::outbox::{Counts, Kind, Message, Outbox, MAX_PACKET};
 use crate::payload::sample_json;
 use crate::secret::{Secret, SecretError};
 use crate::topics::Topics;
+use crate::writes::{Taken, Write, WRITE_QUEUE};
 
 /// The first wait before connecting again; it doubles after each failure.
 pub const FIRST_BACKOFF: Duration = Duration::from_millis(100);
@@ -25,8 +26,12 @@ pub const FIRST_BACKOFF: Duration = Duration::from_millis(100);
 pub const MAX_BACKOFF: Duration = Duration::from_secs(30);
 /// Requests the MQTT client holds between our queue and the socket.
 const CLIENT_CHANNEL: usize = 64;
-/// Largest packet out (discovery configurations are a few kilobytes).
-const MAX_PACKET: usize = 256 * 1024;
+/// The largest packet the client reads. A larger one (the broker hands over whatever was
+/// published on a subscribed topic) makes the client break the connection before reading it;
+/// counted, and the next connection is made only after the backoff, which then keeps growing
+/// (a retained one comes again at every subscription). Below it, a write's payload over
+/// [`MAX_WRITE_PAYLOAD`](crate::MAX_WRITE_PAYLOAD) is refused on `…/error`.
+pub const MAX_INCOMING_PACKET: usize = 1024 * 1024;
 
 /// Why publishing could not start.
 #[derive(Debug)]
@@ -77,6 +82,17 @@ impl Shared {
 
     fn push(&self, message: Message) {
         self.outbox().push(message);
+        self.wake.notify_one();
+    }
+
+    /// Publishes the answer to a write (bounded: the oldest waiting is dropped beyond
+    /// [`REPLY_QUEUE`](crate::REPLY_QUEUE)), counting the refusal `count` names.
+    fn reply(&self, message: Message, count: impl FnOnce(&mut Counts)) {
+        {
+            let mut outbox = self.outbox();
+            count(&mut outbox.counts);
+            outbox.push(message);
+        }
         self.wake.notify_one();
     }
 
@@ -202,9 +218,21 @@ impl Publisher {
             discovery,
         });
         // Write topics are listened to only when the file lets something be written.
-        let writes = handle.filter(|_| file.devices.iter().any(|d| !d.writable.is_empty()));
+        let handle = handle.filter(|_| file.devices.iter().any(|d| !d.writable.is_empty()));
         let (client, eventloop) = AsyncClient::new(options, CLIENT_CHANNEL);
-        let tasks = vec![
+        let mut tasks = Vec::new();
+        let writes = handle.map(|handle| {
+            // One task does the writes, one at a time: a flood of them waits in a bounded
+            // queue (or is refused) instead of becoming a task each.
+            let (queue, waiting) = mpsc::channel(WRITE_QUEUE);
+            tasks.push(tokio::spawn(write(
+                waiting,
+                handle.for_source(Source::Mqtt),
+                Arc::clone(&shared),
+            )));
+            queue
+        });
+        tasks.extend([
             tokio::spawn(follow(events, Arc::clone(&shared))),
             tokio::spawn(send(client.clone(), Arc::clone(&shared))),
             tokio::spawn(drive(
@@ -213,7 +241,7 @@ impl Publisher {
                 Arc::clone(&shared),
                 writes,
             )),
-        ];
+        ]);
         Ok(Self {
             shared,
             client,
@@ -284,7 +312,7 @@ fn options(config: &MqttConfig) -> Result<MqttOptions, StartError> {
     options
         .set_keep_alive(config.keep_alive)
         .set_clean_session(true)
-        .set_max_packet_size(MAX_PACKET, MAX_PACKET)
+        .set_max_packet_size(MAX_INCOMING_PACKET, MAX_PACKET)
         .set_inflight(100)
         .set_last_will(LastWill::new(
             topics.status(),
@@ -341,6 +369,24 @@ async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
     }
 }
 
+/// Does the writes taken from the write topics, one at a time, and publishes their answers.
+async fn write(mut waiting: mpsc::Receiver<Write>, handle: Handle, shared: Arc<Shared>) {
+    while let Some(write) = waiting.recv().await {
+        let done = crate::writes::carry_out(&handle, &shared.topics, write).await;
+        let count = |counts: &mut Counts| {
+            if done.busy {
+                counts.writes_busy += 1;
+            } else {
+                counts.writes_taken += 1;
+            }
+        };
+        match done.reply {
+            Some(reply) => shared.reply(reply, count),
+            None => count(&mut shared.outbox().counts),
+        }
+    }
+}
+
 /// Messages from the queue to the client, in order. A message is marked in flight and handed
 /// to the client's channel under the outbox's lock, so that a broken
 /// connection (which empties that channel under the same lock) never finds one in the channel
@@ -371,17 +417,22 @@ async fn drive(
     mut eventloop: EventLoop,
     client: AsyncClient,
     shared: Arc<Shared>,
-    writes: Option<Handle>,
+    writes: Option<mpsc::Sender<Write>>,
 ) {
     let mut backoff = FIRST_BACKOFF;
     let mut failures = 0u64;
+    // The last break came from a packet over the incoming limit: the backoff is not reset
+    // at the next connection, so that a retained one does not break every connection at once.
+    let mut broken_by_size = false;
     loop {
         match eventloop.poll().await {
             Ok(MqttEvent::Incoming(Packet::ConnAck(_))) => {
                 if failures > 0 {
                     tracing::info!(after = failures, "MQTT broker connected");
                 }
-                backoff = FIRST_BACKOFF;
+                if !std::mem::take(&mut broken_by_size) {
+                    backoff = FIRST_BACKOFF;
+                }
                 failures = 0;
                 let announcements = shared.announcements();
                 shared.outbox().connected(announcements);
@@ -405,7 +456,19 @@ async fn drive(
             Ok(event) => take_in(&shared, writes.as_ref(), event),
             Err(error) => {
                 broke(&mut eventloop, &shared, writes.as_ref());
-                if failures == 0 {
+                if let ConnectionError::MqttState(StateError::Deserialization(
+                    rumqttc::Error::PayloadSizeLimitExceeded(size),
+                )) = error
+                {
+                    broken_by_size = true;
+                    shared.outbox().counts.incoming_too_large += 1;
+                    tracing::warn!(
+                        size,
+                        limit = MAX_INCOMING_PACKET,
+                        "the MQTT broker sent a packet over the client's limit; the connection \
+                         is made again after {backoff:?}"
+                    );
+                } else if failures == 0 {
                     tracing::warn!(%error, "MQTT broker unreachable; samples wait in the queue");
                 }
                 failures += 1;
@@ -417,7 +480,7 @@ async fn drive(
 }
 
 /// The connection broke: what was not acknowledged goes back to the queue, to be sent again.
-fn broke(eventloop: &mut EventLoop, shared: &Arc<Shared>, writes: Option<&Handle>) {
+fn broke(eventloop: &mut EventLoop, shared: &Arc<Shared>, writes: Option<&mpsc::Sender<Write>>) {
     // The event loop keeps the events it made before the break and had not given yet (a
     // PUBLISH written, PUBACKs read) and gives them after the reconnection, where a PUBLISH
     // written would be matched to the next connection's first message. They belong to the
@@ -436,7 +499,7 @@ fn broke(eventloop: &mut EventLoop, shared: &Arc<Shared>, writes: Option<&Handle
 }
 
 /// What the connection did besides connecting: a message written, acknowledged or received.
-fn take_in(shared: &Arc<Shared>, writes: Option<&Handle>, event: MqttEvent) {
+fn take_in(shared: &Arc<Shared>, writes: Option<&mpsc::Sender<Write>>, event: MqttEvent) {
     match event {
         MqttEvent::Outgoing(Outgoing::Publish(pkid)) => {
             let room = {
@@ -451,30 +514,45 @@ fn take_in(shared: &Arc<Shared>, writes: Option<&Handle>, event: MqttEvent) {
         }
         MqttEvent::Incoming(Packet::PubAck(ack)) => shared.outbox().acknowledged(ack.pkid),
         MqttEvent::Incoming(Packet::Publish(publish)) => {
-            incoming(shared, writes, &publish.topic, &publish.payload);
+            incoming(
+                shared,
+                writes,
+                &publish.topic,
+                &publish.payload,
+                publish.retain,
+            );
         }
         _ => {}
     }
 }
 
 /// A message on a topic the publisher subscribed to.
-fn incoming(shared: &Arc<Shared>, writes: Option<&Handle>, topic: &str, payload: &[u8]) {
+fn incoming(
+    shared: &Arc<Shared>,
+    writes: Option<&mpsc::Sender<Write>>,
+    topic: &str,
+    payload: &[u8],
+    retained: bool,
+) {
     if let Some((status, configs)) = &shared.discovery {
         if topic == status {
             if payload == b"online" {
-                // Home Assistant (re)started: it forgets entities not announced again.
-                for config in configs {
-                    shared.push(config.clone());
-                }
+                // Home Assistant (re)started: it forgets entities not announced again. Many
+                // births in a row make one re-announcement.
+                shared.outbox().rediscover(configs);
+                shared.wake.notify_one();
             }
             return;
         }
     }
-    if let Some(handle) = writes {
-        let replies = Arc::clone(shared);
-        crate::writes::handle_write(&shared.topics, handle, topic, payload, move |message| {
-            replies.push(message)
-        });
+    let Some(queue) = writes else {
+        return;
+    };
+    match crate::writes::take(&shared.topics, queue, topic, payload, retained) {
+        Taken::NotAWrite | Taken::Queued => {}
+        Taken::TooLarge(reply) => shared.reply(reply, |c| c.writes_too_large += 1),
+        Taken::Retained(reply) => shared.reply(reply, |c| c.writes_retained += 1),
+        Taken::Busy(reply) => shared.reply(reply, |c| c.writes_busy += 1),
     }
 }
 

@@ -5,11 +5,13 @@
 //! `<prefix>/<device>/<name>/error` with the tool's one-line message, and then nothing was
 //! sent to the device unless the device itself failed.
 
+use std::borrow::Cow;
 use std::time::SystemTime;
 
-use optobus_bus::{rfc3339, Handle};
+use optobus_bus::{rfc3339, Handle, JobError, NETWORK_QUEUE};
 use rumqttc::QoS;
 use serde_json::Value as Json;
+use tokio::sync::mpsc;
 
 use crate::outbox::{Kind, Message};
 use crate::payload::value_json;
@@ -45,63 +47,199 @@ pub(crate) fn request<'a>(topics: &Topics, topic: &'a str) -> Option<Request<'a>
     }
 }
 
-/// Does the write `topic` asks for in the background and hands the answers to `reply`.
-pub(crate) fn handle_write(
+/// The largest payload taken on a write topic: a value as `optobus set` takes it is a few
+/// dozen bytes. A larger one is refused on `…/error` without being read as a value, and the
+/// refusal never repeats it.
+pub const MAX_WRITE_PAYLOAD: usize = 4 * 1024;
+
+/// Writes from MQTT waiting for their turn; they are done one at a time, in the order they
+/// came, by one task. One more is refused at once on `…/error` as busy (counted).
+pub const WRITE_QUEUE: usize = NETWORK_QUEUE;
+
+/// How much of a value an `…/error` message quotes at most.
+const VALUE_EXCERPT: usize = 40;
+
+/// The longest `…/error` message (a device or register name from the topic may be long).
+const MAX_ERROR_TEXT: usize = 400;
+
+/// A write taken from a topic, waiting for its turn.
+#[derive(Debug)]
+pub(crate) struct Write {
+    device: String,
+    name: String,
+    /// The payload of a `/set` (`None` for a `/do`), at most [`MAX_WRITE_PAYLOAD`] bytes.
+    value: Option<Vec<u8>>,
+}
+
+/// What became of a message on a subscribed topic.
+#[derive(Debug)]
+pub(crate) enum Taken {
+    /// Not a write topic.
+    NotAWrite,
+    /// Queued for the writer.
+    Queued,
+    /// Refused at once: its payload is over [`MAX_WRITE_PAYLOAD`].
+    TooLarge(Message),
+    /// Refused at once: it came retained.
+    Retained(Message),
+    /// Refused at once: [`WRITE_QUEUE`] writes already wait.
+    Busy(Message),
+}
+
+/// Takes the message on `topic` as a write if it is one: checked (retain flag, size) and
+/// queued for the writer, or refused at once with the answer to publish.
+pub(crate) fn take(
     topics: &Topics,
-    handle: &Handle,
+    queue: &mpsc::Sender<Write>,
     topic: &str,
     payload: &[u8],
-    reply: impl Fn(Message) + Send + 'static,
-) {
+    retained: bool,
+) -> Taken {
     let Some(request) = request(topics, topic) else {
-        return;
+        return Taken::NotAWrite;
     };
-    let (device, name) = match request {
-        Request::Set { device, register } => (device.to_owned(), register.to_owned()),
-        Request::Do { device, command } => (device.to_owned(), command.to_owned()),
+    let (device, name, is_set) = match request {
+        Request::Set { device, register } => (device, register, true),
+        Request::Do { device, command } => (device, command, false),
     };
-    let is_set = matches!(request, Request::Set { .. });
-    let topics = topics.clone();
-    let handle = handle.clone();
-    let text = std::str::from_utf8(payload)
-        .map(str::trim)
-        .map(str::to_owned);
-    tokio::spawn(async move {
-        let error = |message: String| Message {
-            topic: format!("{}/error", topics.sample(&device, &name)),
-            payload: message.into_bytes(),
-            qos: QoS::AtLeastOnce,
-            retain: false,
-            kind: Kind::Reply,
+    if retained {
+        return Taken::Retained(error(
+            topics,
+            device,
+            name,
+            "a retained write is not carried out (the broker would hand it over again at every \
+             connection); nothing was sent: publish it without the retain flag",
+        ));
+    }
+    if payload.len() > MAX_WRITE_PAYLOAD {
+        return Taken::TooLarge(error(
+            topics,
+            device,
+            name,
+            &format!(
+                "the payload is {} bytes, over the {MAX_WRITE_PAYLOAD} bytes a write takes; \
+                 nothing was sent",
+                payload.len()
+            ),
+        ));
+    }
+    let write = Write {
+        device: device.to_owned(),
+        name: name.to_owned(),
+        value: is_set.then(|| payload.to_vec()),
+    };
+    match queue.try_send(write) {
+        Ok(()) => Taken::Queued,
+        // A writer that stopped takes nothing more: the same answer.
+        Err(_) => Taken::Busy(error(
+            topics,
+            device,
+            name,
+            &format!(
+                "{WRITE_QUEUE} writes from MQTT already wait for their turn; nothing was sent, \
+                 try again later"
+            ),
+        )),
+    }
+}
+
+/// What a write done by the bus gives.
+#[derive(Debug)]
+pub(crate) struct Done {
+    /// The value read back (on the register's topic) or why it failed (on `…/error`).
+    pub(crate) reply: Option<Message>,
+    /// The line refused it as busy (its queue for MQTT was full).
+    pub(crate) busy: bool,
+}
+
+/// Does `write` through `handle` (whose source is MQTT) as `optobus set` or `optobus do`
+/// would.
+pub(crate) async fn carry_out(handle: &Handle, topics: &Topics, write: Write) -> Done {
+    let Write {
+        device,
+        name,
+        value,
+    } = write;
+    let failed = |why: JobError, value: Option<&str>| Done {
+        busy: matches!(why, JobError::Busy { .. }),
+        reply: Some(error(
+            topics,
+            &device,
+            &name,
+            &quoting_at_most(&why.to_string(), value),
+        )),
+    };
+    let Some(value) = value else {
+        return match handle.do_listed(&device, &name).await {
+            Ok(()) => Done {
+                reply: None,
+                busy: false,
+            },
+            Err(why) => failed(why, None),
         };
-        if !is_set {
-            if let Err(why) = handle.do_listed(&device, &name).await {
-                reply(error(why.to_string()));
+    };
+    let Ok(text) = std::str::from_utf8(&value).map(str::trim) else {
+        return Done {
+            reply: Some(error(topics, &device, &name, "the value is not UTF-8 text")),
+            busy: false,
+        };
+    };
+    match handle.set_listed(&device, &name, text).await {
+        Ok(Some(value)) => {
+            let mut json = value_json(&value);
+            if let Json::Object(object) = &mut json {
+                object.insert("time".into(), rfc3339(SystemTime::now()).into());
             }
-            return;
-        }
-        let Ok(text) = text else {
-            reply(error("the value is not UTF-8 text".to_owned()));
-            return;
-        };
-        match handle.set_listed(&device, &name, &text).await {
-            Ok(Some(value)) => {
-                let mut json = value_json(&value);
-                if let Json::Object(object) = &mut json {
-                    object.insert("time".into(), rfc3339(SystemTime::now()).into());
-                }
-                reply(Message {
+            Done {
+                reply: Some(Message {
                     topic: topics.sample(&device, &name),
                     payload: json.to_string().into_bytes(),
                     qos: QoS::AtLeastOnce,
                     retain: false,
                     kind: Kind::Reply,
-                });
+                }),
+                busy: false,
             }
-            Ok(None) => {}
-            Err(why) => reply(error(why.to_string())),
         }
-    });
+        Ok(None) => Done {
+            reply: None,
+            busy: false,
+        },
+        Err(why) => failed(why, Some(text)),
+    }
+}
+
+/// An answer on `<prefix>/<device>/<name>/error`, at most [`MAX_ERROR_TEXT`] bytes.
+fn error(topics: &Topics, device: &str, name: &str, why: &str) -> Message {
+    Message {
+        topic: format!("{}/error", topics.sample(device, name)),
+        payload: excerpt(why, MAX_ERROR_TEXT).into_owned().into_bytes(),
+        qos: QoS::AtLeastOnce,
+        retain: false,
+        kind: Kind::Reply,
+    }
+}
+
+/// `message`, where it quotes `value`, quoting at most [`VALUE_EXCERPT`] bytes of it.
+fn quoting_at_most(message: &str, value: Option<&str>) -> String {
+    match value {
+        Some(value) if value.len() > VALUE_EXCERPT => {
+            message.replace(value, &excerpt(value, VALUE_EXCERPT))
+        }
+        _ => message.to_owned(),
+    }
+}
+
+/// The first `max` bytes of `text` (cut at a character's boundary) and `…` when it is longer.
+pub(crate) fn excerpt(text: &str, max: usize) -> Cow<'_, str> {
+    if text.len() <= max {
+        return Cow::Borrowed(text);
+    }
+    let mut end = max;
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    Cow::Owned(format!("{}…", &text[..end]))
 }
 
 #[cfg(test)]
@@ -133,5 +271,20 @@ mod tests {
         ] {
             assert_eq!(request(&topics, other), None, "{other}");
         }
+    }
+
+    #[test]
+    fn an_excerpt_is_cut_at_a_character_boundary_with_an_ellipsis() {
+        assert_eq!(excerpt("short", 10), "short");
+        // `é` is two bytes: cut before it rather than inside it.
+        assert_eq!(excerpt("abcé", 4), "abc…");
+        assert_eq!(excerpt("abcdef", 3), "abc…");
+        let long = "9".repeat(3000);
+        let message = format!("`{long}` is not a number");
+        let quoted = quoting_at_most(&message, Some(&long));
+        assert_eq!(
+            quoted,
+            format!("`{}…` is not a number", "9".repeat(VALUE_EXCERPT))
+        );
     }
 }

@@ -1,0 +1,496 @@
+//! Floods from the broker on a real mosquitto (issue 28, points 2, 3 and 5; issue 29 point 4):
+//! a write's payload over the limit is refused with a short message and publishing goes on;
+//! a flood of writes is refused beyond a bounded queue while the polls go on; a flood of Home
+//! Assistant births keeps the control queue bounded; a retained write is not carried out.
+
+mod common;
+
+use std::path::Path;
+use std::time::{Duration, SystemTime};
+
+use common::{mosquitto_installed, Broker, Heard, Watcher};
+use optobus_bus::{Bus, BusFile, Catalogue, Event, Running};
+use optobus_mqtt::{Counts, Publisher, MAX_WRITE_PAYLOAD, WRITE_QUEUE};
+use rumqttc::{AsyncClient, MqttOptions, QoS};
+
+const P: &optobus_device::DeviceInfo = &optobus_p_series::DEVICE;
+
+fn file(port: u16, homeassistant: bool) -> BusFile {
+    let text = format!(
+        "
+lines:
+  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
+devices:
+  - name: top
+    model: p-series
+    slave: 1
+    poll: [{{ read: distance_1, every: 50ms }}]
+    writable: [light_power, zero_position_1]
+outputs:
+  mqtt: {{ broker: 127.0.0.1:{port}, prefix: plant, client_id: hall-2, homeassistant: {homeassistant} }}
+"
+    );
+    BusFile::parse("bus.yaml", &text, Path::new("."), &Catalogue::new([P]))
+        .unwrap_or_else(|e| panic!("{}", e.render()))
+}
+
+/// A running bus of `file` with a publisher taking writes.
+fn start(file: &BusFile) -> (Running, Publisher) {
+    let bus = Bus::new(file.clone());
+    let events = bus.subscribe();
+    let running = bus.start().expect("starts");
+    let publisher = Publisher::start(
+        file.outputs.mqtt.as_ref().expect("mqtt"),
+        file,
+        events,
+        Some(running.handle()),
+    )
+    .expect("starts");
+    (running, publisher)
+}
+
+/// A client that publishes what a test sends (packets up to 2 MiB).
+fn controller(port: u16) -> (AsyncClient, tokio::task::JoinHandle<()>) {
+    let mut options = MqttOptions::new("controller", "127.0.0.1", port);
+    options.set_max_packet_size(2 << 20, 2 << 20);
+    let (client, mut eventloop) = AsyncClient::new(options, 1000);
+    let task = tokio::spawn(async move { while eventloop.poll().await.is_ok() {} });
+    (client, task)
+}
+
+async fn wait_counts(publisher: &Publisher, what: &str, done: impl Fn(&Counts) -> bool) {
+    for _ in 0..3000 {
+        if done(&publisher.counts()) {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    panic!("{what}: {:?}", publisher.counts());
+}
+
+/// Waits until the publisher is connected and has subscribed (a write sent earlier would
+/// not reach it).
+async fn subscribed(publisher: &Publisher) {
+    wait_counts(publisher, "connected", |c| c.connected).await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+}
+
+/// How many of `heard` came on `topic` after `since`.
+fn heard_since(heard: &[Heard], topic: &str, since: SystemTime) -> usize {
+    heard
+        .iter()
+        .filter(|h| h.topic == topic && h.arrived > since)
+        .count()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_262_kb_set_payload_is_refused_and_publishing_goes_on() {
+    if !mosquitto_installed() {
+        return;
+    }
+    let broker = Broker::start("large-set").await;
+    let watcher = Watcher::start(broker.port, "watcher-large", "plant/top/#").await;
+    let file = file(broker.port, false);
+    let (running, publisher) = start(&file);
+    let simulator = running.simulator("top").unwrap();
+    let power = P.register("light_power").unwrap();
+    let power_before = simulator.peek(power.table, power.address).unwrap();
+    subscribed(&publisher).await;
+    let (client, controller) = controller(broker.port);
+
+    // As the issue's author sent it, then a 1 MB one (over the client's former packet limit).
+    for size in [262_060, 1_000_000] {
+        client
+            .publish(
+                "plant/top/light_power/set",
+                QoS::AtLeastOnce,
+                false,
+                "9".repeat(size),
+            )
+            .await
+            .unwrap();
+        let expected = format!(
+            "the payload is {size} bytes, over the {MAX_WRITE_PAYLOAD} bytes a write takes; \
+             nothing was sent"
+        );
+        assert!(
+            watcher
+                .wait_for(Duration::from_secs(20), |heard| heard
+                    .iter()
+                    .any(
+                        |h| h.topic == "plant/top/light_power/error" && h.payload == expected
+                    ))
+                .await,
+            "no refusal `{expected}`: {:?}",
+            watcher
+                .on("plant/top/light_power/error")
+                .iter()
+                .map(|h| h.payload.len())
+                .collect::<Vec<_>>()
+        );
+    }
+    // Under the limit, the value goes to the bus's checks; their message quotes an excerpt.
+    client
+        .publish(
+            "plant/top/light_power/set",
+            QoS::AtLeastOnce,
+            false,
+            "9".repeat(3000),
+        )
+        .await
+        .unwrap();
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(20), |heard| heard
+                .iter()
+                .filter(|h| h.topic == "plant/top/light_power/error")
+                .count()
+                == 3)
+            .await
+    );
+    let errors = watcher.on("plant/top/light_power/error");
+    println!(
+        "{:?}",
+        errors.iter().map(|h| &h.payload).collect::<Vec<_>>()
+    );
+    for error in &errors {
+        assert!(error.payload.len() <= 400, "{}", error.payload);
+        assert!(
+            !error.payload.contains(&"9".repeat(41)),
+            "{}",
+            error.payload
+        );
+    }
+
+    // Publishing goes on, on the one connection.
+    let since = SystemTime::now();
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(20), |heard| heard_since(
+                heard,
+                "plant/top/distance_1",
+                since
+            ) >= 20)
+            .await,
+        "{:?}",
+        publisher.counts()
+    );
+    let counts = publisher.counts();
+    assert_eq!(counts.connections, 1, "{counts:?}");
+    assert_eq!(counts.writes_too_large, 2, "{counts:?}");
+    assert_eq!(counts.writes_taken, 1, "{counts:?}");
+    assert_eq!(
+        (counts.oversize_dropped, counts.incoming_too_large),
+        (0, 0),
+        "{counts:?}"
+    );
+    assert_eq!(
+        simulator.peek(power.table, power.address).unwrap(),
+        power_before,
+        "nothing was written"
+    );
+    controller.abort();
+    running.stop();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn ten_thousand_writes_are_refused_beyond_the_queue_and_the_polls_go_on() {
+    if !mosquitto_installed() {
+        return;
+    }
+    const WRITES: usize = 10_000;
+    let broker = Broker::start("write-flood").await;
+    let watcher = Watcher::start(broker.port, "watcher-flood", "plant/top/#").await;
+    let file = file(broker.port, false);
+    let (running, publisher) = start(&file);
+    let simulator = running.simulator("top").unwrap();
+    let power = P.register("light_power").unwrap();
+    subscribed(&publisher).await;
+    let (client, controller) = controller(broker.port);
+
+    // Values 1.0 % to 99.9 %, every one a valid light power.
+    let value = |n: usize| {
+        let tenths = 10 + n % 990;
+        format!("{}.{} %", tenths / 10, tenths % 10)
+    };
+    let flood_start = SystemTime::now();
+    for n in 0..WRITES {
+        client
+            .publish(
+                "plant/top/light_power/set",
+                QoS::AtLeastOnce,
+                false,
+                value(n),
+            )
+            .await
+            .unwrap();
+    }
+    // The polls go on during the flood (on 9e415f3, none for minutes).
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(30), |heard| heard_since(
+                heard,
+                "plant/top/distance_1",
+                flood_start
+            ) >= 10)
+            .await,
+        "the polls stopped: {:?}",
+        publisher.counts()
+    );
+    wait_counts(&publisher, "every write taken in", |c| {
+        c.writes_taken + c.writes_busy == WRITES as u64
+    })
+    .await;
+    let counts = publisher.counts();
+    println!("{counts:?}");
+    assert!(counts.writes_busy > 0, "{counts:?}");
+    assert!(counts.writes_taken >= WRITE_QUEUE as u64, "{counts:?}");
+    assert_eq!(counts.connections, 1, "{counts:?}");
+
+    // Every value read back is one that was sent, and the device holds one of them.
+    let sent: std::collections::HashSet<String> = (10..1000)
+        .map(|tenths| format!("{}.{}", tenths / 10, tenths % 10))
+        .collect();
+    let read_back = watcher.on("plant/top/light_power");
+    assert!(!read_back.is_empty());
+    for heard in &read_back {
+        let json: serde_json::Value = serde_json::from_str(&heard.payload).unwrap();
+        let text = json["text"].as_str().unwrap_or_default();
+        assert!(sent.contains(text), "{}", heard.payload);
+    }
+    let busy: Vec<_> = watcher
+        .on("plant/top/light_power/error")
+        .into_iter()
+        .map(|h| h.payload)
+        .collect();
+    assert!(!busy.is_empty());
+    for refusal in &busy {
+        assert_eq!(
+            *refusal,
+            format!(
+                "{WRITE_QUEUE} writes from MQTT already wait for their turn; nothing was sent, \
+                 try again later"
+            )
+        );
+    }
+    let words = simulator.peek(power.table, power.address).unwrap();
+    assert!(
+        words.len() == 1 && (10..1000).contains(&words[0]),
+        "a value that was sent: {words:?}"
+    );
+
+    // Once the flood is over, a write is done with its value (one the flood did not send).
+    client
+        .publish(
+            "plant/top/light_power/set",
+            QoS::AtLeastOnce,
+            false,
+            "0.7 %",
+        )
+        .await
+        .unwrap();
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(20), |heard| heard
+                .iter()
+                .any(
+                    |h| h.topic == "plant/top/light_power" && h.payload.contains("\"0.7\"")
+                ))
+            .await
+    );
+    assert_eq!(simulator.peek(power.table, power.address).unwrap(), [7]);
+    controller.abort();
+    running.stop();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn twenty_thousand_homeassistant_status_messages_keep_the_control_queue_bounded() {
+    if !mosquitto_installed() {
+        return;
+    }
+    const BIRTHS: u64 = 20_000;
+    let broker = Broker::start("births").await;
+    let watcher = Watcher::start(broker.port, "watcher-births", "#").await;
+    let file = file(broker.port, true);
+    let bus = Bus::new(file.clone());
+    let mut events = bus.subscribe();
+    let publisher = common::publish(&file, &bus);
+    let running = bus.start().unwrap();
+    subscribed(&publisher).await;
+    let configs = |heard: &[Heard]| {
+        heard
+            .iter()
+            .filter(|h| h.topic.starts_with("homeassistant/") && h.topic.ends_with("/config"))
+            .count()
+    };
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(10), |heard| configs(heard) > 0)
+            .await
+    );
+    let per_announcement = configs(&watcher.heard.lock().unwrap());
+    let (client, controller) = controller(broker.port);
+
+    for _ in 0..BIRTHS {
+        client
+            .publish("homeassistant/status", QoS::AtLeastOnce, false, "online")
+            .await
+            .unwrap();
+    }
+    wait_counts(&publisher, "every birth heard", |c| {
+        c.homeassistant_births == BIRTHS
+    })
+    .await;
+    wait_counts(&publisher, "everything sent", |c| {
+        c.control_queued == 0 && c.queued == 0
+    })
+    .await;
+    let counts = publisher.counts();
+    println!("{per_announcement} configurations; {counts:?}");
+    // At connection: status, availability and the configurations; then at most one
+    // re-announcement waiting beside them.
+    assert!(
+        counts.control_peak <= 2 + 2 * per_announcement,
+        "{per_announcement} configurations, {counts:?}"
+    );
+    let announced_again = BIRTHS - counts.rediscoveries_coalesced;
+    assert!(announced_again >= 1, "{counts:?}");
+    assert_eq!(counts.connections, 1, "{counts:?}");
+    // What was announced again reached the broker: as many configurations as re-announcements
+    // made, besides the first.
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(20), |heard| configs(heard)
+                >= per_announcement * (1 + announced_again as usize))
+            .await,
+        "{} heard, {counts:?}",
+        configs(&watcher.heard.lock().unwrap())
+    );
+    // The bus polls on and its samples are published.
+    let since = SystemTime::now();
+    while events.try_recv().is_ok() {}
+    let mut samples = 0;
+    while samples < 5 {
+        let event = tokio::time::timeout(Duration::from_secs(20), events.recv()).await;
+        match event.expect("the bus polls on") {
+            Ok(Event::Sample(_)) => samples += 1,
+            Ok(_) | Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => {}
+            Err(error) => panic!("{error}"),
+        }
+    }
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(20), |heard| heard_since(
+                heard,
+                "plant/top/distance_1",
+                since
+            ) >= 5)
+            .await
+    );
+    controller.abort();
+    running.stop();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_retained_set_is_refused_and_not_carried_out() {
+    if !mosquitto_installed() {
+        return;
+    }
+    let broker = Broker::start("retained-set").await;
+    let watcher = Watcher::start(broker.port, "watcher-retained", "plant/top/#").await;
+    // Retained before the publisher subscribes: the broker hands it over at the subscription,
+    // with the retain flag (a live message reaches a subscriber without it).
+    let (client, controller) = controller(broker.port);
+    client
+        .publish("plant/top/light_power/set", QoS::AtLeastOnce, true, "55 %")
+        .await
+        .unwrap();
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(10), |heard| heard
+                .iter()
+                .any(|h| h.topic == "plant/top/light_power/set"))
+            .await
+    );
+    let file = file(broker.port, false);
+    let (running, publisher) = start(&file);
+    let simulator = running.simulator("top").unwrap();
+    let power = P.register("light_power").unwrap();
+    let power_before = simulator.peek(power.table, power.address).unwrap();
+    let expected = "a retained write is not carried out (the broker would hand it over again \
+                    at every connection); nothing was sent: publish it without the retain flag";
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(20), |heard| heard
+                .iter()
+                .any(
+                    |h| h.topic == "plant/top/light_power/error" && h.payload == expected
+                ))
+            .await,
+        "{:?}",
+        watcher.on("plant/top/light_power/error")
+    );
+    let counts = publisher.counts();
+    assert_eq!(
+        (counts.writes_retained, counts.writes_taken),
+        (1, 0),
+        "{counts:?}"
+    );
+    assert_eq!(
+        simulator.peek(power.table, power.address).unwrap(),
+        power_before
+    );
+    assert_ne!(power_before, [550]);
+    controller.abort();
+    running.stop();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_payload_over_the_incoming_limit_breaks_one_connection_and_publishing_goes_on() {
+    if !mosquitto_installed() {
+        return;
+    }
+    let broker = Broker::start("over-incoming").await;
+    let watcher = Watcher::start(broker.port, "watcher-over", "plant/top/distance_1").await;
+    let file = file(broker.port, false);
+    let (running, publisher) = start(&file);
+    subscribed(&publisher).await;
+    let (client, controller) = controller(broker.port);
+    client
+        .publish(
+            "plant/top/light_power/set",
+            QoS::AtLeastOnce,
+            false,
+            vec![b'9'; optobus_mqtt::MAX_INCOMING_PACKET + 1000],
+        )
+        .await
+        .unwrap();
+    wait_counts(&publisher, "the break counted and connected again", |c| {
+        c.incoming_too_large == 1 && c.connected && c.connections == 2
+    })
+    .await;
+    let since = SystemTime::now();
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(20), |heard| heard_since(
+                heard,
+                "plant/top/distance_1",
+                since
+            ) >= 10)
+            .await,
+        "{:?}",
+        publisher.counts()
+    );
+    let counts = publisher.counts();
+    assert_eq!(
+        (
+            counts.connections,
+            counts.writes_taken,
+            counts.writes_too_large
+        ),
+        (2, 0, 0),
+        "{counts:?}"
+    );
+    controller.abort();
+    running.stop();
+}
