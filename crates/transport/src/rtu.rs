@@ -308,7 +308,16 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                         (consumed < filled).then(|| self.unsettled_since(Instant::now()));
                     return Ok(Some(frame));
                 }
-                Ok(Decoded::NeedMore { .. }) => {}
+                Ok(Decoded::NeedMore { at_least }) => {
+                    // The missing bytes cannot all be here before they had time to cross the
+                    // line: waking no earlier saves a wake per byte (a real line and a timed
+                    // pty hand them over one character time apart).
+                    let crossing = self.config.transmit_time(at_least.saturating_sub(1));
+                    if !crossing.is_zero() {
+                        let ready = Instant::now().max(sent) + crossing;
+                        sleep_until_precise(ready.min(deadline)).await;
+                    }
+                }
                 Err(DecodeError::Exception { function, code }) => {
                     frames::received(slave, &self.buffer[..filled], written.elapsed(), None);
                     self.unsettled = None;
