@@ -18,6 +18,10 @@ use crate::timing::{deadline_from, sleep_until_precise};
 use crate::transact::{Reply, Transact};
 use crate::transport::DEFAULT_TIMEOUT;
 
+/// How much earlier than the missing bytes of a reply can have arrived the client wakes to
+/// read them: more than a timer's wake-up is late on a busy machine.
+const REPLY_WAKE_MARGIN: Duration = Duration::from_micros(150);
+
 /// The longest quiet period recovery waits for by default, whatever the timeout.
 const MAX_DEFAULT_RECOVERY: Duration = Duration::from_secs(10);
 
@@ -310,11 +314,13 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                 }
                 Ok(Decoded::NeedMore { at_least }) => {
                     // The missing bytes cannot all be here before they had time to cross the
-                    // line: waking no earlier saves a wake per byte (a real line and a timed
-                    // pty hand them over one character time apart).
+                    // line (a real line and a timed pty hand them over one character time
+                    // apart): sleeping through most of that saves a wake per byte. The sleep
+                    // ends a timer's lateness early, and the read then wakes as the last
+                    // bytes arrive, so the reply is taken no later than without it.
                     let crossing = self.config.transmit_time(at_least.saturating_sub(1));
-                    if !crossing.is_zero() {
-                        let ready = Instant::now().max(sent) + crossing;
+                    if let Some(sleep) = crossing.checked_sub(REPLY_WAKE_MARGIN) {
+                        let ready = Instant::now().max(sent) + sleep;
                         sleep_until_precise(ready.min(deadline)).await;
                     }
                 }
