@@ -15,6 +15,8 @@ use std::io::Write;
 use std::sync::OnceLock;
 use std::time::Duration;
 
+use indicatif::{ProgressBar, ProgressStyle};
+
 use crate::outlet::{Outlet, Sink};
 
 /// Lines stderr's writer may hold back; beyond, the oldest are dropped.
@@ -172,4 +174,14 @@ where
         }
         writeln!(writer)
     }
+}
+
+/// A progress bar on stderr drawn from `template` (indicatif's), hidden when stderr is not a
+/// terminal. The notes said before it are written first (they have a thread of their own).
+pub(crate) fn progress_bar(length: u64, template: &str) -> ProgressBar {
+    flush(Duration::from_secs(1));
+    let style = ProgressStyle::with_template(template)
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("#-");
+    ProgressBar::new(length).with_style(style)
 }

@@ -4,7 +4,6 @@
 use std::io::Write;
 
 use crossterm::{cursor, terminal, QueueableCommand};
-use indicatif::{ProgressBar, ProgressStyle};
 use optobus_device::RegisterInfo;
 use serde_json::{Map, Value as Json};
 
@@ -62,16 +61,6 @@ pub(crate) fn values_json(values: &[(&'static RegisterInfo, Value)]) -> Json {
             .map(|(r, v)| (r.name.to_owned(), value_json(v)))
             .collect::<Map<_, _>>(),
     )
-}
-
-/// A progress bar on stderr drawn from `template` (indicatif's), hidden when stderr is not a
-/// terminal. The notes said before it are written first (they have a thread of their own).
-pub(crate) fn progress_bar(length: u64, template: &str) -> ProgressBar {
-    crate::log::flush(std::time::Duration::from_secs(1));
-    let style = ProgressStyle::with_template(template)
-        .unwrap_or_else(|_| ProgressStyle::default_bar())
-        .progress_chars("#-");
-    ProgressBar::new(length).with_style(style)
 }
 
 /// The terminal's `(columns, rows)`; where it reports none, or a zero (a serial console, some

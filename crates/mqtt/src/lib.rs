@@ -28,6 +28,7 @@ mod outbox;
 mod payload;
 mod publisher;
 mod secret;
+mod text;
 mod tls;
 mod topics;
 mod writes;

@@ -10,7 +10,7 @@ use std::collections::VecDeque;
 
 use rumqttc::QoS;
 
-use crate::writes::excerpt;
+use crate::text::excerpt;
 
 /// What a message is for, which decides what a broken connection does to it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -5,7 +5,6 @@
 //! `<prefix>/<device>/<name>/error` with the tool's one-line message, and then nothing was
 //! sent to the device unless the device itself failed.
 
-use std::borrow::Cow;
 use std::time::SystemTime;
 
 use optobus_bus::{rfc3339, Handle, JobError, NETWORK_QUEUE};
@@ -15,6 +14,7 @@ use tokio::sync::mpsc;
 
 use crate::outbox::{Kind, Message};
 use crate::payload::value_json;
+use crate::text::excerpt;
 use crate::topics::Topics;
 
 /// What a message on a write topic asks for.
@@ -230,21 +230,20 @@ fn quoting_at_most(message: &str, value: Option<&str>) -> String {
     }
 }
 
-/// The first `max` bytes of `text` (cut at a character's boundary) and `…` when it is longer.
-pub(crate) fn excerpt(text: &str, max: usize) -> Cow<'_, str> {
-    if text.len() <= max {
-        return Cow::Borrowed(text);
-    }
-    let mut end = max;
-    while !text.is_char_boundary(end) {
-        end -= 1;
-    }
-    Cow::Owned(format!("{}…", &text[..end]))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_refusal_quotes_a_long_value_cut_short() {
+        let long = "9".repeat(3000);
+        let message = format!("`{long}` is not a number");
+        let quoted = quoting_at_most(&message, Some(&long));
+        assert_eq!(
+            quoted,
+            format!("`{}…` is not a number", "9".repeat(VALUE_EXCERPT))
+        );
+    }
 
     #[test]
     fn write_topics_name_the_device_and_register_or_command() {
@@ -271,20 +270,5 @@ mod tests {
         ] {
             assert_eq!(request(&topics, other), None, "{other}");
         }
-    }
-
-    #[test]
-    fn an_excerpt_is_cut_at_a_character_boundary_with_an_ellipsis() {
-        assert_eq!(excerpt("short", 10), "short");
-        // `é` is two bytes: cut before it rather than inside it.
-        assert_eq!(excerpt("abcé", 4), "abc…");
-        assert_eq!(excerpt("abcdef", 3), "abc…");
-        let long = "9".repeat(3000);
-        let message = format!("`{long}` is not a number");
-        let quoted = quoting_at_most(&message, Some(&long));
-        assert_eq!(
-            quoted,
-            format!("`{}…` is not a number", "9".repeat(VALUE_EXCERPT))
-        );
     }
 }

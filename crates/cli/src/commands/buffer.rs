@@ -12,7 +12,8 @@ use crate::chart::{check_out, draw, Series};
 use crate::connect::{DeviceArgs, Global};
 use crate::error::{driver_error, CliError};
 use crate::log::note;
-use crate::render::{print, progress_bar};
+use crate::log::progress_bar;
+use crate::render::print;
 use crate::{inputs, link, models};
 
 #[derive(Debug, Args)]

@@ -14,7 +14,8 @@ use crate::connect::{next_read, read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::inputs;
 use crate::log::note;
-use crate::render::{csv_cell, csv_header, progress_bar, timestamp};
+use crate::log::progress_bar;
+use crate::render::{csv_cell, csv_header, timestamp};
 
 #[derive(Debug, Args)]
 #[command(group = clap::ArgGroup::new("until").args(["duration", "count"]).required(true))]

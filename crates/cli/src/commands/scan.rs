@@ -10,7 +10,8 @@ use optobus_driver::Core;
 use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
 use crate::log::note;
-use crate::render::{print, progress_bar};
+use crate::log::progress_bar;
+use crate::render::print;
 use crate::{inputs, link, models};
 
 #[derive(Debug, Args)]
