@@ -83,6 +83,27 @@ fn heard_since(heard: &[Heard], topic: &str, since: SystemTime) -> usize {
         .count()
 }
 
+/// Publishing goes on: the watcher hears `at_least` samples of the head's distance after
+/// `since` within `within`, else the test fails with the publisher's counts.
+async fn samples_go_on(
+    watcher: &Watcher,
+    publisher: &Publisher,
+    since: SystemTime,
+    at_least: usize,
+    within: Duration,
+) {
+    let heard = watcher
+        .wait_for(within, |heard| {
+            heard_since(heard, "plant/top/distance_1", since) >= at_least
+        })
+        .await;
+    assert!(
+        heard,
+        "fewer than {at_least} samples heard: {:?}",
+        publisher.counts()
+    );
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_262_kb_set_payload_is_refused_and_publishing_goes_on() {
     if !mosquitto_installed() {
@@ -164,17 +185,7 @@ async fn a_262_kb_set_payload_is_refused_and_publishing_goes_on() {
 
     // Publishing goes on, on the one connection.
     let since = SystemTime::now();
-    assert!(
-        watcher
-            .wait_for(Duration::from_secs(20), |heard| heard_since(
-                heard,
-                "plant/top/distance_1",
-                since
-            ) >= 20)
-            .await,
-        "{:?}",
-        publisher.counts()
-    );
+    samples_go_on(&watcher, &publisher, since, 20, Duration::from_secs(20)).await;
     let counts = publisher.counts();
     assert_eq!(counts.connections, 1, "{counts:?}");
     assert_eq!(counts.writes_too_large, 2, "{counts:?}");
@@ -226,17 +237,14 @@ async fn ten_thousand_writes_are_refused_beyond_the_queue_and_the_polls_go_on() 
             .unwrap();
     }
     // The polls go on during the flood (on 9e415f3, none for minutes).
-    assert!(
-        watcher
-            .wait_for(Duration::from_secs(30), |heard| heard_since(
-                heard,
-                "plant/top/distance_1",
-                flood_start
-            ) >= 10)
-            .await,
-        "the polls stopped: {:?}",
-        publisher.counts()
-    );
+    samples_go_on(
+        &watcher,
+        &publisher,
+        flood_start,
+        10,
+        Duration::from_secs(30),
+    )
+    .await;
     wait_counts(&publisher, "every write taken in", |c| {
         c.writes_taken + c.writes_busy == WRITES as u64
     })
@@ -378,15 +386,7 @@ async fn twenty_thousand_homeassistant_status_messages_keep_the_control_queue_bo
             Err(error) => panic!("{error}"),
         }
     }
-    assert!(
-        watcher
-            .wait_for(Duration::from_secs(20), |heard| heard_since(
-                heard,
-                "plant/top/distance_1",
-                since
-            ) >= 5)
-            .await
-    );
+    samples_go_on(&watcher, &publisher, since, 5, Duration::from_secs(20)).await;
     controller.abort();
     running.stop();
 }
@@ -470,17 +470,7 @@ async fn a_payload_over_the_incoming_limit_breaks_one_connection_and_publishing_
     })
     .await;
     let since = SystemTime::now();
-    assert!(
-        watcher
-            .wait_for(Duration::from_secs(20), |heard| heard_since(
-                heard,
-                "plant/top/distance_1",
-                since
-            ) >= 10)
-            .await,
-        "{:?}",
-        publisher.counts()
-    );
+    samples_go_on(&watcher, &publisher, since, 10, Duration::from_secs(20)).await;
     let counts = publisher.counts();
     assert_eq!(
         (
