@@ -73,6 +73,25 @@ fn lock<G>(mutex: &Mutex<G>) -> MutexGuard<'_, G> {
     mutex.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// Waits on `signal` with `guard` until it is signalled or `deadline` has passed; `None` once
+/// the deadline has passed.
+fn wait_until<'a, G>(
+    signal: &Condvar,
+    guard: MutexGuard<'a, G>,
+    deadline: Instant,
+) -> Option<MutexGuard<'a, G>> {
+    let left = deadline.saturating_duration_since(Instant::now());
+    if left.is_zero() {
+        return None;
+    }
+    Some(
+        signal
+            .wait_timeout(guard, left)
+            .unwrap_or_else(PoisonError::into_inner)
+            .0,
+    )
+}
+
 impl<T: Send + 'static, S: Sink<T>> Outlet<T, S> {
     /// Starts a thread called `name` that writes to `sink`, queueing at most `capacity` items
     /// (at least 1) besides the batch being written. If no thread can be started, items are
@@ -142,16 +161,10 @@ impl<T: Send + 'static, S: Sink<T>> Outlet<T, S> {
             if waiting == 0 || state.stopped {
                 return state.items.len();
             }
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                return waiting;
-            }
-            state = self
-                .shared
-                .written
-                .wait_timeout(state, left)
-                .unwrap_or_else(PoisonError::into_inner)
-                .0;
+            state = match wait_until(&self.shared.written, state, deadline) {
+                Some(state) => state,
+                None => return waiting,
+            };
         }
     }
 
@@ -164,16 +177,7 @@ impl<T: Send + 'static, S: Sink<T>> Outlet<T, S> {
         state.closed = true;
         self.shared.arrived.notify_one();
         while !self.inline && !state.stopped {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                return None;
-            }
-            state = self
-                .shared
-                .written
-                .wait_timeout(state, left)
-                .unwrap_or_else(PoisonError::into_inner)
-                .0;
+            state = wait_until(&self.shared.written, state, deadline)?;
         }
         drop(state);
         lock(&self.shared.sink).take()
