@@ -143,6 +143,7 @@ impl Bus {
                     id,
                     core,
                     errors,
+                    writable: config.writable.clone(),
                 });
                 if line.port == Port::Simulated {
                     let simulator = config.simulator();
@@ -170,11 +171,12 @@ impl Bus {
                         listener,
                         config.clone(),
                         queue,
-                        counters,
+                        Arc::clone(&counters),
                     )));
                     Some(GatewayQueue {
                         requests,
                         writes: config.writes,
+                        counters,
                     })
                 }
                 None => None,

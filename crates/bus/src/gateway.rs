@@ -26,7 +26,6 @@ use std::time::Duration;
 use optobus_codec::passthrough::{encode_tcp_reply, PassPdu, MAX_PDU_LEN};
 use optobus_codec::tcp::{Header, Mbap, HEADER_LEN};
 use optobus_codec::{EncodeError, EXCEPTION_BIT, MAX_SLAVE};
-use optobus_device::{DeviceInfo, Table};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc::error::TrySendError;
@@ -35,6 +34,7 @@ use tokio::task::{AbortHandle, JoinSet};
 use tokio::time::{timeout, Instant};
 
 use crate::file::GatewayConfig;
+use crate::policy::{Refusal, RefusalKind};
 
 /// Illegal function: not passed (unframable, or a write the bus file does not allow).
 pub(crate) const ILLEGAL_FUNCTION: u8 = 0x01;
@@ -63,71 +63,13 @@ pub(crate) fn exception(function: u8, code: u8) -> Vec<u8> {
     vec![function | EXCEPTION_BIT, code]
 }
 
-/// Function codes that change a device.
-pub(crate) fn is_write(function: u8) -> bool {
-    matches!(function, 0x05 | 0x06 | 0x0F | 0x10 | 0x15 | 0x16 | 0x17)
-}
-
-/// Checks a write PDU to `device` against its spec: the exception code to refuse it with, if
-/// it must be refused.
-pub(crate) fn refuse_write(device: &DeviceInfo, pdu: &[u8]) -> Option<u8> {
-    let function = pdu[0];
-    if !device.functions.contains(&function) {
-        return Some(ILLEGAL_FUNCTION);
+/// The exception a request the write policy refused is answered with.
+pub(crate) fn refused(refusal: &Refusal) -> u8 {
+    match refusal.kind() {
+        RefusalKind::NotAllowed => ILLEGAL_FUNCTION,
+        RefusalKind::Address => ILLEGAL_ADDRESS,
+        RefusalKind::Value => ILLEGAL_VALUE,
     }
-    let word = |at: usize| {
-        pdu.get(at..at + 2)
-            .map(|b| u16::from_be_bytes([b[0], b[1]]))
-    };
-    let words = |data: &[u8]| -> Vec<u16> {
-        data.chunks(2)
-            .map(|c| u16::from_be_bytes([c[0], c[1]]))
-            .collect()
-    };
-    let written = match function {
-        0x06 => word(1).zip(pdu.get(3..)).and_then(|(address, data)| {
-            (!data.is_empty() && data.len() % 2 == 0).then(|| (address, words(data)))
-        }),
-        0x10 => match (word(1), word(3), pdu.get(5), pdu.get(6..)) {
-            (Some(address), Some(count), Some(&bytes), Some(data))
-                if data.len() == 2 * usize::from(count) && usize::from(bytes) == data.len() =>
-            {
-                Some((address, words(data)))
-            }
-            _ => None,
-        },
-        // Bits, files and masks: no register of our specs is written that way.
-        _ => return Some(ILLEGAL_FUNCTION),
-    };
-    let Some((address, words)) = written else {
-        return Some(ILLEGAL_VALUE);
-    };
-    check_words(device, address, &words)
-}
-
-/// Every register the words cover must be writable and written whole, with a value its spec
-/// accepts.
-fn check_words(device: &DeviceInfo, address: u16, words: &[u16]) -> Option<u8> {
-    let mut at = Some(address);
-    let mut offset = 0usize;
-    while offset < words.len() {
-        let Some((register, 0)) = at.and_then(|at| device.register_at(Table::Holding, at)) else {
-            return Some(ILLEGAL_ADDRESS);
-        };
-        if !register.access.writable() {
-            return Some(ILLEGAL_ADDRESS);
-        }
-        let width = usize::from(register.words);
-        let Some(own) = words.get(offset..offset + width) else {
-            return Some(ILLEGAL_ADDRESS);
-        };
-        if register.check(register.raw(own)).is_err() {
-            return Some(ILLEGAL_VALUE);
-        }
-        offset += width;
-        at = at.and_then(|a| a.checked_add(register.span(device.addressing)));
-    }
-    None
 }
 
 /// What a gateway has passed, refused and closed since it started
@@ -142,6 +84,10 @@ pub struct GatewayCounts {
     /// Requests answered at once with exception 03: their length or counts do not fit their
     /// function (a 2-byte FC03, a read of 0 registers).
     pub malformed: u64,
+    /// Requests the write policy refused (exception 01, 02 or 03): a write the bus file's
+    /// `writable` does not list or a value the spec refuses, the slave address, a read that
+    /// changes the device, a broadcast some device of the line refuses. Nothing was sent.
+    pub policy_refused: u64,
     /// Requests answered at once because the line can never carry them: a function whose
     /// reply cannot be framed on RTU, a write the bus file does not allow, a read to the
     /// broadcast address (exception 01), a unit id RTU reserves (0A).
@@ -164,6 +110,7 @@ pub(crate) struct GatewayCounters {
     requests: AtomicU64,
     busy: AtomicU64,
     malformed: AtomicU64,
+    pub(crate) policy_refused: AtomicU64,
     not_carried: AtomicU64,
     refused: AtomicU64,
     evicted: AtomicU64,
@@ -172,7 +119,7 @@ pub(crate) struct GatewayCounters {
     not_modbus: AtomicU64,
 }
 
-fn add(counter: &AtomicU64) {
+pub(crate) fn add(counter: &AtomicU64) {
     counter.fetch_add(1, Ordering::Relaxed);
 }
 
@@ -184,6 +131,7 @@ impl GatewayCounters {
             requests: load(&self.requests),
             busy: load(&self.busy),
             malformed: load(&self.malformed),
+            policy_refused: load(&self.policy_refused),
             not_carried: load(&self.not_carried),
             refused: load(&self.refused),
             evicted: load(&self.evicted),
@@ -371,7 +319,7 @@ async fn read_request(
 }
 
 /// Why a request is answered here, before the queue.
-enum Refusal {
+enum OwnAnswer {
     /// Its length or counts do not fit its function: exception 03.
     Malformed,
     /// The line can never carry it: exception 01 or 0A.
@@ -379,21 +327,22 @@ enum Refusal {
 }
 
 /// The gateway's own answer to a request the line must not see, if it is one.
-fn refusal(unit: u8, pdu: &[u8], writes: bool) -> Option<Refusal> {
-    if is_write(pdu[0]) && !writes {
-        return Some(Refusal::NotCarried(ILLEGAL_FUNCTION));
-    }
+fn own_answer(unit: u8, pdu: &[u8], writes: bool) -> Option<OwnAnswer> {
     let pass = match PassPdu::new(pdu) {
         Ok(pass) => pass,
-        Err(EncodeError::MalformedRequest { .. }) => return Some(Refusal::Malformed),
+        Err(EncodeError::MalformedRequest { .. }) => return Some(OwnAnswer::Malformed),
         // A function whose reply cannot be framed (an MBAP header holds 1 to 253 bytes).
-        Err(_) => return Some(Refusal::NotCarried(ILLEGAL_FUNCTION)),
+        Err(_) => return Some(OwnAnswer::NotCarried(ILLEGAL_FUNCTION)),
     };
     if unit > MAX_SLAVE {
-        return Some(Refusal::NotCarried(PATH_UNAVAILABLE));
+        return Some(OwnAnswer::NotCarried(PATH_UNAVAILABLE));
     }
     if unit == optobus_codec::BROADCAST && !pass.may_broadcast() {
-        return Some(Refusal::NotCarried(ILLEGAL_FUNCTION));
+        return Some(OwnAnswer::NotCarried(ILLEGAL_FUNCTION));
+    }
+    // The write policy's answer on a read-only gateway, given before the queue.
+    if pass.writes() && !writes {
+        return Some(OwnAnswer::NotCarried(refused(&Refusal::ReadOnly)));
     }
     None
 }
@@ -422,12 +371,12 @@ async fn connection(
         }
         let pdu = &pdu[..len];
         let function = pdu[0];
-        let reply = match refusal(mbap.unit, pdu, settings.writes) {
-            Some(Refusal::Malformed) => {
+        let reply = match own_answer(mbap.unit, pdu, settings.writes) {
+            Some(OwnAnswer::Malformed) => {
                 add(&counters.malformed);
                 exception(function, ILLEGAL_VALUE)
             }
-            Some(Refusal::NotCarried(code)) => {
+            Some(OwnAnswer::NotCarried(code)) => {
                 add(&counters.not_carried);
                 exception(function, code)
             }

@@ -9,13 +9,14 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
-use optobus_device::{CommandInfo, DeviceInfo, Invalid, RegisterInfo};
+use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
 use optobus_driver::{BufferTiming, Encode, Fixed};
-use optobus_inspect::{decode_value, parse_value, resolve_one, Value};
+use optobus_inspect::{decode_value, Value};
 use tokio::sync::{mpsc, oneshot};
 
 use crate::event::DeviceId;
 use crate::file::Writable;
+use crate::policy::{Policy, Refusal};
 use crate::trace::{Frame, LineFrames};
 
 /// Jobs a line keeps queued for an in-process caller ([`Source::Api`]), who waits for room.
@@ -158,26 +159,9 @@ pub(crate) struct Entry {
 pub enum JobError {
     /// No device of that name on the bus.
     UnknownDevice(String),
-    /// The register cannot be written (read-only), or the words are not the register's.
-    NotWritable(&'static str),
-    /// The value is one the register's spec refuses; nothing was sent.
-    Invalid {
-        /// The register.
-        register: &'static str,
-        /// Why.
-        why: Invalid,
-    },
-    /// The register or command is not one the bus file's `writable` lists for the device;
-    /// nothing was sent.
-    NotListed {
-        /// The device.
-        device: String,
-        /// The register or command as asked for.
-        name: String,
-    },
-    /// The name or the value was refused as `optobus set` and `optobus do` refuse it (unknown
-    /// name, a value out of range or off its steps, a unit that does not fit); nothing was sent.
-    Refused(optobus_inspect::Error),
+    /// The write policy (or, for an API write, the register's spec) refused it; nothing was
+    /// sent.
+    Refused(Refusal),
     /// The line already has as many jobs of this source queued as it keeps
     /// ([`NETWORK_QUEUE`]); refused at once, nothing was sent.
     Busy {
@@ -192,18 +176,17 @@ pub enum JobError {
     Device(optobus_driver::Error),
 }
 
+impl From<Refusal> for JobError {
+    fn from(refusal: Refusal) -> Self {
+        Self::Refused(refusal)
+    }
+}
+
 impl std::fmt::Display for JobError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::UnknownDevice(name) => write!(f, "the bus has no device `{name}`"),
-            Self::NotWritable(register) => write!(f, "`{register}` cannot be written"),
-            Self::Invalid { register, why } => write!(f, "`{register}` does not take it: {why}"),
-            Self::NotListed { device, name } => write!(
-                f,
-                "`{name}` of `{device}` is not writable here: the bus file's `writable` does not \
-                 list it"
-            ),
-            Self::Refused(error) => error.fmt(f),
+            Self::Refused(refusal) => refusal.fmt(f),
             Self::Busy { line, source } => write!(
                 f,
                 "line `{line}` is busy: {NETWORK_QUEUE} requests of the {} already wait for it; \
@@ -320,11 +303,11 @@ impl Handle {
     ) -> Result<(), JobError> {
         let entry = self.entry(device)?;
         if !register.access.writable() || words.len() != usize::from(register.words) {
-            return Err(JobError::NotWritable(register.name));
+            return Err(Refusal::NotWritable(register.name).into());
         }
         register
             .check(register.raw(&words))
-            .map_err(|why| JobError::Invalid {
+            .map_err(|why| Refusal::Invalid {
                 register: register.name,
                 why,
             })?;
@@ -358,27 +341,28 @@ impl Handle {
         .await
     }
 
+    /// The write policy for device `device` as the network sees it: what the bus file's
+    /// `writable` lists for it.
+    pub fn policy(&self, device: &str) -> Result<Policy<'_>, JobError> {
+        let entry = self.entry(device)?;
+        Ok(Policy::new(
+            &entry.id.device,
+            entry.device,
+            Some(&entry.writable),
+        ))
+    }
+
     /// Sets `register` of device `device` from `text` as `optobus set` does (units and SI
-    /// prefixes, code names, range, steps), if the bus file lists it as writable, and reads it
-    /// back: what writes from the network use. Nothing is sent when it is refused. Returns the
-    /// value read back (`None` for a register that cannot be read).
+    /// prefixes, code names, range, steps), if the write policy allows it, and reads it back:
+    /// what writes from the network use. Nothing is sent when it is refused. Returns the value
+    /// read back (`None` for a register that cannot be read).
     pub async fn set_listed(
         &self,
         device: &str,
         register: &str,
         text: &str,
     ) -> Result<Option<Value>, JobError> {
-        let entry = self.entry(device)?;
-        let info = entry.device;
-        let found = resolve_one(info, register, None).map_err(JobError::Refused)?;
-        if !entry.writable.allows_register(found) {
-            return Err(JobError::NotListed {
-                device: device.to_owned(),
-                name: register.to_owned(),
-            });
-        }
-        let words = parse_value(found, text)
-            .map_err(|error| JobError::Refused(optobus_inspect::Error::from(error)))?;
+        let (found, words) = self.policy(device)?.set(register, text)?;
         self.write(device, found, words, false).await?;
         if !found.readable() {
             return Ok(None);
@@ -387,29 +371,24 @@ impl Handle {
         Ok(back.pop())
     }
 
-    /// Runs `command` of device `device` as `optobus do` does, if the bus file lists it as
-    /// writable (a drastic one only when named there), and waits out its busy time.
+    /// Runs `command` of device `device` as `optobus do` does, if the write policy allows it
+    /// (a drastic one only when named in `writable`), and waits out its busy time.
     pub async fn do_listed(&self, device: &str, command: &str) -> Result<(), JobError> {
-        let entry = self.entry(device)?;
-        let info = entry.device;
-        let found = info.command(command).ok_or_else(|| {
-            let names: Vec<&str> = info.commands.iter().map(|c| c.name).collect();
-            JobError::Refused(
-                optobus_inspect::Error::new(format!(
-                    "`{command}` is no command of {}",
-                    info.model_name()
-                ))
-                .hint(format!("commands: {}", names.join(", "))),
-            )
-        })?;
-        if !entry.writable.allows_command(found) {
-            return Err(JobError::NotListed {
-                device: device.to_owned(),
-                name: command.to_owned(),
-            });
-        }
-        let register = resolve_one(info, found.register, None).map_err(JobError::Refused)?;
+        let (found, register) = self.policy(device)?.run(command)?;
         self.run(device, found, register).await
+    }
+
+    /// Reads `register` of device `device` now, between the line's polls, if the write policy
+    /// allows it: what reads from the network use (a read that changes the device only where
+    /// the policy allows it).
+    pub async fn read_checked(
+        &self,
+        device: &str,
+        register: &'static RegisterInfo,
+    ) -> Result<Value, JobError> {
+        self.policy(device)?.read(register)?;
+        let mut values = self.read(device, vec![register]).await?;
+        Ok(values.pop().unwrap_or(Value::Invalid))
     }
 
     /// Reads out the data buffer of device `device` (where its spec has one) between the
@@ -417,25 +396,8 @@ impl Handle {
     /// unlocked, as `optobus buffer` does. The lock and unlock are commands: the bus file's
     /// `writable` must list them (`all` does), since reading out empties the buffer.
     pub async fn download_buffer(&self, device: &str) -> Result<Buffered, JobError> {
+        self.policy(device)?.buffer()?;
         let entry = self.entry(device)?;
-        let info = entry.device;
-        let buffer = info.buffer.ok_or_else(|| {
-            JobError::Refused(optobus_inspect::Error::new(format!(
-                "{} has no data buffer",
-                info.model_name()
-            )))
-        })?;
-        for name in [buffer.lock, buffer.unlock] {
-            let listed = info
-                .command(name)
-                .is_some_and(|command| entry.writable.allows_command(command));
-            if !listed {
-                return Err(JobError::NotListed {
-                    device: device.to_owned(),
-                    name: name.to_owned(),
-                });
-            }
-        }
         let index = entry.index;
         self.send(entry.line, |done| Job::Buffer {
             device: index,

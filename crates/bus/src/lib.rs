@@ -53,6 +53,7 @@ mod gateway;
 mod handle;
 mod line;
 mod link;
+mod policy;
 pub mod schedule;
 mod trace;
 
@@ -67,5 +68,6 @@ pub use gateway::GatewayCounts;
 pub use handle::{Buffered, Handle, JobError, Source, NETWORK_QUEUE};
 pub use line::NETWORK_SHARE;
 pub use link::Stream;
+pub use policy::{Policy, Refusal, RefusalKind};
 pub use schedule::Health;
 pub use trace::{Direction, Frame, FRAMES_KEPT};

@@ -15,9 +15,11 @@ use tokio::sync::{broadcast, mpsc, Mutex};
 use tokio::time::Instant;
 
 use crate::event::{DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
+use crate::file::Writable;
 use crate::gateway::{self, GatewayRequest};
 use crate::handle::{self, Checked, Job, Source};
 use crate::link::{count, Client, DeviceLink, DeviceSettings, LineState, Stream};
+use crate::policy::{Policy, Refusal};
 use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
 use crate::trace::{LineFrames, TracedStream};
 
@@ -26,6 +28,14 @@ fn path_or_target(error: &Error) -> u8 {
     match error {
         Error::Timeout { .. } | Error::Frame(_) | Error::WordCount { .. } => gateway::TARGET_FAILED,
         _ => gateway::PATH_UNAVAILABLE,
+    }
+}
+
+/// The first address a register request names.
+fn pdu_address(pass: &PassPdu<'_>) -> u16 {
+    match pass.bytes() {
+        [_, high, low, ..] => u16::from_be_bytes([*high, *low]),
+        _ => 0,
     }
 }
 
@@ -114,6 +124,19 @@ pub(crate) struct DeviceRun {
     pub(crate) errors: Arc<std::sync::Mutex<ErrorCounts>>,
     /// How its requests are made (the gateway's requests to it too).
     pub(crate) settings: DeviceSettings,
+    /// What the network may write to it (the gateway's writes, where its line allows them).
+    pub(crate) writable: Writable,
+}
+
+impl DeviceRun {
+    /// The write policy for the gateway's requests to this device.
+    fn gateway_policy(&self, writes: bool) -> Policy<'_> {
+        Policy::new(
+            &self.id.device,
+            self.core.device(),
+            writes.then_some(&self.writable),
+        )
+    }
 }
 
 /// The gateway's side of a line.
@@ -121,6 +144,8 @@ pub(crate) struct GatewayQueue {
     pub(crate) requests: mpsc::Receiver<GatewayRequest>,
     /// Whether writes pass.
     pub(crate) writes: bool,
+    /// What it counts: the line counts the requests the write policy refuses.
+    pub(crate) counters: Arc<gateway::GatewayCounters>,
 }
 
 /// The registers of one poll.
@@ -538,29 +563,27 @@ impl LineTask {
     async fn pass(&mut self, unit: u8, pdu: &[u8]) -> Option<Vec<u8>> {
         let function = pdu[0];
         let refused = |code| Some(gateway::exception(function, code));
-        let writes = self.gateway.as_ref().is_some_and(|g| g.writes);
-        let index = self.devices.iter().position(|d| d.id.slave == unit);
-        let (settings, shape, refusal) = {
-            let device = index.map(|index| &self.devices[index]);
-            let refusal = match (gateway::is_write(function), device) {
-                (true, _) if !writes => Some(gateway::ILLEGAL_FUNCTION),
-                (true, Some(device)) => gateway::refuse_write(device.core.device(), pdu),
-                _ => None,
-            };
-            match device {
-                Some(device) => (device.settings, device.core.device().frame_shape, refusal),
-                None => (DeviceSettings::standard(), FrameShape::STANDARD, refusal),
-            }
-        };
-        if let Some(code) = refusal {
-            return refused(code);
-        }
         let pass = match PassPdu::new(pdu) {
             Ok(pass) => pass,
             Err(optobus_codec::EncodeError::MalformedRequest { .. }) => {
                 return refused(gateway::ILLEGAL_VALUE)
             }
             Err(_) => return refused(gateway::ILLEGAL_FUNCTION),
+        };
+        let index = self.devices.iter().position(|d| d.id.slave == unit);
+        if let Err(refusal) = self.allowed(unit, index, &pass) {
+            if let Some(gateway) = &self.gateway {
+                gateway::add(&gateway.counters.policy_refused);
+            }
+            tracing::debug!(target: "optobus_bus", line = &*self.name, "gateway request to slave {unit} refused: {refusal}");
+            return refused(gateway::refused(&refusal));
+        }
+        let (settings, shape) = match index {
+            Some(index) => {
+                let device = &self.devices[index];
+                (device.settings, device.core.device().frame_shape)
+            }
+            None => (DeviceSettings::standard(), FrameShape::STANDARD),
         };
         // A write whose width does not fit the device's framing at that address.
         if pass.check_shape(&shape).is_err() {
@@ -582,6 +605,39 @@ impl LineTask {
                 None
             }
             Err(error) => refused(path_or_target(&error)),
+        }
+    }
+
+    /// What the write policy says of a gateway request to `unit` (the device at `index` of
+    /// the line, if it is one): a broadcast only where every device of the line allows it
+    /// and frames it alike, a write to a slave the bus file does not name never.
+    fn allowed(&self, unit: u8, index: Option<usize>, pass: &PassPdu<'_>) -> Result<(), Refusal> {
+        let writes = self.gateway.as_ref().is_some_and(|g| g.writes);
+        if unit == BROADCAST {
+            if self.devices.is_empty() {
+                return Err(Refusal::UnknownSlave(unit));
+            }
+            for device in &self.devices {
+                let refuses = |refusal| Refusal::Broadcast {
+                    device: device.id.device.to_string(),
+                    refusal: Box::new(refusal),
+                };
+                device.gateway_policy(writes).pass(pass).map_err(refuses)?;
+                // An FC06 of a width this device does not take at that address.
+                if pass.check_shape(&device.core.device().frame_shape).is_err() {
+                    let address = pdu_address(pass);
+                    return Err(refuses(Refusal::NoRegisterAt {
+                        device: device.id.device.to_string(),
+                        address,
+                    }));
+                }
+            }
+            return Ok(());
+        }
+        match index {
+            Some(index) => self.devices[index].gateway_policy(writes).pass(pass),
+            None if pass.writes() => Err(Refusal::UnknownSlave(unit)),
+            None => Ok(()),
         }
     }
 

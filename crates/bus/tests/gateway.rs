@@ -95,7 +95,8 @@ async fn writes_are_refused_unless_the_file_allows_them_and_then_checked_against
 
     let no_polls = BUS
         .replace("clients: 2", "clients: 2, writes: true")
-        .replace(", poll: [{ read: measurements }]", "");
+        .replace(", poll: [{ read: measurements }]", "")
+        .replace("slave: 1,", "slave: 1, writable: [light_power],");
     let running = start(&no_polls);
     let head = running.simulator("head").unwrap();
     let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
@@ -279,7 +280,8 @@ async fn an_idle_gateway_client_is_closed_after_its_idle_timeout() {
 async fn malformed_gateway_requests_are_answered_without_the_line() {
     let no_polls = BUS
         .replace("clients: 2", "clients: 2, writes: true")
-        .replace(", poll: [{ read: measurements }]", "");
+        .replace(", poll: [{ read: measurements }]", "")
+        .replace("slave: 1,", "slave: 1, writable: [light_power],");
     let running = start(&no_polls);
     let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
         .await
@@ -467,4 +469,202 @@ async fn a_client_that_takes_no_replies_is_closed_after_its_idle_timeout() {
         .await
         .expect("the writes fail once the connection is closed")
         .unwrap();
+}
+
+/// The FC06 request PDU writing `value` to holding register `name` of the P series.
+fn write_p_series(name: &str, value: u16) -> Vec<u8> {
+    let register = optobus_p_series::DEVICE.register(name).unwrap();
+    [
+        &[0x06][..],
+        &register.address.to_be_bytes(),
+        &value.to_be_bytes(),
+    ]
+    .concat()
+}
+
+/// The words of register `name` of the P series in `simulator`.
+fn p_series_words(simulator: &optobus_simulator::Simulator, name: &str) -> Option<Vec<u16>> {
+    let register = optobus_p_series::DEVICE.register(name).unwrap();
+    simulator.peek(Table::Holding, register.address)
+}
+
+const WRITABLE_GATEWAY: &str = "
+lines:
+  - name: rs485
+    simulated: true
+    baud: 115200
+    any_format: true
+    gateway: { listen: 127.0.0.1:0, clients: 2, writes: true }
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms, writable: [light_power] }
+  - { name: confocal, model: ccs, slave: 2, timeout: 50ms }
+";
+
+#[tokio::test]
+async fn the_gateway_with_writes_writes_only_what_the_bus_file_lists() {
+    let running = start(WRITABLE_GATEWAY);
+    let head = running.simulator("head").unwrap();
+    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    let names = [
+        "slave_address",
+        "save_parameters",
+        "network_reset_or_reboot",
+        "laser_enabled",
+    ];
+    let before: Vec<_> = names.iter().map(|n| p_series_words(head, n)).collect();
+    // Issue 29: slave address 31 (the head would be lost to the bus), a save, a reboot and a
+    // register nothing lists: each "not allowed", exception 01.
+    for (transaction, (name, value)) in [
+        ("slave_address", 31),
+        ("save_parameters", 1),
+        ("network_reset_or_reboot", 170),
+        ("laser_enabled", 0),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let request = write_p_series(name, value);
+        let reply = ask(&mut client, transaction as u16, 1, &request).await;
+        assert_eq!(&reply[7..], &[0x86, 0x01], "{name} = {value}");
+    }
+    let after: Vec<_> = names.iter().map(|n| p_series_words(head, n)).collect();
+    assert_eq!(after, before, "nothing reached the device");
+    let counts = running.gateway_counts("rs485").unwrap();
+    assert_eq!(counts.policy_refused, 4);
+    // What is listed is written.
+    let reply = ask(&mut client, 9, 1, &write_p_series("light_power", 600)).await;
+    assert_eq!(reply[7..], write_p_series("light_power", 600)[..]);
+    assert_eq!(p_series_words(head, "light_power"), Some(vec![600]));
+    drop(running);
+
+    // A drastic command runs where the file names it, with its own value only.
+    let running =
+        start(&WRITABLE_GATEWAY.replace("[light_power]", "[light_power, reset_sampled_data]"));
+    let head = running.simulator("head").unwrap();
+    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    let reply = ask(&mut client, 1, 1, &write_p_series("sampled_data_reset", 1)).await;
+    assert_eq!(reply[7..], write_p_series("sampled_data_reset", 1)[..]);
+    let reply = ask(&mut client, 2, 1, &write_p_series("save_parameters", 1)).await;
+    assert_eq!(&reply[7..], &[0x86, 0x01]);
+    assert_eq!(p_series_words(head, "save_parameters"), Some(vec![0]));
+}
+
+/// Waits until `done` holds (within a generous deadline); whether it did.
+async fn eventually(done: impl Fn() -> bool) -> bool {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(10);
+    while tokio::time::Instant::now() < deadline {
+        if done() {
+            return true;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    done()
+}
+
+#[tokio::test]
+async fn a_broadcast_write_goes_out_only_where_every_device_lists_it_and_takes_the_value() {
+    // Issue 29: unit 0, holding 2 = 600 set the head's light power and the confocal's
+    // exposure time although the confocal lists nothing.
+    let running = start(WRITABLE_GATEWAY);
+    let head = running.simulator("head").unwrap();
+    let confocal = running.simulator("confocal").unwrap();
+    let before = (
+        head.peek(Table::Holding, 2),
+        confocal.peek(Table::Holding, 2),
+    );
+    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    let reply = ask(&mut client, 1, 0, &[0x06, 0x00, 0x02, 0x02, 0x58]).await;
+    assert_eq!(&reply[6..], &[0x00, 0x86, 0x01], "the confocal refuses it");
+    let after = (
+        head.peek(Table::Holding, 2),
+        confocal.peek(Table::Holding, 2),
+    );
+    assert_eq!(after, before, "nothing was broadcast");
+    drop(running);
+
+    // Two heads that both list the light power: one broadcast, both set, no reply.
+    let heads = "
+lines:
+  - name: rs485
+    simulated: true
+    baud: 115200
+    any_format: true
+    gateway: { listen: 127.0.0.1:0, clients: 2, writes: true }
+devices:
+  - { name: top, model: p-series, slave: 1, timeout: 50ms, writable: [light_power] }
+  - { name: bottom, model: p-series, slave: 2, timeout: 50ms, writable: [light_power] }
+";
+    let running = start(heads);
+    let top = running.simulator("top").unwrap();
+    let bottom = running.simulator("bottom").unwrap();
+    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    // Out of range for both (100.1 %): exception 03, nothing sent.
+    let reply = ask(&mut client, 2, 0, &write_p_series("light_power", 1001)).await;
+    assert_eq!(&reply[7..], &[0x86, 0x03]);
+    send(&mut client, 3, 0, &write_p_series("light_power", 600)).await;
+    let both = || {
+        p_series_words(top, "light_power") == Some(vec![600])
+            && p_series_words(bottom, "light_power") == Some(vec![600])
+    };
+    assert!(eventually(both).await, "the broadcast reached both heads");
+    // Nothing comes back for a broadcast: the next reply is the next request's.
+    let (read, answer) = light_power_read();
+    let reply = ask(&mut client, 4, 1, &read).await;
+    assert_eq!(&reply[..2], &4u16.to_be_bytes());
+    assert_eq!(&reply[7..9], &answer[..2]);
+}
+
+#[tokio::test]
+async fn a_read_only_gateway_refuses_reads_that_change_the_device() {
+    let buffered = optobus_p_series::DEVICE
+        .register("buffer_sample_1_buffered_value")
+        .unwrap();
+    let [high, low] = buffered.address.to_be_bytes();
+    let page_read = [0x04, high, low, 0x00, 0x02];
+    let distance = optobus_p_series::DEVICE.register("distance_1").unwrap();
+    let [d_high, d_low] = distance.address.to_be_bytes();
+    let running = start(&WRITABLE_GATEWAY.replace(", writes: true", ""));
+    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    // Issue 29: FC04 of the buffer page (input 0x12) turns the page: not allowed, 01; a read
+    // that covers it from below too.
+    let reply = ask(&mut client, 1, 1, &page_read).await;
+    assert_eq!(&reply[7..], &[0x84, 0x01]);
+    let [below_high, below_low] = (buffered.address - 2).to_be_bytes();
+    let covering = [0x04, below_high, below_low, 0x00, 0x04];
+    let reply = ask(&mut client, 2, 1, &covering).await;
+    assert_eq!(&reply[7..], &[0x84, 0x01]);
+    // Other input registers read as ever.
+    let reply = ask(&mut client, 3, 1, &[0x04, d_high, d_low, 0x00, 0x02]).await;
+    assert_eq!(&reply[7..9], &[0x04, 0x04]);
+    assert_eq!(running.gateway_counts("rs485").unwrap().policy_refused, 2);
+    drop(running);
+
+    // Where writes pass and the buffer's lock and unlock are listed, the page may be read.
+    let running = start(&WRITABLE_GATEWAY.replace("[light_power]", "[lock_buffer, unlock_buffer]"));
+    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    let reply = ask(&mut client, 1, 1, &page_read).await;
+    assert_eq!(&reply[7..9], &[0x04, 0x04]);
+}
+
+#[tokio::test]
+async fn a_read_of_unit_0_is_answered_at_once_with_exception_01() {
+    let running = start(WRITABLE_GATEWAY);
+    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    let (read, _) = light_power_read();
+    let reply = ask(&mut client, 1, 0, &read).await;
+    assert_eq!(&reply[6..], &[0x00, 0x83, 0x01]);
 }

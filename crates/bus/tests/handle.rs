@@ -5,7 +5,7 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use optobus_bus::{Bus, BusFile, Catalogue, Event, JobError, Source};
+use optobus_bus::{Bus, BusFile, Catalogue, Event, JobError, Refusal, Source};
 use optobus_device::Table;
 use optobus_inspect::parse_value;
 use optobus_simulator::Simulator;
@@ -40,10 +40,10 @@ async fn a_write_is_checked_before_it_is_queued_and_then_made() {
     assert!(
         matches!(
             error,
-            JobError::Invalid {
+            JobError::Refused(Refusal::Invalid {
                 register: "light_power",
                 ..
-            }
+            })
         ),
         "{error}"
     );
@@ -51,7 +51,7 @@ async fn a_write_is_checked_before_it_is_queued_and_then_made() {
     let distance = optobus_p_series::DEVICE.register("distance_1").unwrap();
     assert!(matches!(
         handle.write("head", distance, vec![0, 0], false).await,
-        Err(JobError::NotWritable("distance_1"))
+        Err(JobError::Refused(Refusal::NotWritable("distance_1")))
     ));
     assert!(matches!(
         handle.write("tail", power, vec![100], false).await,
@@ -184,7 +184,10 @@ devices:
             .await
             .unwrap_err();
         let tool = parse_value(power, text).unwrap_err().to_string();
-        assert!(matches!(error, JobError::Refused(_)), "{text}: {error}");
+        assert!(
+            matches!(error, JobError::Refused(Refusal::Text(_))),
+            "{text}: {error}"
+        );
         assert_eq!(error.to_string(), tool, "{text}");
     }
     let unlisted = handle
@@ -197,7 +200,7 @@ devices:
     );
     assert!(matches!(
         handle.do_listed("head", "save_parameters").await,
-        Err(JobError::NotListed { .. })
+        Err(JobError::Refused(Refusal::NotListed { .. }))
     ));
     let unknown = handle.do_listed("head", "warp").await.unwrap_err();
     assert!(

@@ -186,6 +186,39 @@ fn reply_shape(pdu: &[u8], shape: &FrameShape<'_>) -> Option<ReplyShape> {
     })
 }
 
+/// What a request PDU asks of the registers it names, as [`PassPdu::access`] reads it: what a
+/// gateway checks before the request may go to a device.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Access<'a> {
+    /// Reads `count` registers from `address` (FC03 holding, FC04 input).
+    ReadRegisters {
+        /// Input registers (FC04) rather than holding ones (FC03).
+        input: bool,
+        /// The first register.
+        address: u16,
+        /// How many.
+        count: u16,
+    },
+    /// Writes holding registers from `address` (FC06, FC16).
+    WriteRegisters {
+        /// The first register.
+        address: u16,
+        /// The data written: two bytes per register, high byte first ([`words`]).
+        data: &'a [u8],
+    },
+    /// Any other function: bits, files, masks, FIFOs, diagnostics, read/write multiple.
+    Other {
+        /// Whether it changes the device (coil, file, mask and read/write multiple writes).
+        writes: bool,
+    },
+}
+
+/// The registers' words in `data` of an [`Access::WriteRegisters`], in order.
+pub fn words(data: &[u8]) -> impl Iterator<Item = u16> + '_ {
+    data.chunks_exact(2)
+        .map(|pair| u16::from_be_bytes([pair[0], pair[1]]))
+}
+
 /// A request PDU (function code and data) to pass on unread.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PassPdu<'a> {
@@ -240,6 +273,41 @@ impl<'a> PassPdu<'a> {
     /// broadcast, so a read broadcast would be asked for nothing.
     pub fn may_broadcast(&self) -> bool {
         matches!(self.function(), 0x05 | 0x06 | 0x0F | 0x10 | 0x15 | 0x16)
+    }
+
+    /// What the request reads or writes.
+    pub fn access(&self) -> Access<'a> {
+        let pdu = self.pdu;
+        let word = |at: usize| u16::from_be_bytes([pdu[at], pdu[at + 1]]);
+        // `new` checked each function's length and counts.
+        match self.function() {
+            function @ (0x03 | 0x04) => Access::ReadRegisters {
+                input: function == 0x04,
+                address: word(1),
+                count: word(3),
+            },
+            WRITE_SINGLE => Access::WriteRegisters {
+                address: word(1),
+                data: &pdu[3..],
+            },
+            0x10 => Access::WriteRegisters {
+                address: word(1),
+                data: &pdu[6..],
+            },
+            function => Access::Other {
+                writes: matches!(function, 0x05 | 0x0F | 0x15 | 0x16 | 0x17),
+            },
+        }
+    }
+
+    /// Whether the request changes the device: a write of bits, registers, file records or a
+    /// mask.
+    pub fn writes(&self) -> bool {
+        match self.access() {
+            Access::ReadRegisters { .. } => false,
+            Access::WriteRegisters { .. } => true,
+            Access::Other { writes } => writes,
+        }
     }
 
     /// The function code.
@@ -374,6 +442,40 @@ mod tests {
     use crate::{rtu, ExceptionCode, ReadFunction, Request};
     use std::string::ToString;
     use std::vec;
+
+    #[test]
+    fn access_names_the_registers_a_request_reads_or_writes() {
+        let read = PassPdu::new(&[0x04, 0x00, 0x12, 0x00, 0x02]).unwrap();
+        assert_eq!(
+            read.access(),
+            Access::ReadRegisters {
+                input: true,
+                address: 0x12,
+                count: 2
+            }
+        );
+        assert!(!read.writes());
+        let single = PassPdu::new(&[0x06, 0x00, 0x1F, 0x00, 0x05]).unwrap();
+        assert_eq!(
+            single.access(),
+            Access::WriteRegisters {
+                address: 0x1F,
+                data: &[0x00, 0x05]
+            }
+        );
+        let multiple =
+            PassPdu::new(&[0x10, 0x00, 0x10, 0x00, 0x02, 0x04, 0x00, 0x0A, 0x01, 0x02]).unwrap();
+        let Access::WriteRegisters { address, data } = multiple.access() else {
+            panic!("FC16 writes registers");
+        };
+        assert_eq!(address, 0x10);
+        assert!(words(data).eq([0x000A, 0x0102]));
+        let coil = PassPdu::new(&[0x05, 0x00, 0x01, 0xFF, 0x00]).unwrap();
+        assert_eq!(coil.access(), Access::Other { writes: true });
+        assert!(coil.writes() && multiple.writes());
+        let server_id = PassPdu::new(&[0x11]).unwrap();
+        assert!(!server_id.writes());
+    }
 
     #[test]
     fn a_read_passed_through_frames_like_the_typed_read() {

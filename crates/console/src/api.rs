@@ -156,7 +156,8 @@ pub(crate) struct Read {
 }
 
 /// `POST /api/devices/{device}/read` with `{"register": "light_power"}`: reads the register
-/// now, between the polls (a register whose read changes the device is refused). A POST with
+/// now, between the polls, if the write policy allows it (a register whose read changes the
+/// device only where its buffer's commands are listed: `403` else). A POST with
 /// a JSON body, never a simple cross-site request (an `<img>` or a form of another site cannot
 /// send it), and with the token where writes need it: a read takes the line's time. A line
 /// that already has the console's share of work waiting answers `429`.
@@ -176,21 +177,11 @@ async fn read(
             info.model_name()
         ))
     })?;
-    if !found.readable() || !found.read_is_repeatable() {
-        return Err(ApiError::bad_request(format!(
-            "`{register}` is not read from the console: {}",
-            found.read_side_effect.unwrap_or("it cannot be read")
-        )));
-    }
-    let values = shared
+    let value = shared
         .handle
-        .read(&device, vec![found])
+        .read_checked(&device, found)
         .await
         .map_err(|e| write::job_error(&device, e))?;
-    let value = values
-        .into_iter()
-        .next()
-        .unwrap_or(optobus_inspect::Value::Invalid);
     Ok(Json(json!({
         "register": found.name,
         "text": value.to_string(),

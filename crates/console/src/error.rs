@@ -40,10 +40,6 @@ impl ApiError {
     pub(crate) fn unknown_device(name: &str) -> Self {
         Self::not_found(format!("the bus has no device `{name}`"))
     }
-
-    pub(crate) fn bad_request(message: impl Into<String>) -> Self {
-        Self::new(StatusCode::BAD_REQUEST, message)
-    }
 }
 
 impl IntoResponse for ApiError {

@@ -9,7 +9,7 @@ use axum::http::header::CONTENT_TYPE;
 use axum::http::StatusCode;
 use axum::response::IntoResponse;
 use axum::Json;
-use optobus_bus::JobError;
+use optobus_bus::{JobError, RefusalKind};
 use serde::Deserialize;
 use serde_json::{json, Value as Json_};
 
@@ -44,16 +44,20 @@ pub(crate) fn body_error(rejection: JsonRejection) -> ApiError {
     ApiError::new(status, message)
 }
 
-/// The status of a job's refusal or failure; its message is the bus's. A busy line is a
-/// `429` with `Retry-After`.
+/// The status of a job's refusal or failure; its message is the bus's. The write policy's
+/// refusals are `403` (not allowed here) or `422` (a name or value the spec refuses); a busy
+/// line is a `429` with `Retry-After`.
 pub(crate) fn job_error(device: &str, error: JobError) -> ApiError {
     let status = match &error {
         JobError::UnknownDevice(_) => return ApiError::unknown_device(device),
         JobError::Busy { .. } => return ApiError::busy(error.to_string()),
-        JobError::NotListed { .. } => StatusCode::FORBIDDEN,
+        JobError::Refused(refusal) => match refusal.kind() {
+            RefusalKind::NotAllowed => StatusCode::FORBIDDEN,
+            RefusalKind::Address | RefusalKind::Value => StatusCode::UNPROCESSABLE_ENTITY,
+        },
         JobError::Stopped => StatusCode::SERVICE_UNAVAILABLE,
         JobError::Device(_) => StatusCode::BAD_GATEWAY,
-        _ => StatusCode::UNPROCESSABLE_ENTITY,
+        _ => StatusCode::INTERNAL_SERVER_ERROR,
     };
     ApiError::new(status, error.to_string())
 }
