@@ -46,6 +46,9 @@ pub enum Refusal {
         device: String,
         /// The register or command as asked for.
         name: String,
+        /// Whether it stores, restarts or resets the device (or is the register of such a
+        /// command): `writable: all` leaves those out, they must be named.
+        drastic: bool,
     },
     /// The register holds the device's slave address, which the bus addresses it by.
     SlaveAddress(&'static str),
@@ -128,11 +131,24 @@ impl std::fmt::Display for Refusal {
                 "writes are off here: the bus file's line does not say `writes: true` for its \
                  gateway",
             ),
-            Self::NotListed { device, name } => write!(
-                f,
-                "`{name}` of `{device}` is not writable here: the bus file's `writable` does not \
-                 list it"
-            ),
+            Self::NotListed {
+                device,
+                name,
+                drastic,
+            } => {
+                write!(
+                    f,
+                    "`{name}` of `{device}` is not writable here: the bus file's `writable` does \
+                     not list it"
+                )?;
+                if *drastic {
+                    f.write_str(
+                        " (it stores, restarts or resets the device: `all` leaves it out, it must \
+                         be named)",
+                    )?;
+                }
+                Ok(())
+            }
             Self::SlaveAddress(register) => write!(
                 f,
                 "`{register}` is never written on a bus: the bus addresses the device by it"
@@ -222,7 +238,7 @@ impl<'a> Policy<'a> {
         })?;
         let writable = self.writable.ok_or(Refusal::ReadOnly)?;
         if !writable.allows_command(found) {
-            return Err(self.not_listed(command));
+            return Err(self.not_listed(command, found.effect.is_drastic()));
         }
         let register = resolve_one(info, found.register, None).map_err(Refusal::Text)?;
         Ok((found, register))
@@ -345,7 +361,10 @@ impl<'a> Policy<'a> {
         let command = raw.and_then(|raw| self.info.command_writing(register, raw));
         match command {
             Some(command) if writable.allows_command(command) => Ok(()),
-            _ => Err(self.not_listed(register.name)),
+            _ => {
+                let drastic = self.info.drastic_commands_on(register).next().is_some();
+                Err(self.not_listed(register.name, drastic))
+            }
         }
     }
 
@@ -369,10 +388,11 @@ impl<'a> Policy<'a> {
         })
     }
 
-    fn not_listed(&self, name: &str) -> Refusal {
+    fn not_listed(&self, name: &str, drastic: bool) -> Refusal {
         Refusal::NotListed {
             device: self.device.to_owned(),
             name: name.to_owned(),
+            drastic,
         }
     }
 

@@ -59,6 +59,8 @@ pub fn configurations(
                 config: object(json!({
                     "command_topic": format!("{}/do", topics.sample(&device.name, command.name)),
                     "payload_press": "PRESS",
+                    // Said outright: a retained command would be refused (see the README).
+                    "retain": false,
                 })),
             });
         }
@@ -151,6 +153,8 @@ fn control(register: &'static RegisterInfo, topic: &str) -> Option<Entity> {
         config.remove("device_class");
     }
     config.insert("command_topic".into(), command_topic.into());
+    // Said outright: a retained command would be refused (see the README).
+    config.insert("retain".into(), false.into());
     Some(Entity {
         component,
         id: register.name.to_owned(),

@@ -446,6 +446,74 @@ async fn a_retained_set_is_refused_and_not_carried_out() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_retained_do_is_refused_at_start_and_at_every_reconnection_and_never_runs() {
+    if !mosquitto_installed() {
+        return;
+    }
+    // Issue 29: a retained `zero_position_1/do` re-zeroed the head at start and at every
+    // reconnection to the broker.
+    let mut broker = Broker::start("retained-do").await;
+    let watcher = Watcher::start(broker.port, "watcher-retained-do", "plant/top/#").await;
+    let (client, controller) = controller(broker.port);
+    client
+        .publish(
+            "plant/top/zero_position_1/do",
+            QoS::AtLeastOnce,
+            true,
+            "PRESS",
+        )
+        .await
+        .unwrap();
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(10), |heard| heard
+                .iter()
+                .any(|h| h.topic == "plant/top/zero_position_1/do"))
+            .await
+    );
+    controller.abort();
+    let file = file(broker.port, false);
+    let (running, publisher) = start(&file);
+    let simulator = running.simulator("top").unwrap();
+    let zero = P.register("position_1_zero").unwrap();
+    let expected = "a retained write is not carried out (the broker would hand it over again \
+                    at every connection); nothing was sent: publish it without the retain flag";
+    let refusals = |heard: &[Heard]| {
+        heard
+            .iter()
+            .filter(|h| h.topic == "plant/top/zero_position_1/error" && h.payload == expected)
+            .count()
+    };
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(20), |heard| refusals(heard) == 1)
+            .await,
+        "{:?}",
+        watcher.on("plant/top/zero_position_1/error")
+    );
+    wait_counts(&publisher, "the retained command refused at start", |c| {
+        c.writes_retained == 1
+    })
+    .await;
+    // The broker restarts (keeping its retained messages): at the new subscription the
+    // command comes again, and is refused again.
+    broker.stop();
+    broker.run().await;
+    wait_counts(&publisher, "refused again after the reconnection", |c| {
+        c.connections == 2 && c.writes_retained == 2
+    })
+    .await;
+    let counts = publisher.counts();
+    assert_eq!(counts.writes_taken, 0, "{counts:?}");
+    assert_eq!(
+        simulator.peek(zero.table, zero.address).unwrap(),
+        [0],
+        "the head was never zeroed"
+    );
+    running.stop();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_payload_over_the_incoming_limit_breaks_one_connection_and_publishing_goes_on() {
     if !mosquitto_installed() {
         return;
