@@ -14,7 +14,7 @@
 //! | `GET /api/devices/{device}` | the device's register map, commands and groups, from its spec |
 //! | `GET /api/devices/{device}/frames` | its recent frames: direction, hex, time, reply delay |
 //! | `POST /api/devices/{device}/read` | `{"register": "distance_1"}`: the register read now, between the polls (a line with the console's share already waiting answers `429` with `Retry-After`) |
-//! | `POST /api/devices/{device}/set` | `{"register": "light_power", "value": "12.5 %"}`: set as `optobus set` does, if the bus file's `writable` lists it; the value read back |
+//! | `POST /api/devices/{device}/set` | `{"register": "light_power", "value": "12.5 %"}`: set as `optobus set` does, if the bus file's `writable` lists it; the value read back. A JSON number (`"value": 12.5`) is taken as the text written, never through a float |
 //! | `POST /api/devices/{device}/do` | `{"command": "zero_position_1"}`: run as `optobus do` does, if listed (a drastic one only when named there) |
 //! | `POST /api/devices/{device}/buffer` | its data buffer read out (if `writable` lists the buffer's lock and unlock), as CSV: `index,time_s,value_UNIT` |
 //! | `GET /api/stream` | server-sent events: a batch of samples, health and line statistics every 100 ms |

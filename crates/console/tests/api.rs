@@ -1057,3 +1057,102 @@ async fn http_connections_beyond_the_cap_do_not_exhaust_descriptors() {
     let status = over_socket(address, &status_request(address)).await;
     assert!(status.starts_with("HTTP/1.1 200"), "{status}");
 }
+
+// ---- issue 29, point 5: numbers as written; over real sockets, against a console served
+// by the test ----
+
+/// One request to the console at `address` on a new connection, `Host` and other headers as
+/// given: the status and the JSON body of its reply.
+async fn exchange(
+    address: SocketAddr,
+    method: &str,
+    path: &str,
+    headers: &[(&str, &str)],
+    body: &str,
+) -> (u16, Value) {
+    let mut request = format!("{method} {path} HTTP/1.1\r\n");
+    for (name, value) in headers {
+        request.push_str(&format!("{name}: {value}\r\n"));
+    }
+    if !body.is_empty() {
+        request.push_str("content-type: application/json\r\n");
+    }
+    request.push_str(&format!(
+        "content-length: {}\r\nconnection: close\r\n\r\n{body}",
+        body.len()
+    ));
+    // Real clients connect to the loopback whatever the console is bound to.
+    let to = SocketAddr::from(([127, 0, 0, 1], address.port()));
+    let reply = over_socket(to, &request).await;
+    let status = reply
+        .strip_prefix("HTTP/1.1 ")
+        .and_then(|rest| rest.get(..3))
+        .and_then(|code| code.parse().ok())
+        .unwrap_or_else(|| panic!("no HTTP reply: {reply:?}"));
+    let json = reply
+        .split_once("\r\n\r\n")
+        .and_then(|(_, body)| serde_json::from_str(body).ok())
+        .unwrap_or(Value::Null);
+    (status, json)
+}
+
+/// Point 5 of issue 29: a JSON number is the text written in the body, never a float's
+/// rounding of it: `0.49999999999999999999` and `100.00000000000000001` are refused for
+/// `light_power` (0.5 % to 100 %) with the message their strings get, as `optobus set` refuses
+/// them; an exact number and a string with its unit still go through.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn json_numbers_reach_the_value_parser_exactly_as_written() {
+    let running = start(WRITABLE);
+    let config = HttpConfig::new("127.0.0.1:0".parse().unwrap());
+    let server = optobus_console::serve(&running, &config).await.unwrap();
+    let address = server.address();
+    let host = address.to_string();
+    let set = |value: String| {
+        let host = host.clone();
+        async move {
+            let body = format!(r#"{{"register": "light_power", "value": {value}}}"#);
+            exchange(
+                address,
+                "POST",
+                "/api/devices/head/set",
+                &[("host", &host)],
+                &body,
+            )
+            .await
+        }
+    };
+    let before = light_power(&running);
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    for written in ["0.49999999999999999999", "100.00000000000000001"] {
+        let as_string = set(format!("\"{written}\"")).await;
+        let as_number = set(written.to_owned()).await;
+        assert_eq!(as_string.0, 422, "{written} as a string: {}", as_string.1);
+        assert_eq!(as_number, as_string, "{written} as a number");
+        let error = optobus_inspect::parse_value(power, written).unwrap_err();
+        assert_eq!(
+            as_number.1["error"],
+            optobus_inspect::Error::from(error).to_string()
+        );
+    }
+    assert_eq!(light_power(&running), before);
+    assert!(!wrote(&running), "nothing refused reaches the line");
+    // Neither text nor a number: refused as before.
+    for other in ["true", "null", "[0.5]", r#"{"value": 0.5}"#] {
+        let (status, json) = set(other.to_owned()).await;
+        assert_eq!(status, 422, "{other}: {json}");
+        assert!(
+            json["error"]
+                .as_str()
+                .unwrap()
+                .starts_with(r#"`value` is text such as "12.5 %" or a number, not "#),
+            "{other}: {json}"
+        );
+    }
+    let (status, json) = set("0.5".to_owned()).await;
+    assert_eq!(status, 200, "{json}");
+    assert_eq!(json["text"], "0.5 %");
+    assert_eq!(light_power(&running), Some(vec![5]));
+    let (status, json) = set("\"12.5 %\"".to_owned()).await;
+    assert_eq!(status, 200, "{json}");
+    assert_eq!(light_power(&running), Some(vec![125]));
+}
