@@ -22,6 +22,15 @@ use crate::ConsoleError;
 /// The shortest token accepted.
 const TOKEN_MIN: usize = 16;
 
+/// The token of an `Authorization` header of the `Bearer` scheme: the scheme in any case
+/// (RFC 9110, 11.1), then one space or more.
+fn bearer_token(authorization: &str) -> Option<&str> {
+    let (scheme, token) = authorization.split_once(' ')?;
+    scheme
+        .eq_ignore_ascii_case("Bearer")
+        .then(|| token.trim_matches(' '))
+}
+
 /// The console's rules for requests.
 #[derive(Debug)]
 pub(crate) struct Guard {
@@ -75,9 +84,9 @@ impl Guard {
         let given = headers
             .get(AUTHORIZATION)
             .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer "));
+            .and_then(bearer_token);
         match given {
-            Some(given) if same(given.trim().as_bytes(), token.as_bytes()) => None,
+            Some(given) if same(given.as_bytes(), token.as_bytes()) => None,
             Some(_) => Some(ApiError::new(
                 StatusCode::UNAUTHORIZED,
                 "the token is not the console's",

@@ -28,7 +28,7 @@
 //! Everything that takes the line's time (writes, commands, reads now) is a POST with a JSON
 //! body, which no page of another site can send without asking; a console given a token file,
 //! or listening beyond the loopback, takes them only with its token (`Authorization: Bearer
-//! …`); beyond the loopback without a token file it takes none. The console's jobs have their
+//! …`, the scheme in any case); beyond the loopback without a token file it takes none. The console's jobs have their
 //! own bounded queue on each line ([`optobus_bus::Source::Console`]): beyond it a request is
 //! answered `429` at once and counted. The listener has the limits of [`optobus_http`]
 //! ([`LIMITS`]): header, idle and request timeouts and a cap on connections.

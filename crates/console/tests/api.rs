@@ -1058,8 +1058,8 @@ async fn http_connections_beyond_the_cap_do_not_exhaust_descriptors() {
     assert!(status.starts_with("HTTP/1.1 200"), "{status}");
 }
 
-// ---- issue 29, point 5: numbers as written; over real sockets, against a console served
-// by the test ----
+// ---- issue 29, points 5 and 6: numbers as written, the token's scheme; over real sockets,
+// against a console served by the test ----
 
 /// One request to the console at `address` on a new connection, `Host` and other headers as
 /// given: the status and the JSON body of its reply.
@@ -1155,4 +1155,79 @@ async fn json_numbers_reach_the_value_parser_exactly_as_written() {
     let (status, json) = set("\"12.5 %\"".to_owned()).await;
     assert_eq!(status, 200, "{json}");
     assert_eq!(light_power(&running), Some(vec![125]));
+}
+
+/// A token file with `token` in it, removed when dropped.
+struct TokenFile(std::path::PathBuf);
+
+impl TokenFile {
+    fn new(name: &str, token: &str) -> Self {
+        let path =
+            std::env::temp_dir().join(format!("optobus-{name}-{}.token", std::process::id()));
+        std::fs::write(&path, format!("{token}\n")).unwrap();
+        Self(path)
+    }
+}
+
+impl Drop for TokenFile {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// Point 6 of issue 29: the scheme of `Authorization` is case-insensitive (RFC 9110, 11.1):
+/// `bearer` and `BEARER` are the console's scheme, with one space or more before the token;
+/// a wrong token and another scheme are still refused.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_authorization_scheme_is_taken_in_any_case() {
+    let running = start(WRITABLE);
+    let token = TokenFile::new("scheme", "correct-horse-battery-staple");
+    let mut config = HttpConfig::new("127.0.0.1:0".parse().unwrap());
+    config.token_file = Some(token.0.clone());
+    let server = optobus_console::serve(&running, &config).await.unwrap();
+    let address = server.address();
+    let host = address.to_string();
+    let set = |authorization: &'static str, value: &'static str| {
+        let host = host.clone();
+        async move {
+            let body = format!(r#"{{"register": "light_power", "value": "{value}"}}"#);
+            exchange(
+                address,
+                "POST",
+                "/api/devices/head/set",
+                &[("host", &host), ("authorization", authorization)],
+                &body,
+            )
+            .await
+        }
+    };
+    let needs = json!({"error": "writes and reads of the line need the console's token \
+                                 (Authorization: Bearer …)"});
+    let not_its = json!({"error": "the token is not the console's"});
+    for (authorization, value, answer) in [
+        (
+            "Basic dXNlcjpjb3JyZWN0LWhvcnNl",
+            "20 %",
+            (401, needs.clone()),
+        ),
+        ("Bearer correct-horse", "20 %", (401, not_its.clone())),
+        ("bearer correct-horse", "20 %", (401, not_its.clone())),
+        (
+            "Bearercorrect-horse-battery-staple",
+            "20 %",
+            (401, needs.clone()),
+        ),
+    ] {
+        assert_eq!(set(authorization, value).await, answer, "{authorization}");
+    }
+    assert!(!wrote(&running), "nothing refused reaches the line");
+    for (authorization, value, words) in [
+        ("bearer correct-horse-battery-staple", "20 %", 200),
+        ("BEARER   correct-horse-battery-staple", "30 %", 300),
+        ("Bearer correct-horse-battery-staple", "40 %", 400),
+    ] {
+        let (status, json) = set(authorization, value).await;
+        assert_eq!(status, 200, "{authorization}: {json}");
+        assert_eq!(light_power(&running), Some(vec![words]), "{authorization}");
+    }
 }
