@@ -219,7 +219,8 @@ async fn a_loopback_console_answers_its_own_host_and_origin_only() {
     assert_eq!(status, StatusCode::MISDIRECTED_REQUEST);
     assert_eq!(
         json["error"],
-        "the console answers requests to 127.0.0.1 or localhost only"
+        "the console does not answer requests for `evil.example:8080`: a name it answers is \
+         listed in `hosts:` of the bus file's `http:` (against DNS rebinding)"
     );
     let foreign = Request::get("/api/stream")
         .header("host", ADDRESS)
@@ -1058,8 +1059,8 @@ async fn http_connections_beyond_the_cap_do_not_exhaust_descriptors() {
     assert!(status.starts_with("HTTP/1.1 200"), "{status}");
 }
 
-// ---- issue 29, points 5 and 6: numbers as written, the token's scheme; over real sockets,
-// against a console served by the test ----
+// ---- issue 29, points 5 and 6: numbers as written, the token's scheme, `Host` off the
+// loopback; over real sockets, against a console served by the test ----
 
 /// One request to the console at `address` on a new connection, `Host` and other headers as
 /// given: the status and the JSON body of its reply.
@@ -1230,4 +1231,123 @@ async fn the_authorization_scheme_is_taken_in_any_case() {
         assert_eq!(status, 200, "{authorization}: {json}");
         assert_eq!(light_power(&running), Some(vec![words]), "{authorization}");
     }
+}
+
+/// Point 6 of issue 29: a console bound beyond the loopback answers only the `Host` names it
+/// is told, so that a page whose name was made to resolve to it (DNS rebinding) is refused.
+/// Bound to 0.0.0.0 without `hosts:`, any IP address with its port; with `hosts:`, those.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn off_loopback_the_console_answers_only_the_hosts_it_is_told() {
+    let bus = "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms }
+";
+    let running = start(bus);
+    let open = HttpConfig::new("0.0.0.0:0".parse().unwrap());
+    let server = optobus_console::serve(&running, &open).await.unwrap();
+    let address = server.address();
+    let port = address.port();
+    let get = |host: String| async move {
+        exchange(address, "GET", "/api/devices", &[("host", &host)], "").await
+    };
+    let refused = |host: &str| {
+        let named = if host.is_empty() {
+            "without a `Host`".to_owned()
+        } else {
+            format!("for `{host}`")
+        };
+        (
+            421,
+            json!({"error": format!(
+                "the console does not answer requests {named}: a name it answers is listed \
+                 in `hosts:` of the bus file's `http:` (against DNS rebinding)"
+            )}),
+        )
+    };
+    let evil = format!("evil.example:{port}");
+    assert_eq!(get(evil.clone()).await, refused(&evil));
+    for host in [
+        format!("127.0.0.1:{port}"),
+        format!("192.0.2.7:{port}"),
+        format!("[::1]:{port}"),
+        format!("[2001:db8::7]:{port}"),
+        format!("localhost:{port}"),
+    ] {
+        let (status, json) = get(host.clone()).await;
+        assert_eq!(status, 200, "{host}: {json}");
+    }
+    for host in [
+        "127.0.0.1:1".to_owned(),
+        "127.0.0.1".to_owned(),
+        format!("plant-gw.example:{port}"),
+        String::new(),
+    ] {
+        assert_eq!(get(host.clone()).await, refused(&host), "{host}");
+    }
+    // A long `Host` is not echoed whole.
+    let long = format!("{}.example:{port}", "a".repeat(200));
+    let (status, json) = get(long.clone()).await;
+    assert_eq!(status, 421);
+    let cut: String = long.chars().take(40).collect();
+    assert_eq!(json, refused(&format!("{cut}…")).1);
+    // A read of the line from a rebound page is refused before the token is asked for.
+    let (status, json) = exchange(
+        address,
+        "POST",
+        "/api/devices/head/read",
+        &[("host", &evil)],
+        r#"{"register": "light_power"}"#,
+    )
+    .await;
+    assert_eq!((status, json), refused(&evil));
+    drop(server);
+
+    // `hosts:` from the bus file: those names only, at the console's port unless they say.
+    let file = BusFile::parse(
+        "bus.yaml",
+        &format!("{bus}outputs:\n  http: {{ listen: 0.0.0.0:0, hosts: [plant-gw.example, \"192.0.2.7:80\"] }}\n"),
+        Path::new("."),
+        &Catalogue::new([&optobus_p_series::DEVICE]),
+    )
+    .unwrap_or_else(|e| panic!("{}", e.render()));
+    let config = file.outputs.http.clone().unwrap();
+    let server = optobus_console::serve(&running, &config).await.unwrap();
+    let address = server.address();
+    let port = address.port();
+    let get = |host: String| async move {
+        exchange(address, "GET", "/api/devices", &[("host", &host)], "").await
+    };
+    for host in [
+        format!("plant-gw.example:{port}"),
+        format!("Plant-GW.example:{port}"),
+        "192.0.2.7".to_owned(),
+        "192.0.2.7:80".to_owned(),
+        // The loopback's names are answered always: no other site's page is named so.
+        format!("127.0.0.1:{port}"),
+        format!("localhost:{port}"),
+    ] {
+        let (status, json) = get(host.clone()).await;
+        assert_eq!(status, 200, "{host}: {json}");
+    }
+    for host in [
+        format!("evil.example:{port}"),
+        "plant-gw.example".to_owned(),
+        "plant-gw.example:1".to_owned(),
+        format!("192.0.2.7:{port}"),
+        format!("[::2]:{port}"),
+    ] {
+        assert_eq!(get(host.clone()).await, refused(&host), "{host}");
+    }
+    drop(server);
+    // A configuration made in code is checked too.
+    let mut malformed = config.clone();
+    malformed.hosts = vec!["plant-gw.example:http".into()];
+    let error = Console::new(&running, &malformed, "0.0.0.0:8080".parse().unwrap()).unwrap_err();
+    assert!(
+        error
+            .to_string()
+            .starts_with("the console's `hosts:` entry `plant-gw.example:http` is no host name"),
+        "{error}"
+    );
 }
