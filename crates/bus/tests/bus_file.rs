@@ -450,3 +450,56 @@ devices: [{ name: head, model: p-series, line: a }]
         assert!(rendered.contains(expected), "{expected}: {rendered}");
     }
 }
+
+/// Point 6 of issue 29: the `Host` names a console answers (`hosts:`), checked as the file is
+/// read; a malformed one is located at its line and column.
+#[test]
+fn the_consoles_hosts_are_read_and_a_malformed_one_is_located() {
+    let one_device = "
+lines: [{ name: a, simulated: true }]
+devices: [{ name: head, model: p-series }]
+";
+    let bus = parse(&format!(
+        "{one_device}outputs:\n  http: {{ listen: 0.0.0.0:8080, hosts: [Plant-GW.example, \
+         \"192.0.2.7:80\", \"[2001:db8::7]\", \"gw-2.plant.example:8443\"] }}\n"
+    ))
+    .expect("good hosts");
+    let http = bus.outputs.http.expect("http given");
+    assert_eq!(
+        http.hosts,
+        [
+            "plant-gw.example",
+            "192.0.2.7:80",
+            "[2001:db8::7]",
+            "gw-2.plant.example:8443"
+        ]
+    );
+    let rendered = parse(&format!(
+        "{one_device}outputs:\n  http:\n    listen: 0.0.0.0:8080\n    hosts:\n      - plant-gw.example\n      - \"http://plant-gw.example/\"\n      - \"plant gw\"\n      - \"plant-gw.example:99999\"\n      - \"2001:db8::7\"\n      - \"*.example\"\n"
+    ))
+    .expect_err("malformed hosts");
+    for (entry, line) in [
+        ("http://plant-gw.example/", 9),
+        ("plant gw", 10),
+        ("plant-gw.example:99999", 11),
+        ("2001:db8::7", 12),
+        ("*.example", 13),
+    ] {
+        assert!(
+            rendered.contains(&format!("`{entry}` is no host name")),
+            "{entry}: {rendered}"
+        );
+        assert!(
+            rendered.contains(&format!("bus.yaml:{line}:9")),
+            "{entry} at line {line}: {rendered}"
+        );
+    }
+    assert!(!rendered.contains("`plant-gw.example` is no"), "{rendered}");
+    let empty = parse(&format!("{one_device}outputs:\n  http: {{ hosts: [] }}\n"));
+    assert!(
+        empty
+            .expect_err("an empty list")
+            .contains("`hosts` lists no name"),
+        "an empty list would answer no one"
+    );
+}

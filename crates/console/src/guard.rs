@@ -1,9 +1,9 @@
-//! Who may ask what: the `Host` a loopback console answers to, the origins whose pages may call
+//! Who may ask what: the `Host` names the console answers to, the origins whose pages may call
 //! it, and the token every request for the line's time (a write, a command, a read now: each a
 //! POST with a JSON body) must carry when one is set or the console listens beyond the
 //! loopback.
 
-use std::net::SocketAddr;
+use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::sync::Arc;
 
 use axum::extract::{Request, State};
@@ -22,6 +22,135 @@ use crate::ConsoleError;
 /// The shortest token accepted.
 const TOKEN_MIN: usize = 16;
 
+/// The most of a refused `Host` quoted back.
+const HOST_EXCERPT: usize = 40;
+
+/// The port a `Host` without one means (the console speaks plain HTTP).
+const HTTP_PORT: u16 = 80;
+
+/// A host as a `Host` header or the bus file's `hosts:` names it.
+#[derive(Debug, PartialEq, Eq)]
+enum Name {
+    /// A DNS name, in lowercase (names are compared without case).
+    Dns(String),
+    /// An IP address: `192.0.2.7`, or `[2001:db8::7]` in a `Host`.
+    Ip(IpAddr),
+}
+
+/// The host and port of `text` (`name`, `name:port`, `192.0.2.7:80`, `[::1]:8080`), the port
+/// `default_port` where none is given; `None` for what names no host.
+fn host_and_port(text: &str, default_port: u16) -> Option<(Name, u16)> {
+    let port = |digits: &str| {
+        (!digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()))
+            .then(|| digits.parse::<u16>().ok())
+            .flatten()
+    };
+    if let Some(rest) = text.strip_prefix('[') {
+        let (address, after) = rest.split_once(']')?;
+        let ip = address.parse::<Ipv6Addr>().ok()?;
+        let port = match after {
+            "" => default_port,
+            after => port(after.strip_prefix(':')?)?,
+        };
+        return Some((Name::Ip(ip.into()), port));
+    }
+    let (host, port) = match text.split_once(':') {
+        Some((host, digits)) => (host, port(digits)?),
+        None => (text, default_port),
+    };
+    if host.is_empty() {
+        return None;
+    }
+    let name = match host.parse::<Ipv4Addr>() {
+        Ok(ip) => Name::Ip(ip.into()),
+        Err(_) => Name::Dns(host.to_ascii_lowercase()),
+    };
+    Some((name, port))
+}
+
+/// The `Host` names a console answers to, against DNS rebinding: a page of another site whose
+/// name was made to resolve to the console's address still sends its own name as `Host`.
+#[derive(Debug)]
+struct Hosts {
+    /// The port the console listens on.
+    port: u16,
+    /// Whether any IP address at `port` is answered.
+    any_address: bool,
+    /// The hosts and ports answered besides.
+    names: Vec<(Name, u16)>,
+}
+
+impl Hosts {
+    /// The names a console listening on `address` answers: the loopback's always (no page of
+    /// another site can carry them), then `listed` (the bus file's `hosts:`) or by default the
+    /// address it listens on.
+    fn new(address: SocketAddr, listed: &[String]) -> Result<Self, ConsoleError> {
+        let port = address.port();
+        let mut names = vec![
+            (Name::Ip(Ipv4Addr::LOCALHOST.into()), port),
+            (Name::Dns("localhost".into()), port),
+            (Name::Ip(Ipv6Addr::LOCALHOST.into()), port),
+        ];
+        for text in listed {
+            let name = host_and_port(text.trim(), port)
+                .ok_or_else(|| ConsoleError::Host { host: text.clone() })?;
+            names.push(name);
+        }
+        // Bound to every address (0.0.0.0, ::), it cannot know which of the machine's
+        // addresses it is reached at; an IP address as `Host` is safe, since DNS rebinding
+        // needs a DNS name: the attacker's page is called by the attacker's name.
+        let any_address = listed.is_empty() && address.ip().is_unspecified();
+        if listed.is_empty() && !any_address {
+            names.push((Name::Ip(address.ip()), port));
+        }
+        Ok(Self {
+            port,
+            any_address,
+            names,
+        })
+    }
+
+    /// Whether `host` (a `Host` header's value) is one the console answers.
+    fn answers(&self, host: &str) -> bool {
+        let Some((name, port)) = host_and_port(host, HTTP_PORT) else {
+            return false;
+        };
+        (self.any_address && port == self.port && matches!(name, Name::Ip(_)))
+            || self.names.iter().any(|(n, p)| *n == name && *p == port)
+    }
+}
+
+/// The refusal of a request for a `Host` the console does not answer (never quoting more
+/// than [`HOST_EXCERPT`] characters of it).
+fn misdirected(host: Option<&str>) -> ApiError {
+    let named = match host.filter(|h| !h.is_empty()) {
+        None => "without a `Host`".to_owned(),
+        Some(host) => {
+            let mut shown: String = host.chars().take(HOST_EXCERPT).collect();
+            if shown.len() < host.len() {
+                shown.push('…');
+            }
+            format!("for `{shown}`")
+        }
+    };
+    ApiError::new(
+        StatusCode::MISDIRECTED_REQUEST,
+        format!(
+            "the console does not answer requests {named}: a name it answers is listed in \
+             `hosts:` of the bus file's `http:` (against DNS rebinding)"
+        ),
+    )
+}
+
+/// The token of an `Authorization` header of the `Bearer` scheme: the scheme in any case
+/// (RFC 9110, 11.1), then one space or more.
+fn bearer_token(authorization: &str) -> Option<&str> {
+    let (scheme, token) = authorization.split_once(' ')?;
+    scheme
+        .eq_ignore_ascii_case("Bearer")
+        .then(|| token.trim_matches(' '))
+}
+
 /// The console's rules for requests.
 #[derive(Debug)]
 pub(crate) struct Guard {
@@ -29,8 +158,8 @@ pub(crate) struct Guard {
     token: Option<String>,
     /// Whether it listens on the loopback only.
     loopback: bool,
-    /// The `Host` values a loopback console answers to.
-    hosts: Vec<String>,
+    /// The `Host` names it answers to.
+    hosts: Hosts,
     /// Other origins allowed.
     origins: Vec<String>,
 }
@@ -41,16 +170,10 @@ impl Guard {
             Some(path) => Some(read_token(path)?),
             None => None,
         };
-        let port = address.port();
         Ok(Self {
             token,
             loopback: address.ip().is_loopback(),
-            hosts: vec![
-                format!("127.0.0.1:{port}"),
-                format!("localhost:{port}"),
-                format!("[::1]:{port}"),
-                address.to_string(),
-            ],
+            hosts: Hosts::new(address, &config.hosts)?,
             origins: config.origins.clone(),
         })
     }
@@ -75,9 +198,9 @@ impl Guard {
         let given = headers
             .get(AUTHORIZATION)
             .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer "));
+            .and_then(bearer_token);
         match given {
-            Some(given) if same(given.trim().as_bytes(), token.as_bytes()) => None,
+            Some(given) if same(given.as_bytes(), token.as_bytes()) => None,
             Some(_) => Some(ApiError::new(
                 StatusCode::UNAUTHORIZED,
                 "the token is not the console's",
@@ -116,9 +239,8 @@ fn read_token(path: &std::path::Path) -> Result<String, ConsoleError> {
     Ok(token.to_owned())
 }
 
-/// Checks every request: its `Host` (on the loopback), its `Origin`, the token of a request for
-/// the line (every POST); answers
-/// a listed origin's preflight and marks its replies.
+/// Checks every request: its `Host`, its `Origin`, the token of a request for the line (every
+/// POST); answers a listed origin's preflight and marks its replies.
 pub(crate) async fn check(
     State(guard): State<Arc<Guard>>,
     request: Request,
@@ -126,12 +248,8 @@ pub(crate) async fn check(
 ) -> Response {
     let headers = request.headers();
     let host = headers.get(HOST).and_then(|v| v.to_str().ok());
-    if guard.loopback && !host.is_some_and(|h| guard.hosts.iter().any(|known| known == h)) {
-        return ApiError::new(
-            StatusCode::MISDIRECTED_REQUEST,
-            "the console answers requests to 127.0.0.1 or localhost only",
-        )
-        .into_response();
+    if !host.is_some_and(|h| guard.hosts.answers(h)) {
+        return misdirected(host).into_response();
     }
     let origin = match headers.get(ORIGIN).map(|v| v.to_str()) {
         None => None,

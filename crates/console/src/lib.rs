@@ -14,24 +14,26 @@
 //! | `GET /api/devices/{device}` | the device's register map, commands and groups, from its spec |
 //! | `GET /api/devices/{device}/frames` | its recent frames: direction, hex, time, reply delay |
 //! | `POST /api/devices/{device}/read` | `{"register": "distance_1"}`: the register read now, between the polls (a line with the console's share already waiting answers `429` with `Retry-After`) |
-//! | `POST /api/devices/{device}/set` | `{"register": "light_power", "value": "12.5 %"}`: set as `optobus set` does, if the bus file's `writable` lists it; the value read back |
+//! | `POST /api/devices/{device}/set` | `{"register": "light_power", "value": "12.5 %"}`: set as `optobus set` does, if the bus file's `writable` lists it; the value read back. A JSON number (`"value": 12.5`) is taken as the text written, never through a float |
 //! | `POST /api/devices/{device}/do` | `{"command": "zero_position_1"}`: run as `optobus do` does, if listed (a drastic one only when named there) |
 //! | `POST /api/devices/{device}/buffer` | its data buffer read out (if `writable` lists the buffer's lock and unlock), as CSV: `index,time_s,value_UNIT` |
 //! | `GET /api/stream` | server-sent events: a batch of samples, health and line statistics every 100 ms |
 //! | `GET /api/status` | the stream's clients and the batches dropped for slow ones, requests refused as busy, the listener's connections |
 //!
-//! Safe by default: it listens on 127.0.0.1 and then answers only requests addressed to the
-//! loopback (`Host`), against DNS rebinding; a request from a page of another origin is refused
-//! unless the bus file lists that origin; bodies are limited to [`BODY_LIMIT`] bytes; every
-//! refusal is a 4xx whose JSON `error` is the tool's one-line message. Writes are checked
-//! by the bus ([`optobus_bus::Handle::set_listed`]): nothing refused reaches the line.
-//! Everything that takes the line's time (writes, commands, reads now) is a POST with a JSON
-//! body, which no page of another site can send without asking; a console given a token file,
-//! or listening beyond the loopback, takes them only with its token (`Authorization: Bearer
-//! …`); beyond the loopback without a token file it takes none. The console's jobs have their
-//! own bounded queue on each line ([`optobus_bus::Source::Console`]): beyond it a request is
-//! answered `429` at once and counted. The listener has the limits of [`optobus_http`]
-//! ([`LIMITS`]): header, idle and request timeouts and a cap on connections.
+//! Safe by default: it listens on 127.0.0.1; against DNS rebinding it answers only requests
+//! whose `Host` is one of its names (the loopback's, then the bus file's `hosts:`, by default
+//! the address it listens on, or any IP address at its port when bound to 0.0.0.0 or `::`), any
+//! other with `421`; a request from a page of another origin is refused unless the bus file
+//! lists that origin; bodies are limited to [`BODY_LIMIT`] bytes; every refusal is a 4xx whose
+//! JSON `error` is the tool's one-line message. Writes are checked by the bus
+//! ([`optobus_bus::Handle::set_listed`]): nothing refused reaches the line. Everything that
+//! takes the line's time (writes, commands, reads now) is a POST with a JSON body, which no
+//! page of another site can send without asking; a console given a token file, or listening
+//! beyond the loopback, takes them only with its token (`Authorization: Bearer …`, the scheme
+//! in any case); beyond the loopback without a token file it takes none. The console's jobs
+//! have their own bounded queue on each line ([`optobus_bus::Source::Console`]): beyond it a
+//! request is answered `429` at once and counted. The listener has the limits of
+//! [`optobus_http`] ([`LIMITS`]): header, idle and request timeouts and a cap on connections.
 //!
 //! ```no_run
 //! # async fn demo(running: &optobus_bus::Running) -> Result<(), Box<dyn std::error::Error>> {
@@ -84,6 +86,11 @@ pub enum ConsoleError {
         /// Why.
         why: String,
     },
+    /// An entry of `hosts` names no host.
+    Host {
+        /// The entry.
+        host: String,
+    },
     /// The address cannot be listened on.
     Listen {
         /// The address.
@@ -99,6 +106,11 @@ impl std::fmt::Display for ConsoleError {
             Self::Token { path, why } => {
                 write!(f, "the console's token file {}: {why}", path.display())
             }
+            Self::Host { host } => write!(
+                f,
+                "the console's `hosts:` entry `{host}` is no host name (`name`, `name:port`, \
+                 `192.0.2.7:8080` or `[2001:db8::7]:8080`)"
+            ),
             Self::Listen { address, source } => {
                 write!(f, "the console cannot listen on {address}: {source}")
             }

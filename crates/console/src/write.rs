@@ -11,6 +11,7 @@ use axum::response::IntoResponse;
 use axum::Json;
 use optobus_bus::{JobError, RefusalKind};
 use serde::Deserialize;
+use serde_json::value::RawValue;
 use serde_json::{json, Value as Json_};
 
 use crate::error::ApiError;
@@ -21,8 +22,35 @@ use crate::state::Shared;
 #[serde(deny_unknown_fields)]
 pub(crate) struct Set {
     register: String,
-    /// As `optobus set` takes it: `12.5 %`, `100us`, a code name; a JSON number is its text.
-    value: Json_,
+    /// As `optobus set` takes it: `12.5 %`, `100us`, a code name; a JSON number is its text
+    /// exactly as written in the body (kept raw: a float would round `0.49999999999999999999`
+    /// to `0.5`).
+    value: Box<RawValue>,
+}
+
+/// The most of a refused `value` quoted back.
+const VALUE_EXCERPT: usize = 40;
+
+/// The text `optobus set` would be given for `value`: a JSON string's content, a JSON number's
+/// text as written; anything else is refused.
+fn value_text(value: &RawValue) -> Result<String, ApiError> {
+    let raw = value.get();
+    match raw.as_bytes().first() {
+        // A JSON number starts with a minus or a digit, and its text is already exact.
+        Some(b'-' | b'0'..=b'9') => Ok(raw.to_owned()),
+        Some(b'"') => serde_json::from_str(raw)
+            .map_err(|e| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, format!("`value`: {e}"))),
+        _ => {
+            let mut shown: String = raw.chars().take(VALUE_EXCERPT).collect();
+            if shown.len() < raw.len() {
+                shown.push('…');
+            }
+            Err(ApiError::new(
+                StatusCode::UNPROCESSABLE_ENTITY,
+                format!("`value` is text such as \"12.5 %\" or a number, not {shown}"),
+            ))
+        }
+    }
 }
 
 /// `POST …/do`.
@@ -68,16 +96,7 @@ pub(crate) async fn set(
     body: Result<Json<Set>, JsonRejection>,
 ) -> Result<Json<Json_>, ApiError> {
     let Json(Set { register, value }) = body.map_err(body_error)?;
-    let text = match value {
-        Json_::String(text) => text,
-        Json_::Number(number) => number.to_string(),
-        other => {
-            return Err(ApiError::new(
-                StatusCode::UNPROCESSABLE_ENTITY,
-                format!("`value` is text such as \"12.5 %\" or a number, not {other}"),
-            ))
-        }
-    };
+    let text = value_text(&value)?;
     let back = shared
         .handle
         .set_listed(&device, &register, &text)

@@ -54,7 +54,7 @@ pub(crate) struct RunArgs {
     #[arg(long, requires = "demo", value_name = "ADDRESS")]
     gateway: Option<SocketAddr>,
     /// Serve the console in the browser here (instead of the bus file's `outputs.http`
-    /// address, keeping its token and origins).
+    /// address, keeping its token, origins and hosts).
     #[arg(long, value_name = "ADDRESS")]
     http: Option<SocketAddr>,
     /// Write a CSV per device into this folder (the `record` format; a row per poll).

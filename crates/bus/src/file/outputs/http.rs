@@ -1,6 +1,7 @@
-//! `outputs: { http: … }`: the console's address, its write token and the origins it trusts.
+//! `outputs: { http: … }`: the console's address, its write token, the origins it trusts and
+//! the `Host` names it answers.
 
-use std::net::SocketAddr;
+use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::path::PathBuf;
 
 use optobus_codegen::source::{Node, Value};
@@ -10,7 +11,7 @@ use crate::file::reader::{listen_address, scalar, Reader};
 /// Where the console listens when the file gives `http: true`.
 pub const DEFAULT_HTTP_PORT: u16 = 8080;
 
-const HTTP_KEYS: &[&str] = &["listen", "token_file", "origins"];
+const HTTP_KEYS: &[&str] = &["listen", "token_file", "origins", "hosts"];
 const HELP: &str =
     "e.g. `http: 127.0.0.1:8080`, or `http: { listen: 0.0.0.0:8080, token_file: console.token }`";
 
@@ -24,6 +25,11 @@ pub struct HttpConfig {
     pub token_file: Option<PathBuf>,
     /// Origins (`scheme://host[:port]`) besides the console's own whose pages may call it.
     pub origins: Vec<String>,
+    /// The `Host` names it answers besides the loopback's (against DNS rebinding), in
+    /// lowercase: `name`, `name:port`, an IPv4 address or a bracketed IPv6 one, maybe with a
+    /// port (without one, the console's). Empty: the address it listens on, or any IP address
+    /// at its port when that is 0.0.0.0 or `::`.
+    pub hosts: Vec<String>,
 }
 
 impl HttpConfig {
@@ -33,6 +39,7 @@ impl HttpConfig {
             listen,
             token_file: None,
             origins: Vec::new(),
+            hosts: Vec::new(),
         }
     }
 }
@@ -49,6 +56,39 @@ fn is_origin(origin: &str) -> bool {
         && rest
             .bytes()
             .all(|b| b.is_ascii_alphanumeric() || b"-.:[]".contains(&b))
+}
+
+/// `text` as the console's `hosts:` keeps it (in lowercase), if it names a host as a `Host`
+/// header does: a DNS name, an IPv4 address or a bracketed IPv6 one, maybe with `:PORT`.
+fn host_name(text: &str) -> Option<String> {
+    let port_ok = |port: &str| {
+        port.bytes().all(|b| b.is_ascii_digit()) && port.parse::<u16>().is_ok_and(|p| p > 0)
+    };
+    if let Some(rest) = text.strip_prefix('[') {
+        let (address, after) = rest.split_once(']')?;
+        address.parse::<Ipv6Addr>().ok()?;
+        if !(after.is_empty() || after.strip_prefix(':').is_some_and(port_ok)) {
+            return None;
+        }
+        return Some(text.to_ascii_lowercase());
+    }
+    let (host, port) = match text.split_once(':') {
+        Some((host, port)) => (host, Some(port)),
+        None => (text, None),
+    };
+    if port.is_some_and(|port| !port_ok(port)) {
+        return None;
+    }
+    let label_ok = |label: &str| {
+        (1..=63).contains(&label.len())
+            && !label.starts_with('-')
+            && !label.ends_with('-')
+            && label
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
+    };
+    let name_ok = host.len() <= 253 && host.split('.').all(label_ok);
+    (host.parse::<Ipv4Addr>().is_ok() || name_ok).then(|| text.to_ascii_lowercase())
 }
 
 impl Reader<'_> {
@@ -109,10 +149,36 @@ impl Reader<'_> {
                 }
             }
         }
+        let mut hosts = Vec::new();
+        if let Some(v) = get("hosts") {
+            let items = self.list(v, "`hosts`").unwrap_or_default();
+            if items.is_empty() && matches!(v.value, Value::Sequence(_)) {
+                self.error(
+                    v.span,
+                    "`hosts` lists no name",
+                    "leave `hosts` out to answer the address the console listens on",
+                );
+            }
+            for item in items {
+                let Some(text) = self.text(item, "a host name") else {
+                    continue;
+                };
+                match host_name(text.trim()) {
+                    Some(host) => hosts.push(host),
+                    None => self.error(
+                        item.span,
+                        format!("`{text}` is no host name"),
+                        "a host is a DNS name or an IP address (IPv6 in brackets), maybe with a \
+                         port: `plant-gw.example`, `192.0.2.7:8080`, `[2001:db8::7]`",
+                    ),
+                }
+            }
+        }
         Some(HttpConfig {
             listen: listen?,
             token_file,
             origins,
+            hosts,
         })
     }
 }
