@@ -167,9 +167,11 @@ impl Bus {
                     if let Ok(address) = listener.local_addr() {
                         gateways.push((line.name.clone(), address, Arc::clone(&counters)));
                     }
+                    let slaves = self.file.devices_on(index).map(|(_, device)| device.slave);
                     tasks.push(tokio::spawn(gateway::serve(
                         listener,
                         config.clone(),
+                        gateway::Slaves::of(slaves),
                         queue,
                         Arc::clone(&counters),
                     )));

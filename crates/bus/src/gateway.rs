@@ -69,6 +69,7 @@ pub(crate) fn refused(refusal: &Refusal) -> u8 {
         RefusalKind::NotAllowed => ILLEGAL_FUNCTION,
         RefusalKind::Address => ILLEGAL_ADDRESS,
         RefusalKind::Value => ILLEGAL_VALUE,
+        RefusalKind::NoDevice => TARGET_FAILED,
     }
 }
 
@@ -89,8 +90,9 @@ pub struct GatewayCounts {
     /// changes the device, a broadcast some device of the line refuses. Nothing was sent.
     pub policy_refused: u64,
     /// Requests answered at once because the line can never carry them: a function whose
-    /// reply cannot be framed on RTU, a write the bus file does not allow, a read to the
-    /// broadcast address (exception 01), a unit id RTU reserves (0A).
+    /// reply cannot be framed on RTU, a write on a read-only gateway, a read to the broadcast
+    /// address (exception 01), a unit id no device of the bus file has (0B), a unit id RTU
+    /// reserves (0A).
     pub not_carried: u64,
     /// Clients closed at once because every client had a request in flight.
     pub refused: u64,
@@ -230,23 +232,46 @@ impl Drop for Place {
     }
 }
 
+/// The slave addresses of the bus file's devices on a gateway's line.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Slaves([u64; 4]);
+
+impl Slaves {
+    /// The set of `slaves`.
+    pub(crate) fn of(slaves: impl IntoIterator<Item = u8>) -> Self {
+        let mut set = Self::default();
+        for slave in slaves {
+            set.0[usize::from(slave / 64)] |= 1 << (slave % 64);
+        }
+        set
+    }
+
+    fn contains(&self, slave: u8) -> bool {
+        self.0[usize::from(slave / 64)] & (1 << (slave % 64)) != 0
+    }
+}
+
 /// What each connection needs of the gateway's settings.
 #[derive(Clone, Copy)]
 struct Settings {
     idle: Duration,
     writes: bool,
+    /// The devices it reaches: a request to another unit id is answered 0B at once.
+    slaves: Slaves,
 }
 
 /// Accepts clients on `listener` until the task is aborted, which closes every client.
 pub(crate) async fn serve(
     listener: TcpListener,
     config: GatewayConfig,
+    slaves: Slaves,
     queue: mpsc::Sender<GatewayRequest>,
     counters: Arc<GatewayCounters>,
 ) {
     let settings = Settings {
         idle: config.idle,
         writes: config.writes,
+        slaves,
     };
     let clients = Arc::new(Mutex::new(Clients::default()));
     let mut tasks = JoinSet::new();
@@ -327,7 +352,7 @@ enum OwnAnswer {
 }
 
 /// The gateway's own answer to a request the line must not see, if it is one.
-fn own_answer(unit: u8, pdu: &[u8], writes: bool) -> Option<OwnAnswer> {
+fn own_answer(unit: u8, pdu: &[u8], settings: &Settings) -> Option<OwnAnswer> {
     let pass = match PassPdu::new(pdu) {
         Ok(pass) => pass,
         Err(EncodeError::MalformedRequest { .. }) => return Some(OwnAnswer::Malformed),
@@ -337,11 +362,16 @@ fn own_answer(unit: u8, pdu: &[u8], writes: bool) -> Option<OwnAnswer> {
     if unit > MAX_SLAVE {
         return Some(OwnAnswer::NotCarried(PATH_UNAVAILABLE));
     }
+    // The line's devices are the bus file's: waiting out a timeout for another unit id would
+    // only make the client wait as long (mbpoll's own timeout is the usual 1 s).
+    if unit != optobus_codec::BROADCAST && !settings.slaves.contains(unit) {
+        return Some(OwnAnswer::NotCarried(TARGET_FAILED));
+    }
     if unit == optobus_codec::BROADCAST && !pass.may_broadcast() {
         return Some(OwnAnswer::NotCarried(ILLEGAL_FUNCTION));
     }
     // The write policy's answer on a read-only gateway, given before the queue.
-    if pass.writes() && !writes {
+    if pass.writes() && !settings.writes {
         return Some(OwnAnswer::NotCarried(refused(&Refusal::ReadOnly)));
     }
     None
@@ -371,7 +401,7 @@ async fn connection(
         }
         let pdu = &pdu[..len];
         let function = pdu[0];
-        let reply = match own_answer(mbap.unit, pdu, settings.writes) {
+        let reply = match own_answer(mbap.unit, pdu, &settings) {
             Some(OwnAnswer::Malformed) => {
                 add(&counters.malformed);
                 exception(function, ILLEGAL_VALUE)

@@ -610,7 +610,7 @@ impl LineTask {
 
     /// What the write policy says of a gateway request to `unit` (the device at `index` of
     /// the line, if it is one): a broadcast only where every device of the line allows it
-    /// and frames it alike, a write to a slave the bus file does not name never.
+    /// and frames it alike, nothing to a slave the bus file does not name.
     fn allowed(&self, unit: u8, index: Option<usize>, pass: &PassPdu<'_>) -> Result<(), Refusal> {
         let writes = self.gateway.as_ref().is_some_and(|g| g.writes);
         if unit == BROADCAST {
@@ -636,8 +636,7 @@ impl LineTask {
         }
         match index {
             Some(index) => self.devices[index].gateway_policy(writes).pass(pass),
-            None if pass.writes() => Err(Refusal::UnknownSlave(unit)),
-            None => Ok(()),
+            None => Err(Refusal::UnknownSlave(unit)),
         }
     }
 

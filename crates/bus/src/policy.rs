@@ -80,7 +80,7 @@ pub enum Refusal {
         /// The function code.
         function: u8,
     },
-    /// A write to a slave that is no device of the bus file: nothing lists what it may take.
+    /// A request to a slave that is no device of the bus file: nothing lists what it may take.
     UnknownSlave(u8),
     /// The value is one the register's spec refuses.
     Invalid {
@@ -110,6 +110,8 @@ pub enum RefusalKind {
     Address,
     /// A value (or a name) the device's spec refuses: gateway exception 03, HTTP 422.
     Value,
+    /// No device of the bus file at that slave address: gateway exception 0B, at once.
+    NoDevice,
 }
 
 impl Refusal {
@@ -119,6 +121,7 @@ impl Refusal {
             Self::NoRegisterAt { .. } => RefusalKind::Address,
             Self::Invalid { .. } | Self::Text(_) => RefusalKind::Value,
             Self::Broadcast { refusal, .. } => refusal.kind(),
+            Self::UnknownSlave(slave) if *slave != 0 => RefusalKind::NoDevice,
             _ => RefusalKind::NotAllowed,
         }
     }

@@ -668,3 +668,33 @@ async fn a_read_of_unit_0_is_answered_at_once_with_exception_01() {
     let reply = ask(&mut client, 1, 0, &read).await;
     assert_eq!(&reply[6..], &[0x00, 0x83, 0x01]);
 }
+
+#[tokio::test]
+async fn a_unit_id_no_device_has_is_answered_0b_without_the_line() {
+    // Issue 30: slave 99 waited out a timeout on the line (1 s, mbpoll's own timeout, so
+    // mbpoll said "Connection timed out"); the bus file says who is on the line.
+    let no_polls = BUS.replace(", poll: [{ read: measurements }]", "");
+    let running = start(&no_polls);
+    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    for (transaction, unit) in [(1u16, 99u8), (2, 3), (3, 247)] {
+        let reply = ask(
+            &mut client,
+            transaction,
+            unit,
+            &[0x03, 0x00, 0x00, 0x00, 0x01],
+        )
+        .await;
+        assert_eq!(&reply[6..], &[unit, 0x83, 0x0B]);
+    }
+    let reply = ask(&mut client, 4, 99, &write_p_series("light_power", 600)).await;
+    assert_eq!(&reply[6..], &[99, 0x86, 0x0B]);
+    let counts = running.gateway_counts("rs485").unwrap();
+    assert_eq!((counts.not_carried, counts.requests), (4, 0), "{counts:?}");
+    assert_eq!(
+        line_transactions(&running).await,
+        0,
+        "nothing went onto the line"
+    );
+}

@@ -82,6 +82,7 @@ pub(crate) fn job_error(device: &str, error: JobError) -> ApiError {
         JobError::Refused(refusal) => match refusal.kind() {
             RefusalKind::NotAllowed => StatusCode::FORBIDDEN,
             RefusalKind::Address | RefusalKind::Value => StatusCode::UNPROCESSABLE_ENTITY,
+            RefusalKind::NoDevice => StatusCode::NOT_FOUND,
         },
         JobError::Stopped => StatusCode::SERVICE_UNAVAILABLE,
         JobError::Device(_) => StatusCode::BAD_GATEWAY,
