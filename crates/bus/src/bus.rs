@@ -206,6 +206,7 @@ impl Bus {
             handle: Handle {
                 lines: job_queues.into(),
                 source: Source::Api,
+                origin: None,
                 devices: entries.into(),
                 frames: line_frames.into(),
             },

@@ -19,11 +19,12 @@
 //! request in flight), as mbusd and mosquitto do; it is refused only when every client has a
 //! request in flight. Everything refused and closed is counted ([`GatewayCounts`]).
 
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
-use optobus_codec::passthrough::{encode_tcp_reply, PassPdu, MAX_PDU_LEN};
+use optobus_codec::passthrough::{encode_tcp_reply, words, Access, PassPdu, MAX_PDU_LEN};
 use optobus_codec::tcp::{Header, Mbap, HEADER_LEN};
 use optobus_codec::{EncodeError, EXCEPTION_BIT, MAX_SLAVE};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -52,6 +53,8 @@ pub(crate) const TARGET_FAILED: u8 = 0x0B;
 /// A client's request, waiting for the line.
 #[derive(Debug)]
 pub(crate) struct GatewayRequest {
+    /// The client who asked, for the audit trail.
+    pub(crate) client: SocketAddr,
     pub(crate) unit: u8,
     pub(crate) pdu: Vec<u8>,
     /// The reply PDU, or `None` for a broadcast (nothing is sent back).
@@ -61,6 +64,43 @@ pub(crate) struct GatewayRequest {
 /// The exception reply PDU to a request of `function`.
 pub(crate) fn exception(function: u8, code: u8) -> Vec<u8> {
     vec![function | EXCEPTION_BIT, code]
+}
+
+/// Tells the audit trail ([`AUDIT_TARGET`](crate::AUDIT_TARGET)) of a write that `client`
+/// asked of slave `unit` and how it went: `reply` is what went back (an exception's code says
+/// why it was not done).
+pub(crate) fn audit_write(
+    client: SocketAddr,
+    unit: u8,
+    pdu: &[u8],
+    reply: Option<&[u8]>,
+    why: Option<&str>,
+) {
+    let what = match PassPdu::new(pdu).map(|pass| pass.access()) {
+        Ok(Access::WriteRegisters { address, data }) => {
+            let words: Vec<u16> = words(data).collect();
+            format!("FC{:02X} to slave {unit} at {address}: {words:?}", pdu[0])
+        }
+        _ => format!(
+            "FC{:02X} to slave {unit}: {}",
+            pdu[0],
+            optobus_codec::Hex(pdu)
+        ),
+    };
+    let exception = reply.filter(|r| r.first().is_some_and(|f| f & EXCEPTION_BIT != 0));
+    match (reply, exception) {
+        (None, _) => {
+            tracing::info!(target: crate::AUDIT_TARGET, "gateway {client}: {what}: broadcast")
+        }
+        (Some(_), None) => {
+            tracing::info!(target: crate::AUDIT_TARGET, "gateway {client}: {what}: done")
+        }
+        (Some(_), Some(exception)) => {
+            let code = exception.get(1).copied().unwrap_or_default();
+            let why = why.map(|why| format!(": {why}")).unwrap_or_default();
+            tracing::warn!(target: crate::AUDIT_TARGET, "gateway {client}: {what}: not done, exception {code:02X}{why}");
+        }
+    }
 }
 
 /// The exception a request the write policy refused is answered with.
@@ -280,7 +320,7 @@ pub(crate) async fn serve(
             accepted = listener.accept() => accepted,
             Some(_) = tasks.join_next(), if !tasks.is_empty() => continue,
         };
-        let Ok((socket, _peer)) = accepted else {
+        let Ok((socket, peer)) = accepted else {
             // Out of file descriptors or similar: try again shortly rather than spin.
             tokio::time::sleep(Duration::from_millis(100)).await;
             continue;
@@ -301,6 +341,7 @@ pub(crate) async fn serve(
         };
         let task = tasks.spawn(connection(
             socket,
+            peer,
             place,
             settings,
             queue.clone(),
@@ -381,6 +422,7 @@ fn own_answer(unit: u8, pdu: &[u8], settings: &Settings) -> Option<OwnAnswer> {
 /// stays idle or stops taking its replies, or is closed to admit another.
 async fn connection(
     mut socket: TcpStream,
+    peer: SocketAddr,
     place: Place,
     settings: Settings,
     queue: mpsc::Sender<GatewayRequest>,
@@ -408,11 +450,16 @@ async fn connection(
             }
             Some(OwnAnswer::NotCarried(code)) => {
                 add(&counters.not_carried);
-                exception(function, code)
+                let reply = exception(function, code);
+                if PassPdu::new(pdu).is_ok_and(|pass| pass.writes()) {
+                    audit_write(peer, mbap.unit, pdu, Some(&reply), None);
+                }
+                reply
             }
             None => {
                 let (reply, answer) = oneshot::channel();
                 let request = GatewayRequest {
+                    client: peer,
                     unit: mbap.unit,
                     pdu: pdu.to_vec(),
                     reply,

@@ -201,12 +201,18 @@ impl std::fmt::Display for JobError {
 
 impl std::error::Error for JobError {}
 
+/// The `tracing` target of the audit trail: every write, command and buffer read-out a network
+/// source asked for, who asked, and whether it was done or refused (why).
+pub const AUDIT_TARGET: &str = "optobus_audit";
+
 /// A cloneable handle on a running bus's lines.
 #[derive(Clone, Debug)]
 pub struct Handle {
     pub(crate) lines: Arc<[LineQueues]>,
     /// Whose jobs this handle queues.
     pub(crate) source: Source,
+    /// Who in the source asked (a client's address), for the audit trail.
+    pub(crate) origin: Option<Arc<str>>,
     pub(crate) devices: Arc<[Entry]>,
     /// Each line's frame rings.
     pub(crate) frames: Arc<[Arc<LineFrames>]>,
@@ -219,6 +225,36 @@ impl Handle {
         Self {
             source,
             ..self.clone()
+        }
+    }
+
+    /// The same handle, its jobs told in the audit trail as asked by `origin` (a client's
+    /// address, a topic).
+    pub fn from_origin(&self, origin: impl std::fmt::Display) -> Self {
+        Self {
+            origin: Some(Arc::from(origin.to_string())),
+            ..self.clone()
+        }
+    }
+
+    /// Tells the audit trail ([`AUDIT_TARGET`]) what a network source asked for and how it
+    /// went; the program's own jobs ([`Source::Api`]) are not told.
+    fn audit<T>(
+        &self,
+        what: std::fmt::Arguments<'_>,
+        outcome: &Result<T, JobError>,
+        done: impl FnOnce(&T) -> String,
+    ) {
+        if self.source == Source::Api {
+            return;
+        }
+        let who = match &self.origin {
+            Some(origin) => format!("{} {origin}", self.source.name()),
+            None => self.source.name().to_owned(),
+        };
+        match outcome {
+            Ok(value) => tracing::info!(target: AUDIT_TARGET, "{who}: {what}: {}", done(value)),
+            Err(error) => tracing::warn!(target: AUDIT_TARGET, "{who}: {what}: not done: {error}"),
         }
     }
 
@@ -362,20 +398,41 @@ impl Handle {
         register: &str,
         text: &str,
     ) -> Result<Option<Value>, JobError> {
-        let (found, words) = self.policy(device)?.set(register, text)?;
-        self.write(device, found, words, false).await?;
-        if !found.readable() {
-            return Ok(None);
+        let outcome = async {
+            let (found, words) = self.policy(device)?.set(register, text)?;
+            self.write(device, found, words, false).await?;
+            if !found.readable() {
+                return Ok(None);
+            }
+            let mut back = self.read(device, vec![found]).await?;
+            Ok(back.pop())
         }
-        let mut back = self.read(device, vec![found]).await?;
-        Ok(back.pop())
+        .await;
+        self.audit(
+            format_args!("set `{register}` of `{device}` to {text:?}"),
+            &outcome,
+            |back| match back {
+                Some(value) => format!("done, reads back {value}"),
+                None => "done".to_owned(),
+            },
+        );
+        outcome
     }
 
     /// Runs `command` of device `device` as `optobus do` does, if the write policy allows it
     /// (a drastic one only when named in `writable`), and waits out its busy time.
     pub async fn do_listed(&self, device: &str, command: &str) -> Result<(), JobError> {
-        let (found, register) = self.policy(device)?.run(command)?;
-        self.run(device, found, register).await
+        let outcome = async {
+            let (found, register) = self.policy(device)?.run(command)?;
+            self.run(device, found, register).await
+        }
+        .await;
+        self.audit(
+            format_args!("run `{command}` of `{device}`"),
+            &outcome,
+            |_| "done".to_owned(),
+        );
+        outcome
     }
 
     /// Reads `register` of device `device` now, between the line's polls, if the write policy
@@ -396,14 +453,23 @@ impl Handle {
     /// unlocked, as `optobus buffer` does. The lock and unlock are commands: the bus file's
     /// `writable` must list them (`all` does), since reading out empties the buffer.
     pub async fn download_buffer(&self, device: &str) -> Result<Buffered, JobError> {
-        self.policy(device)?.buffer()?;
-        let entry = self.entry(device)?;
-        let index = entry.index;
-        self.send(entry.line, |done| Job::Buffer {
-            device: index,
-            done,
-        })
-        .await
+        let outcome = async {
+            self.policy(device)?.buffer()?;
+            let entry = self.entry(device)?;
+            let index = entry.index;
+            self.send(entry.line, |done| Job::Buffer {
+                device: index,
+                done,
+            })
+            .await
+        }
+        .await;
+        self.audit(
+            format_args!("read out the data buffer of `{device}`"),
+            &outcome,
+            |buffered| format!("done, {} values", buffered.values.len()),
+        );
+        outcome
     }
 
     /// What writes from the network may change on device `device`.

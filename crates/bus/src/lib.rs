@@ -65,7 +65,7 @@ pub use file::{
     PollConfig, Port, Rejected, SecretSource, Writable,
 };
 pub use gateway::GatewayCounts;
-pub use handle::{Buffered, Handle, JobError, Source, NETWORK_QUEUE};
+pub use handle::{Buffered, Handle, JobError, Source, AUDIT_TARGET, NETWORK_QUEUE};
 pub use line::NETWORK_SHARE;
 pub use link::Stream;
 pub use policy::{Policy, Refusal, RefusalKind};

@@ -39,6 +39,25 @@ fn pdu_address(pass: &PassPdu<'_>) -> u16 {
     }
 }
 
+/// Logs a device's change of health (going offline with the reason).
+fn log_health(id: &DeviceId, health: Health, reason: Option<&str>) {
+    let device = &*id.device;
+    let slave = id.slave;
+    let why = reason
+        .map(|reason| format!(": {reason}"))
+        .unwrap_or_default();
+    match health {
+        Health::Offline => tracing::warn!(
+            target: "optobus_bus",
+            "device `{device}` (slave {slave}) is offline{why}"
+        ),
+        Health::Online => tracing::info!(
+            target: "optobus_bus",
+            "device `{device}` (slave {slave}) is online"
+        ),
+    }
+}
+
 /// How often a line sends its statistics.
 const STATS_EVERY: Duration = Duration::from_secs(1);
 
@@ -302,7 +321,9 @@ impl LineTask {
         let mut next_stats = clock.instant + STATS_EVERY;
         let mut reopen_at = clock.instant;
         let mut reopen_wait = FIRST_BACKOFF;
-        let mut was_open = true;
+        // Unknown until the first try; then what the log last said.
+        let mut was_open = None;
+        let mut open_error = None;
         loop {
             let now = Instant::now();
             if now >= next_stats {
@@ -311,22 +332,27 @@ impl LineTask {
             }
             let mut open = self.is_open().await;
             if !open && now >= reopen_at {
-                open = self.ensure_open().await;
-                if open {
-                    reopen_wait = FIRST_BACKOFF;
-                } else {
-                    reopen_at = now + reopen_wait;
-                    reopen_wait = (reopen_wait * 2).min(MAX_BACKOFF);
+                match self.ensure_open().await {
+                    Ok(()) => {
+                        open = true;
+                        reopen_wait = FIRST_BACKOFF;
+                    }
+                    Err(error) => {
+                        open_error = Some(error);
+                        reopen_at = now + reopen_wait;
+                        reopen_wait = (reopen_wait * 2).min(MAX_BACKOFF);
+                    }
                 }
             }
-            if open != was_open {
+            if Some(open) != was_open {
                 // Whoever watches the line hears at once that it closed or opened again, and
                 // a closed line's devices are down until they answer again.
                 self.send_stats(&clock).await;
                 if !open {
                     self.line_down(now).await;
                 }
-                was_open = open;
+                self.log_open(open, was_open, open_error.take());
+                was_open = Some(open);
             }
             let next = if open {
                 self.schedule.next(now)
@@ -434,7 +460,7 @@ impl LineTask {
         for device in self.schedule.line_down(now) {
             let device = &self.devices[device];
             let errors = *device.errors.lock().unwrap_or_else(|e| e.into_inner());
-            tracing::info!(target: "optobus_bus", device = &*device.id.device, "device down with its line");
+            log_health(&device.id, Health::Offline, Some(&reason));
             let event = HealthEvent {
                 source: Arc::clone(&device.id),
                 health: Health::Offline,
@@ -551,18 +577,29 @@ impl LineTask {
         state.client.is_some() && !state.broken
     }
 
-    /// Passes a gateway request to the line and sends its reply back.
+    /// Passes a gateway request to the line and sends its reply back; a write is told in the
+    /// audit trail.
     async fn serve(&mut self, request: GatewayRequest) {
-        let reply = self.pass(request.unit, &request.pdu).await;
+        let (reply, refusal) = self.pass(request.unit, &request.pdu).await;
+        if PassPdu::new(&request.pdu).is_ok_and(|pass| pass.writes()) {
+            let why = refusal.map(|refusal| refusal.to_string());
+            gateway::audit_write(
+                request.client,
+                request.unit,
+                &request.pdu,
+                reply.as_deref(),
+                why.as_deref(),
+            );
+        }
         // The client may have gone meanwhile: nothing to do then.
         let _ = request.reply.send(reply);
     }
 
     /// The reply PDU to a gateway request (an exception where it cannot be passed), or `None`
-    /// for a broadcast.
-    async fn pass(&mut self, unit: u8, pdu: &[u8]) -> Option<Vec<u8>> {
+    /// for a broadcast; and the write policy's refusal, where it refused.
+    async fn pass(&mut self, unit: u8, pdu: &[u8]) -> (Option<Vec<u8>>, Option<Refusal>) {
         let function = pdu[0];
-        let refused = |code| Some(gateway::exception(function, code));
+        let refused = |code| (Some(gateway::exception(function, code)), None);
         let pass = match PassPdu::new(pdu) {
             Ok(pass) => pass,
             Err(optobus_codec::EncodeError::MalformedRequest { .. }) => {
@@ -575,8 +612,8 @@ impl LineTask {
             if let Some(gateway) = &self.gateway {
                 gateway::add(&gateway.counters.policy_refused);
             }
-            tracing::debug!(target: "optobus_bus", line = &*self.name, "gateway request to slave {unit} refused: {refusal}");
-            return refused(gateway::refused(&refusal));
+            let code = gateway::refused(&refusal);
+            return (Some(gateway::exception(function, code)), Some(refusal));
         }
         let (settings, shape) = match index {
             Some(index) => {
@@ -599,10 +636,10 @@ impl LineTask {
         };
         state.record(&settings, started, &result);
         match result {
-            Ok(Some(reply)) => Some(reply),
+            Ok(Some(reply)) => (Some(reply), None),
             Ok(None) => {
                 state.owed = state.owed.max(self.broadcast_turnaround);
-                None
+                (None, None)
             }
             Err(error) => refused(path_or_target(&error)),
         }
@@ -640,11 +677,11 @@ impl LineTask {
         }
     }
 
-    /// Opens the port if it is closed or broke; false if it cannot be opened now.
-    async fn ensure_open(&mut self) -> bool {
+    /// Opens the port if it is closed or broke; why not, if it cannot be opened now.
+    async fn ensure_open(&mut self) -> Result<(), Error> {
         let mut state = self.state.lock().await;
         if state.client.is_some() && !state.broken {
-            return true;
+            return Ok(());
         }
         state.client = None;
         state.broken = false;
@@ -652,13 +689,32 @@ impl LineTask {
         match self.opener.open(self.format, &frames).await {
             Ok(client) => {
                 state.client = Some(client);
-                true
+                Ok(())
             }
             Err(error) => {
-                tracing::warn!(target: "optobus_bus", line = &*self.name, "cannot open the line: {error}");
+                tracing::debug!(target: "optobus_bus", line = &*self.name, "cannot open the line: {error}");
                 state.errors.line += 1;
-                false
+                Err(error)
             }
+        }
+    }
+
+    /// Logs that the line opened or closed (a change only, never each retry).
+    fn log_open(&self, open: bool, was_open: Option<bool>, error: Option<Error>) {
+        let line = &*self.name;
+        let why = error.map(|error| format!(": {error}")).unwrap_or_default();
+        match (open, was_open) {
+            (true, None) => tracing::info!(target: "optobus_bus", "line `{line}` is open"),
+            (true, Some(_)) => tracing::info!(target: "optobus_bus", "line `{line}` is open again"),
+            (false, None) => tracing::warn!(
+                target: "optobus_bus",
+                "line `{line}` cannot be opened{why}; trying again with backoff (up to {}s)",
+                MAX_BACKOFF.as_secs()
+            ),
+            (false, Some(_)) => tracing::warn!(
+                target: "optobus_bus",
+                "line `{line}` closed{why}; its devices are down; trying again with backoff"
+            ),
         }
     }
 
@@ -708,7 +764,7 @@ impl LineTask {
                 errors,
                 reason,
             };
-            tracing::info!(target: "optobus_bus", device = &*device.id.device, ?health, "device health");
+            log_health(&device.id, health, event.reason.as_deref());
             let _ = self.events.send(Event::Health(Arc::new(event)));
         }
     }

@@ -1,11 +1,13 @@
 //! Writes from the page: a register set from text, a command run, both through the bus's
 //! allow-listed, validated path; every refusal a 4xx with the tool's one-line message.
 
+use std::net::SocketAddr;
 use std::sync::Arc;
 
 use axum::extract::rejection::JsonRejection;
-use axum::extract::{Path, State};
+use axum::extract::{ConnectInfo, Path, State};
 use axum::http::header::CONTENT_TYPE;
+use axum::http::Extensions;
 use axum::http::StatusCode;
 use axum::response::IntoResponse;
 use axum::Json;
@@ -91,15 +93,24 @@ pub(crate) fn job_error(device: &str, error: JobError) -> ApiError {
     ApiError::new(status, error.to_string())
 }
 
+/// The bus's handle with the audit trail told who asked: the client's address where the
+/// listener gives it.
+fn handle_for(shared: &Shared, extensions: &Extensions) -> optobus_bus::Handle {
+    match extensions.get::<ConnectInfo<SocketAddr>>() {
+        Some(ConnectInfo(peer)) => shared.handle.from_origin(peer),
+        None => shared.handle.clone(),
+    }
+}
+
 pub(crate) async fn set(
     State(shared): State<Arc<Shared>>,
+    extensions: Extensions,
     Path(device): Path<String>,
     body: Result<Json<Set>, JsonRejection>,
 ) -> Result<Json<Json_>, ApiError> {
     let Json(Set { register, value }) = body.map_err(body_error)?;
     let text = value_text(&value)?;
-    let back = shared
-        .handle
+    let back = handle_for(&shared, &extensions)
         .set_listed(&device, &register, &text)
         .await
         .map_err(|e| job_error(&device, e))?;
@@ -112,12 +123,12 @@ pub(crate) async fn set(
 
 pub(crate) async fn run(
     State(shared): State<Arc<Shared>>,
+    extensions: Extensions,
     Path(device): Path<String>,
     body: Result<Json<Do>, JsonRejection>,
 ) -> Result<Json<Json_>, ApiError> {
     let Json(Do { command }) = body.map_err(body_error)?;
-    shared
-        .handle
+    handle_for(&shared, &extensions)
         .do_listed(&device, &command)
         .await
         .map_err(|e| job_error(&device, e))?;
@@ -128,10 +139,10 @@ pub(crate) async fn run(
 /// first value, where the buffer's timing is known) and `value_UNIT` (empty where invalid).
 pub(crate) async fn buffer(
     State(shared): State<Arc<Shared>>,
+    extensions: Extensions,
     Path(device): Path<String>,
 ) -> Result<impl IntoResponse, ApiError> {
-    let buffered = shared
-        .handle
+    let buffered = handle_for(&shared, &extensions)
         .download_buffer(&device)
         .await
         .map_err(|e| job_error(&device, e))?;

@@ -4,11 +4,13 @@
 
 use std::convert::Infallible;
 use std::io;
+use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
 use std::task::{Context, Poll};
 
 use axum::body::Body;
+use axum::extract::ConnectInfo;
 use axum::http::header::{CONNECTION, CONTENT_TYPE};
 use axum::http::{HeaderValue, Request, Response, StatusCode};
 use axum::Router;
@@ -244,8 +246,14 @@ fn timed_out(limits: &Limits) -> Response<Body> {
     response
 }
 
-/// Serves one connection until the client closes it, it fails, or it overstays a limit.
-pub(crate) async fn serve(stream: TcpStream, router: Router, counters: &Arc<Counters>) {
+/// Serves one connection until the client closes it, it fails, or it overstays a limit. Each
+/// request carries the client's address as axum's `ConnectInfo`.
+pub(crate) async fn serve(
+    stream: TcpStream,
+    peer: SocketAddr,
+    router: Router,
+    counters: &Arc<Counters>,
+) {
     let limits = counters.limits;
     let watch = Arc::new(Watch::new());
     let io = TokioIo::new(Watched {
@@ -261,7 +269,8 @@ pub(crate) async fn serve(stream: TcpStream, router: Router, counters: &Arc<Coun
             let counters = Arc::clone(&counters);
             async move {
                 watch.handling();
-                let request = request.map(Body::new);
+                let mut request = request.map(Body::new);
+                request.extensions_mut().insert(ConnectInfo(peer));
                 let response =
                     match tokio::time::timeout(limits.request, router.oneshot(request)).await {
                         Ok(Ok(response)) => response,

@@ -221,8 +221,8 @@ retry-after: 1\r\nconnection: close\r\ncontent-length: 50\r\n\r\n\
 async fn accept(listener: TcpListener, router: Router, counters: Arc<Counters>) {
     let mut connections = JoinSet::new();
     loop {
-        let stream = match listener.accept().await {
-            Ok((stream, _)) => stream,
+        let (stream, peer) = match listener.accept().await {
+            Ok(accepted) => accepted,
             Err(error) => {
                 // Out of descriptors or memory: wait rather than spin; a connection that
                 // failed while being taken in is its client's problem.
@@ -243,7 +243,7 @@ async fn accept(listener: TcpListener, router: Router, counters: Arc<Counters>) 
                 let router = router.clone();
                 let counters = Arc::clone(&counters);
                 connections.spawn(async move {
-                    connection::serve(stream, router, &counters).await;
+                    connection::serve(stream, peer, router, &counters).await;
                     drop(permit);
                 });
             }

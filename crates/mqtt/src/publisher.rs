@@ -427,8 +427,12 @@ async fn drive(
     loop {
         match eventloop.poll().await {
             Ok(MqttEvent::Incoming(Packet::ConnAck(_))) => {
-                if failures > 0 {
-                    tracing::info!(after = failures, "MQTT broker connected");
+                let (host, port) = eventloop.mqtt_options.broker_address();
+                match failures {
+                    0 => tracing::info!("MQTT: connected to the broker at {host}:{port}"),
+                    n => tracing::info!(
+                        "MQTT: connected to the broker at {host}:{port} again, after {n} attempts"
+                    ),
                 }
                 if !std::mem::take(&mut broken_by_size) {
                     backoff = FIRST_BACKOFF;
@@ -469,7 +473,11 @@ async fn drive(
                          is made again after {backoff:?}"
                     );
                 } else if failures == 0 {
-                    tracing::warn!(%error, "MQTT broker unreachable; samples wait in the queue");
+                    let (host, port) = eventloop.mqtt_options.broker_address();
+                    tracing::warn!(
+                        "MQTT: the broker at {host}:{port} cannot be reached ({error}); samples \
+                         wait in the queue, trying again with backoff (told again once connected)"
+                    );
                 }
                 failures += 1;
                 tokio::time::sleep(backoff).await;

@@ -380,6 +380,11 @@ fn sample_json(sample: &Sample) -> String {
 }
 
 pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
+    // The operator's news on stderr (a service, a pipe, --json); the live view in a terminal
+    // shows the devices' health itself and would be torn by lines between its drawings.
+    if !std::io::stdout().is_terminal() || json {
+        crate::log::show_operations();
+    }
     let mut bus_file = match &args.file {
         Some(path) => load(path)?,
         None => demo(args.gateway)?,
@@ -525,22 +530,6 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
             Event::Health(health) => {
                 if let Some(shown) = board.device(&health.source.device) {
                     shown.health = health.health;
-                }
-                if !terminal {
-                    let reason = health
-                        .reason
-                        .as_deref()
-                        .map(|r| format!(": {r}"))
-                        .unwrap_or_default();
-                    note!(
-                        "{}  {} is {}{reason}",
-                        time_of_day(),
-                        health.source.device,
-                        match health.health {
-                            Health::Online => "online again",
-                            Health::Offline => "offline",
-                        }
-                    );
                 }
             }
             Event::Line(_) => {}

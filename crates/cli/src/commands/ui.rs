@@ -107,6 +107,7 @@ pub(crate) async fn run(global: &Global, args: &UiArgs) -> Result<(), CliError> 
         }
         demo
     };
+    crate::log::show_operations();
     let bus = Bus::new(file);
     let running = bus.start().map_err(|e| CliError::failed(e.to_string()))?;
     let server = optobus_console::serve(&running, &HttpConfig::new(args.http))
