@@ -148,7 +148,7 @@ fn install(frames: bool, operations: bool) {
     // A closed stderr loses the lines; reporting that on stderr would panic.
     let frame_lines = frames.then(|| {
         tracing_subscriber::fmt::layer()
-            .event_format(EventLine)
+            .event_format(EventLine::Frame)
             .log_internal_errors(false)
             .with_writer(TracedLine::default)
             .with_filter(frame_targets)
@@ -158,7 +158,7 @@ fn install(frames: bool, operations: bool) {
     });
     let operation_lines = operations.then(|| {
         tracing_subscriber::fmt::layer()
-            .event_format(OperationLine {
+            .event_format(EventLine::Operation {
                 journald: std::env::var_os("JOURNAL_STREAM").is_some(),
             })
             .log_internal_errors(false)
@@ -172,55 +172,23 @@ fn install(frames: bool, operations: bool) {
     let _ = tracing::subscriber::set_global_default(subscriber);
 }
 
-/// An operator's line: `optobus: 14:23:54.822 +01:00 warning: line `rs485` closed …`, or
-/// for journald `<4>optobus: line `rs485` closed …`.
-struct OperationLine {
-    journald: bool,
+/// How an event is written as one line.
+enum EventLine {
+    /// A frame or register event of `--verbose`: the local time, the message, and a reply's
+    /// delay: `14:23:54.822 +01:00 -> 01 03 00 1F 00 07 B5 CE`.
+    Frame,
+    /// An operator's line: `optobus: 14:23:54.822 +01:00 warning: line `rs485` closed …`, or
+    /// for journald `<4>optobus: line `rs485` closed …`.
+    Operation { journald: bool },
 }
-
-impl<S, N> tracing_subscriber::fmt::FormatEvent<S, N> for OperationLine
-where
-    S: tracing::Subscriber + for<'a> tracing_subscriber::registry::LookupSpan<'a>,
-    N: for<'a> tracing_subscriber::fmt::FormatFields<'a> + 'static,
-{
-    fn format_event(
-        &self,
-        _: &tracing_subscriber::fmt::FmtContext<'_, S, N>,
-        mut writer: tracing_subscriber::fmt::format::Writer<'_>,
-        event: &tracing::Event<'_>,
-    ) -> fmt::Result {
-        let mut fields = LineFields::default();
-        event.record(&mut fields);
-        let level = *event.metadata().level();
-        let (priority, word) = match level {
-            tracing::Level::ERROR => (3, "error"),
-            tracing::Level::WARN => (4, "warning"),
-            _ => (6, "info"),
-        };
-        if self.journald {
-            write!(writer, "<{priority}>optobus: ")?;
-        } else {
-            write!(writer, "optobus: {} {word}: ", crate::render::time_of_day())?;
-        }
-        // One event, one line: journald and grep take a line as a record.
-        let mut line = fields.message;
-        for other in &fields.others {
-            line = format!("{line} {other}");
-        }
-        writeln!(writer, "{}", line.replace('\n', " "))
-    }
-}
-
-/// An event as one line: the local time, the message, and a reply's delay.
-struct EventLine;
 
 /// The parts of an event a line shows.
 #[derive(Default)]
 struct LineFields {
     message: String,
     elapsed_us: Option<u64>,
-    /// The other fields, as `name=value`.
-    others: Vec<String>,
+    /// The other fields, as ` name=value`.
+    others: String,
 }
 
 impl tracing::field::Visit for LineFields {
@@ -228,7 +196,7 @@ impl tracing::field::Visit for LineFields {
         if field.name() == "message" {
             self.message = format!("{value:?}");
         } else {
-            self.others.push(format!("{}={value:?}", field.name()));
+            self.others += &format!(" {}={value:?}", field.name());
         }
     }
 
@@ -252,16 +220,31 @@ where
     ) -> fmt::Result {
         let mut fields = LineFields::default();
         event.record(&mut fields);
-        write!(
-            writer,
-            "{} {}",
-            crate::render::time_of_day(),
-            fields.message
-        )?;
-        if let Some(us) = fields.elapsed_us {
-            write!(writer, " ({}.{:03} ms)", us / 1000, us % 1000)?;
+        let time = crate::render::time_of_day();
+        match self {
+            Self::Frame => {
+                write!(writer, "{time} {}", fields.message)?;
+                if let Some(us) = fields.elapsed_us {
+                    write!(writer, " ({}.{:03} ms)", us / 1000, us % 1000)?;
+                }
+                writeln!(writer)
+            }
+            Self::Operation { journald } => {
+                let (priority, word) = match *event.metadata().level() {
+                    tracing::Level::ERROR => (3, "error"),
+                    tracing::Level::WARN => (4, "warning"),
+                    _ => (6, "info"),
+                };
+                if *journald {
+                    write!(writer, "<{priority}>optobus: ")?;
+                } else {
+                    write!(writer, "optobus: {time} {word}: ")?;
+                }
+                // One event, one line: journald and grep take a line as a record.
+                let line = fields.message + &fields.others;
+                writeln!(writer, "{}", line.replace('\n', " "))
+            }
         }
-        writeln!(writer)
     }
 }
 

@@ -5,25 +5,12 @@
 
 mod common;
 
+use common::{free_port, mosquitto, post, Killed};
+
 use std::io::{BufRead, BufReader, Read, Write};
-use std::process::{Child, Command, Stdio};
+use std::process::Stdio;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-/// A process killed when dropped.
-struct Killed(Child);
-
-impl Drop for Killed {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-    listener.local_addr().unwrap().port()
-}
 
 /// `optobus simulate --tcp address` (a P series at slave 1) until dropped.
 fn simulator(address: &str) -> Killed {
@@ -69,25 +56,6 @@ fn count(heard: &Heard, part: &str) -> usize {
         .iter()
         .filter(|line| line.contains(part))
         .count()
-}
-
-/// An HTTP/1.1 POST of `body` to the console at `address`: the status.
-fn post(address: &str, path: &str, body: &str) -> u16 {
-    let mut stream = std::net::TcpStream::connect(address).expect("the console listens");
-    write!(
-        stream,
-        "POST {path} HTTP/1.1\r\nHost: {address}\r\nContent-Type: application/json\r\n\
-         Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
-        body.len()
-    )
-    .unwrap();
-    let mut reply = String::new();
-    stream.read_to_string(&mut reply).unwrap();
-    reply
-        .split(' ')
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap()
 }
 
 /// FC06 through the gateway at `address`: the reply PDU.
@@ -171,6 +139,7 @@ outputs:
             "/api/devices/top/set",
             &format!(r#"{{"register": "{register}", "value": "{value}"}}"#),
         )
+        .0
     };
     assert_eq!(set("light_power", "55 %"), 200);
     let done = wait_for(
@@ -228,21 +197,7 @@ outputs:
     wait_for(&heard, "<6>optobus: ", "device `top` (slave 1) is online");
 
     // The broker comes: connected again, said once.
-    let conf = dir.join("mosquitto.conf");
-    std::fs::write(
-        &conf,
-        format!("listener {broker_port} 127.0.0.1\nallow_anonymous true\n"),
-    )
-    .unwrap();
-    let broker = Killed(
-        Command::new("mosquitto")
-            .arg("-c")
-            .arg(&conf)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("mosquitto starts"),
-    );
+    let broker = mosquitto(&dir, broker_port);
     wait_for(
         &heard,
         "<6>optobus: ",

@@ -5,8 +5,10 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::process::{Child, Command, Stdio};
+use common::{free_port, mosquitto, Killed};
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -83,37 +85,10 @@ fn pymodbus(address: &str, requests: &Value) -> Vec<Value> {
         .collect()
 }
 
-/// An HTTP/1.1 POST of `body` to the console at `address`: the status and the JSON body.
+/// A POST of the JSON `body` to the console at `address`: the status and the JSON reply.
 fn post(address: &str, path: &str, body: &Value) -> (u16, Value) {
-    let mut stream = std::net::TcpStream::connect(address).expect("the console listens");
-    let body = body.to_string();
-    write!(
-        stream,
-        "POST {path} HTTP/1.1\r\nHost: {address}\r\nContent-Type: application/json\r\n\
-         Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
-        body.len()
-    )
-    .unwrap();
-    let mut reply = String::new();
-    stream.read_to_string(&mut reply).unwrap();
-    let (head, body) = reply.split_once("\r\n\r\n").expect("a head and a body");
-    let status = head.split(' ').nth(1).and_then(|s| s.parse().ok()).unwrap();
-    (status, serde_json::from_str(body).unwrap_or(Value::Null))
-}
-
-/// A process killed when dropped.
-struct Killed(Child);
-
-impl Drop for Killed {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-    listener.local_addr().unwrap().port()
+    let (status, reply) = common::post(address, path, &body.to_string());
+    (status, serde_json::from_str(&reply).unwrap_or(Value::Null))
 }
 
 /// What `mosquitto_sub -v` heard: `topic payload` lines.
@@ -209,21 +184,7 @@ fn every_network_path_refuses_alike() {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let broker_port = free_port();
-    let conf = dir.join("mosquitto.conf");
-    std::fs::write(
-        &conf,
-        format!("listener {broker_port} 127.0.0.1\nallow_anonymous true\n"),
-    )
-    .unwrap();
-    let _broker = Killed(
-        Command::new("mosquitto")
-            .arg("-c")
-            .arg(&conf)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("mosquitto starts"),
-    );
+    let _broker = mosquitto(&dir, broker_port);
     let bus = dir.join("bus.yaml");
     std::fs::write(
         &bus,
