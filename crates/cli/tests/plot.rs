@@ -225,3 +225,90 @@ fn point_2_a_million_rows_plot_as_a_bounded_chart_that_keeps_the_extremes() {
     };
     assert_eq!(extremes(&ys), extremes(&reference));
 }
+
+#[test]
+fn point_5_a_record_register_is_drawn_as_a_panel_per_field() {
+    let (csv, out) = (scratch("fields.csv"), scratch("fields.svg"));
+    ok(&[
+        "--model",
+        "rangefinder",
+        "record",
+        "measurement_results",
+        "--count",
+        "20",
+        "--out",
+        &csv,
+    ]);
+    ok(&["plot", &csv, "--out", &out]);
+    let _ = std::fs::remove_file(&csv);
+    let chart = svg(&out);
+    let texts = tick_labels(&chart);
+    for label in [
+        "measurement_results.distance [mm]",
+        "measurement_results.signal_strength [uV]",
+        "measurement_results.temperature [degC]",
+    ] {
+        assert!(texts.iter().any(|t| t == label), "{label} in {texts:?}");
+    }
+    assert_eq!(line_lengths(&chart).len(), 3, "a line in each panel");
+    // A column of text (an IP address) is left out, and said so.
+    ok(&[
+        "record",
+        "distance_1",
+        "ip_address",
+        "--count",
+        "5",
+        "--out",
+        &csv,
+    ]);
+    let output = run(&["plot", &csv, "--out", &out]);
+    let _ = std::fs::remove_file(&csv);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("left out, no numbers in them: ip_address"),
+        "{stderr}"
+    );
+    assert_eq!(line_lengths(&svg(&out)), [5]);
+}
+
+/// The number of points of each value line (blue, not the axes' black) in an SVG chart, in
+/// the order drawn.
+fn line_lengths(chart: &str) -> Vec<usize> {
+    chart
+        .split("<polyline")
+        .skip(1)
+        .filter(|line| line.contains("stroke=\"#0000FF\""))
+        .filter_map(|line| line.split("points=\"").nth(1)?.split('"').next())
+        .map(|points| points.split_whitespace().count())
+        .collect()
+}
+
+#[test]
+fn point_6_cells_a_row_did_not_read_are_no_gap_and_invalid_readings_are() {
+    // Two polls at different rates: the slow one's column is empty in the fast one's rows
+    // and the other way round; one fast reading invalid.
+    let (csv, out) = (scratch("rates.csv"), scratch("rates.svg"));
+    std::fs::write(
+        &csv,
+        "time,elapsed [s],fast [mm],slow [mm]\n\
+         ,0.0,1.0,\n,0.1,2.0,\n,0.2,,5.0\n,0.3,3.0,\n,0.4,NaN,\n\
+         ,0.5,4.0,\n,0.6,,6.0\n,0.7,5.0,\n,0.8,,7.0\n",
+    )
+    .expect("write");
+    ok(&["plot", &csv, "--out", &out]);
+    let _ = std::fs::remove_file(&csv);
+    // The fast column: 1, 2, 3, then a gap at the invalid reading, then 4, 5; the slow one
+    // drawn whole, 5, 6, 7.
+    assert_eq!(line_lengths(&svg(&out)), [3, 2, 3]);
+    // A recording from before `NaN` (an invalid reading was an empty cell) is still drawn.
+    std::fs::write(
+        &csv,
+        "time,elapsed [s],distance_1 [mm],measurement_results\n\
+         ,0.0,1.0,\"distance=1.0 mm\"\n,0.1,,\"distance=invalid\"\n,0.2,2.0,\"distance=2.0 mm\"\n",
+    )
+    .expect("write");
+    ok(&["plot", &csv, "--out", &out]);
+    let _ = std::fs::remove_file(&csv);
+    assert_eq!(line_lengths(&svg(&out)), [2]);
+}

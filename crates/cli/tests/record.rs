@@ -1,6 +1,8 @@
-//! `optobus record`: samples of registers or groups in a CSV file, against the built-in
-//! simulator: the header names each column's unit, every row has an RFC 3339 time, the
-//! elapsed seconds and one value per column.
+//! `optobus record` and `optobus run --record`: samples of registers or groups in a CSV
+//! file, against the built-in simulator or a device that answers zeros: the header names each
+//! column's unit (a column per field of a record or packed register), every row has an RFC
+//! 3339 time, the elapsed seconds and one value per column, `NaN` where a reading is invalid
+//! and nothing where the row's poll did not read the column.
 
 mod common;
 
@@ -24,8 +26,8 @@ fn rows(path: &str) -> Vec<Vec<String>> {
 }
 
 /// Checks a data row: its time, its elapsed seconds (not before `after`), and that every
-/// value is a number or empty (a reading the device marked invalid); gives the elapsed
-/// seconds.
+/// value is a number (`NaN` for a reading the device marked invalid) or empty (not read); gives
+/// the elapsed seconds.
 fn sample(row: &[String], columns: usize, after: f64) -> f64 {
     assert_eq!(row.len(), columns, "{row:?}");
     let time: Result<jiff::Timestamp, _> = row[0].parse();
@@ -36,7 +38,7 @@ fn sample(row: &[String], columns: usize, after: f64) -> f64 {
         let number: f64 = value
             .parse()
             .unwrap_or_else(|_| panic!("{value} in {row:?}"));
-        assert!(number.is_finite(), "{row:?}");
+        assert!(number.is_finite() || value == "NaN", "{row:?}");
     }
     elapsed
 }
@@ -165,5 +167,135 @@ fn point_2_the_built_in_simulator_runs_at_line_speed_or_full_speed_on_request() 
     assert!(
         help.contains("--sim-speed") && help.contains("serial line"),
         "{help}"
+    );
+}
+
+#[test]
+fn point_5_record_and_packed_registers_are_a_column_per_field_with_its_unit() {
+    let out = scratch("fields.csv");
+    ok(&[
+        "--model",
+        "rangefinder",
+        "record",
+        "measurement_results",
+        "serial_parameters",
+        "--count",
+        "5",
+        "--out",
+        &out,
+    ]);
+    let rows = rows(&out);
+    // The fields of the spec's record and packed descriptions, each with its own unit.
+    assert_eq!(
+        rows[0].join(","),
+        "time,elapsed [s],measurement_results.distance [mm],measurement_results.signal_strength [uV],\
+         measurement_results.temperature [degC],serial_parameters.parity,serial_parameters.baud_rate"
+    );
+    assert_eq!(rows.len(), 6, "{rows:?}");
+    let mut after = 0.0;
+    for row in &rows[1..] {
+        after = sample(row, 7, after);
+        // A number in every column (the simulator's temperature is some 35 degC, its link
+        // without parity at 115200 bit/s); the distance may be invalid in one sample of 50.
+        let temperature: f64 = row[4].parse().unwrap();
+        assert!((0.0..100.0).contains(&temperature), "{row:?}");
+        assert_eq!(&row[5..], ["0", "115200"], "{row:?}");
+        assert!(row[3].parse::<u32>().is_ok(), "{row:?}");
+    }
+}
+
+/// A Modbus TCP device that answers every read with zeros (the rangefinder's distance
+/// sentinel, so its distance is always invalid); gives its address. It serves until the test
+/// process ends.
+fn zero_device() -> String {
+    use std::io::{Read, Write};
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = listener.local_addr().unwrap().to_string();
+    std::thread::spawn(move || {
+        for connection in listener.incoming() {
+            let Ok(mut connection) = connection else {
+                return;
+            };
+            std::thread::spawn(move || {
+                let mut head = [0u8; 7];
+                while connection.read_exact(&mut head).is_ok() {
+                    let length = usize::from(u16::from_be_bytes([head[4], head[5]]));
+                    let mut pdu = vec![0u8; length.saturating_sub(1)];
+                    if connection.read_exact(&mut pdu).is_err() {
+                        return;
+                    }
+                    let reply = match pdu.as_slice() {
+                        [function @ (3 | 4), _, _, high, low] => {
+                            let bytes = 2 * u16::from_be_bytes([*high, *low]) as usize;
+                            let mut reply = vec![*function, bytes as u8];
+                            reply.resize(2 + bytes, 0);
+                            reply
+                        }
+                        [function, ..] => vec![function | 0x80, 1],
+                        [] => return,
+                    };
+                    let mut frame = head[..4].to_vec();
+                    frame.extend_from_slice(&(reply.len() as u16 + 1).to_be_bytes());
+                    frame.push(head[6]);
+                    frame.extend_from_slice(&reply);
+                    if connection.write_all(&frame).is_err() {
+                        return;
+                    }
+                }
+            });
+        }
+    });
+    address
+}
+
+#[test]
+fn point_6_polls_at_different_rates_leave_unread_cells_empty_and_mark_invalid_ones() {
+    let dir = std::path::PathBuf::from(scratch("rates"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let bus = dir.join("bus.yaml");
+    std::fs::write(
+        &bus,
+        format!(
+            "lines: [{{ name: plant, tcp: \"{}\" }}]\ndevices:\n  - {{ name: ranger, model: rangefinder, slave: 1, timeout: 500ms, poll: [{{ read: [error_status, distance], every: 50ms }}, {{ read: run_state, every: 300ms }}] }}\n",
+            zero_device()
+        ),
+    )
+    .unwrap();
+    let recorded = dir.join("recorded");
+    ok(&[
+        "run",
+        bus.to_str().unwrap(),
+        "--duration",
+        "1500ms",
+        "--record",
+        recorded.to_str().unwrap(),
+    ]);
+    let path = recorded.join("ranger.csv").display().to_string();
+    let rows = rows(&path);
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(
+        rows[0].join(","),
+        "time,elapsed [s],error_status,run_state,distance [mm]"
+    );
+    // A row per poll: the fast poll's row has its own columns, the invalid distance marked
+    // `NaN`, and nothing in the slow poll's column; the slow poll's row the other way round.
+    let (mut fast, mut slow) = (0, 0);
+    let mut after = 0.0;
+    for row in &rows[1..] {
+        after = sample(row, 5, after);
+        match &row[2..] {
+            [status, run_state, distance] if [status, run_state, distance] == ["0", "", "NaN"] => {
+                fast += 1
+            }
+            [status, run_state, distance] if [status, run_state, distance] == ["", "0", ""] => {
+                slow += 1
+            }
+            _ => panic!("a row of neither poll: {row:?}"),
+        }
+    }
+    assert!(
+        slow >= 2 && fast > slow,
+        "{fast} fast rows, {slow} slow rows"
     );
 }

@@ -74,7 +74,7 @@ function card(device) {
       el("button", { type: "button", onclick: () => openDetail(device.device, "commands") }, "Commands"),
       el("button", { type: "button", onclick: () => openDetail(device.device, "frames") }, "Frames"),
       el("button", { type: "button", onclick: () => exportValues(device.device) }, "Export CSV")));
-  return { node, health, reason, rows, values: new Map() };
+  return { node, health, reason, rows, values: new Map(), groups: new Map() };
 }
 
 // A down device's last values stay on screen, marked as not current until sampled again.
@@ -96,24 +96,43 @@ function showHealth(entry) {
 function showSample(sample) {
   const parts = state.cards.get(sample.device);
   if (!parts) return;
-  const key = sample.device + "/" + sample.register;
-  let row = parts.values.get(sample.register);
+  if (!Array.isArray(sample.fields)) {
+    showValue(parts, sample, sample.register, sample.register, sample.text, sample.number);
+    return;
+  }
+  // A packed or record register: a row per field of its spec, under a row naming it.
+  if (!parts.groups.has(sample.register)) {
+    const group = el("tr", { class: "group", data: { group: sample.register } },
+      el("th", { colSpan: 3 }, sample.register));
+    parts.groups.set(sample.register, group);
+    parts.rows.append(group);
+  }
+  for (const field of sample.fields) {
+    showValue(parts, sample, `${sample.register}.${field.name}`, field.name, field.text, field.number, "field");
+  }
+}
+
+// One value's row: its label, its text and its chart (`name` is "register" or
+// "register.field").
+function showValue(parts, sample, name, label, text, number, kind) {
+  const key = sample.device + "/" + name;
+  let row = parts.values.get(name);
   if (!row) {
     const value = el("td", { class: "num", data: { value: key } });
     const chart = el("canvas", { class: "spark", width: 240, height: 56 });
     row = { value, chart };
-    parts.values.set(sample.register, row);
-    parts.rows.append(el("tr", {}, el("td", {}, sample.register), value, el("td", {}, chart)));
+    parts.values.set(name, row);
+    parts.rows.append(el("tr", { class: kind || "", data: { row: name } }, el("td", { class: "name" }, label), value, el("td", {}, chart)));
   }
-  row.value.textContent = sample.text;
+  row.value.textContent = text;
   // Live samples are current; /api/values says so of the last ones.
   markCurrent(row, sample.current !== false);
-  if (typeof sample.number === "number") {
+  if (typeof number === "number") {
     let points = state.series.get(key);
     if (!points) state.series.set(key, (points = []));
     const last = points[points.length - 1];
-    if (!last || sample.time - last[0] >= CHART_STEP_MS) points.push([sample.time, sample.number]);
-    else last[1] = sample.number;
+    if (!last || sample.time - last[0] >= CHART_STEP_MS) points.push([sample.time, number]);
+    else last[1] = number;
     while (points.length && points[0][0] < sample.time - CHART_MS) points.shift();
     state.dirty.add(key);
   }

@@ -10,7 +10,7 @@
 //! |---|---|
 //! | `GET /` | the page |
 //! | `GET /api/devices` | the devices with their health and errors, and the lines' statistics |
-//! | `GET /api/values` | the latest value of every register polled, per device; `current` is false once the device is down |
+//! | `GET /api/values` | the latest value of every register polled, per device: its `text`, JSON `value`, `number` for charts, and for a packed or record register its `fields` (name, unit, text, number each, in the spec's order; the page shows a row per field); `current` is false once the device is down |
 //! | `GET /api/devices/{device}` | the device's register map, commands and groups, from its spec |
 //! | `GET /api/devices/{device}/frames` | its recent frames: direction, hex, time, reply delay |
 //! | `POST /api/devices/{device}/read` | `{"register": "distance_1"}`: the register read now, between the polls (a line with the console's share already waiting answers `429` with `Retry-After`) |

@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use optobus_bus::{DeviceId, ErrorCounts, Event, Handle, Health, HealthEvent, LineStats, Sample};
-use optobus_device::DeviceInfo;
+use optobus_device::{DeviceInfo, RegisterInfo, ValueKind};
 use optobus_inspect::Value;
 use serde_json::{json, Value as Json};
 use tokio::sync::broadcast::error::RecvError;
@@ -188,8 +188,38 @@ fn number(value: &Value) -> Option<f64> {
     }
 }
 
+/// A packed or record register's fields, in its spec's order, each with its text, unit and
+/// number, for a row of its own on the page; `null` for a register of one value.
+fn fields_json(register: &RegisterInfo, value: &Value) -> Json {
+    let fields = match register.kind {
+        ValueKind::Packed(fields) | ValueKind::Record(fields) => fields,
+        _ => return Json::Null,
+    };
+    let values = match value {
+        Value::Fields(values) => values.as_slice(),
+        // The whole register invalid: so is each field.
+        _ => &[],
+    };
+    fields
+        .iter()
+        .map(|field| {
+            let value = values
+                .iter()
+                .find(|(name, _)| *name == field.name)
+                .map_or(&Value::Invalid, |(_, value)| value);
+            json!({
+                "name": field.name,
+                "unit": field.unit,
+                "text": value.to_string(),
+                "number": number(value),
+            })
+        })
+        .collect()
+}
+
 /// A sample as the page takes it: its text as the tool shows it, its JSON value, a number for
-/// charts, and the reply's time.
+/// charts, the fields of a packed or record register (a row each on the page), and the
+/// reply's time.
 pub(crate) fn sample_json(sample: &Sample) -> Json {
     json!({
         "device": &*sample.source.device,
@@ -197,6 +227,7 @@ pub(crate) fn sample_json(sample: &Sample) -> Json {
         "text": sample.value.to_string(),
         "value": sample.value,
         "number": number(&sample.value),
+        "fields": fields_json(sample.register, &sample.value),
         "time": unix_ms(sample.replied),
     })
 }

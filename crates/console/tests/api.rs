@@ -24,7 +24,11 @@ devices:
 const ADDRESS: &str = "127.0.0.1:8080";
 
 pub(crate) fn start(text: &str) -> Running {
-    let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
+    let catalogue = Catalogue::new([
+        &optobus_p_series::DEVICE,
+        &optobus_ccs::DEVICE,
+        &optobus_rangefinder::DEVICE,
+    ]);
     let file = BusFile::parse("bus.yaml", text, Path::new("."), &catalogue)
         .unwrap_or_else(|e| panic!("{}", e.render()));
     Bus::new(file).start().unwrap()
@@ -117,6 +121,61 @@ async fn latest_values_are_the_polled_samples_with_their_units() {
         distance["time"].as_f64().unwrap() > 1.7e12,
         "milliseconds since 1970"
     );
+}
+
+#[tokio::test]
+async fn point_5_a_record_registers_fields_come_each_with_its_unit_and_number() {
+    let running = start(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: ranger, model: rangefinder, slave: 3, timeout: 50ms, poll: [{ read: measurements, every: 20ms }] }
+",
+    );
+    let router = console(&running, &loopback()).router();
+    let json = until(&router, "/api/values", |json| {
+        json["ranger"].as_array().is_some_and(|v| v.len() == 2)
+    })
+    .await;
+    let values = json["ranger"].as_array().unwrap();
+    let record = values
+        .iter()
+        .find(|v| v["register"] == "measurement_results")
+        .expect("measurement_results is polled");
+    let fields = record["fields"].as_array().expect("its fields");
+    let names: Vec<(&str, &str)> = fields
+        .iter()
+        .map(|f| (f["name"].as_str().unwrap(), f["unit"].as_str().unwrap()))
+        .collect();
+    assert_eq!(
+        names,
+        [
+            ("distance", "mm"),
+            ("signal_strength", "uV"),
+            ("temperature", "degC")
+        ]
+    );
+    // Each field's text is its value in the record's JSON, with its unit, and its number.
+    let temperature = &fields[2];
+    assert_eq!(
+        temperature["text"],
+        format!(
+            "{} degC",
+            record["value"]["temperature"]["value"].as_str().unwrap()
+        )
+    );
+    let number: f64 = record["value"]["temperature"]["value"]
+        .as_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert_eq!(temperature["number"].as_f64(), Some(number));
+    // A register of one value has none.
+    let status = values
+        .iter()
+        .find(|v| v["register"] == "error_status")
+        .unwrap();
+    assert_eq!(status["fields"], Value::Null);
 }
 
 #[tokio::test]

@@ -1,6 +1,7 @@
 //! The page in a real browser: headless Chromium driven through chromedriver (WebDriver), one
 //! session for every step to keep CI short. The page loads with no console error, values
-//! change live, an out-of-range edit shows the server's refusal and leaves the simulator's
+//! change live, a record register's fields are rows of their own inside its card, an
+//! out-of-range edit shows the server's refusal and leaves the simulator's
 //! register as it was, a drastic command asks before it acts, a screenshot is written, and
 //! the page's stream reconnects by itself when the server comes back after a stop.
 //!
@@ -22,11 +23,12 @@ use serde_json::{json, Value};
 const CHROMIUM: &str = "/usr/bin/chromium";
 const DRIVER: &str = "chromedriver";
 
-const TWO: &str = "
+const BUS: &str = "
 lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
 devices:
   - { name: head, model: p-series, slave: 1, timeout: 50ms, writable: [light_power, save_parameters], poll: [{ read: measurements, every: 50ms }] }
   - { name: confocal, model: ccs, slave: 2, timeout: 50ms, poll: [{ read: measurements, every: 100ms }] }
+  - { name: ranger, model: rangefinder, slave: 3, timeout: 50ms, poll: [{ read: measurements, every: 100ms }] }
 ";
 
 /// Whether chromedriver and Chromium are here; without them the test is skipped, unless CI
@@ -146,8 +148,12 @@ async fn until_text(client: &Client, css: &str, ready: impl Fn(&str) -> bool) ->
 }
 
 fn start_bus() -> Running {
-    let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
-    let file = BusFile::parse("bus.yaml", TWO, Path::new("."), &catalogue)
+    let catalogue = Catalogue::new([
+        &optobus_p_series::DEVICE,
+        &optobus_ccs::DEVICE,
+        &optobus_rangefinder::DEVICE,
+    ]);
+    let file = BusFile::parse("bus.yaml", BUS, Path::new("."), &catalogue)
         .unwrap_or_else(|e| panic!("{}", e.render()));
     Bus::new(file).start().unwrap()
 }
@@ -157,6 +163,44 @@ async fn values_change_live(client: &Client) {
     let first = until_text(client, css, |t| t.ends_with(" mm")).await;
     let later = until_text(client, css, |t| t != first && t.ends_with(" mm")).await;
     assert_ne!(first, later);
+}
+
+/// Issue 30, point 5: the rangefinder's `measurement_results` (a record) shows a row per
+/// field of its spec, each with its unit, and nothing overflows the card or hides the
+/// `error_status` row beside it.
+async fn point_5_a_records_fields_are_rows_of_their_own_inside_its_card(client: &Client) {
+    until_text(client, "[data-value='ranger/error_status']", |t| {
+        !t.is_empty()
+    })
+    .await;
+    let (card_width, content_width, status_right, card_right): (f64, f64, f64, f64) = {
+        let measured = client
+            .execute(
+                "const card = document.querySelector(\"article[data-device='ranger']\");
+                 const status = document.querySelector(\"[data-value='ranger/error_status']\");
+                 return [card.clientWidth, card.scrollWidth,
+                         status.getBoundingClientRect().right, card.getBoundingClientRect().right];",
+                vec![],
+            )
+            .await
+            .unwrap();
+        serde_json::from_value(measured).unwrap()
+    };
+    assert!(
+        content_width <= card_width && status_right <= card_right,
+        "the ranger's card overflows: {content_width} px of content in {card_width} px, \
+         error_status ends at {status_right} px, the card at {card_right} px"
+    );
+    for (field, unit) in [
+        ("distance", " mm"),
+        ("signal_strength", " uV"),
+        ("temperature", " degC"),
+    ] {
+        let css = format!("[data-value='ranger/measurement_results.{field}']");
+        until_text(client, &css, |t| t.ends_with(unit) || t == "invalid").await;
+    }
+    let group = text_of(client, "article[data-device='ranger'] tr.group").await;
+    assert_eq!(group, "measurement_results");
 }
 
 async fn an_out_of_range_edit_shows_the_refusal_and_changes_nothing(
@@ -361,6 +405,7 @@ async fn the_page_in_a_real_browser() {
     client.goto(&server.url()).await.unwrap();
     assert_eq!(client.title().await.unwrap(), "optobus console");
     values_change_live(&client).await;
+    point_5_a_records_fields_are_rows_of_their_own_inside_its_card(&client).await;
     let errors = console_errors(&client).await;
     assert!(errors.is_empty(), "the page logged errors: {errors:?}");
     an_out_of_range_edit_shows_the_refusal_and_changes_nothing(&client, &running).await;

@@ -1,6 +1,7 @@
 //! `optobus plot`: a file `optobus record` (or `optobus run --record`) wrote, drawn as SVG or
-//! PNG: each value column over the elapsed seconds, with the units of its header; or a buffer
-//! download `optobus buffer --out` saved, over its index.
+//! PNG: each value column over the elapsed seconds, with the units of its header, a gap at
+//! each invalid reading (`NaN`) and none where a row did not read the column (an empty cell);
+//! or a buffer download `optobus buffer --out` saved, over its index.
 
 use std::path::PathBuf;
 
@@ -13,8 +14,9 @@ use crate::log::note;
 
 #[derive(Debug, Args)]
 pub(crate) struct PlotArgs {
-    /// A CSV file of `optobus record` (time, `elapsed [s]`, one column per register), or of
-    /// `optobus buffer --out` (index, value).
+    /// A CSV file of `optobus record` (time, `elapsed [s]`, a column per register or field;
+    /// `NaN` an invalid reading, empty a cell not read), or of `optobus buffer --out` (index,
+    /// value).
     file: PathBuf,
     /// The chart to write: `.svg` or `.png`.
     #[arg(long)]
@@ -66,6 +68,8 @@ fn series(args: &PlotArgs) -> Result<(String, Vec<Series>), CliError> {
             )),
         };
     let x_label = headers.get(x_column).unwrap_or_default().to_owned();
+    // A buffer download has a value in every row: an empty cell there is an invalid one.
+    let download = x_column == 0;
     let mut series: Vec<Series> = headers
         .iter()
         .skip(x_column + 1)
@@ -80,14 +84,33 @@ fn series(args: &PlotArgs) -> Result<(String, Vec<Series>), CliError> {
             continue;
         };
         for (one, cell) in series.iter_mut().zip(row.iter().skip(x_column + 1)) {
-            one.points.push((x, cell.parse::<f64>().ok()));
+            one.points.extend(point(x, cell, download));
         }
     }
-    series.retain(|one| one.points.iter().any(|(_, y)| y.is_some()));
+    let (series, textual): (Vec<Series>, Vec<Series>) = series
+        .into_iter()
+        .partition(|one| one.points.iter().any(|(_, y)| y.is_some()));
     if series.is_empty() {
         return Err(CliError::new(format!("{shown} holds no numbers to plot")));
     }
+    if !textual.is_empty() {
+        let names: Vec<&str> = textual.iter().map(|one| one.label.as_str()).collect();
+        note!(
+            "optobus: left out, no numbers in them: {}",
+            names.join(", ")
+        );
+    }
     Ok((x_label, series))
+}
+
+/// The point of one cell at `x`: a gap for `NaN` (an invalid reading) or other text; in a
+/// recording none for an empty cell (the row did not read that column: the line goes on past
+/// it), in a buffer `download` a gap.
+fn point(x: f64, cell: &str, download: bool) -> Option<(f64, Option<f64>)> {
+    if cell.is_empty() && !download {
+        return None;
+    }
+    Some((x, cell.parse::<f64>().ok().filter(|y| y.is_finite())))
 }
 
 pub(crate) fn run(args: &PlotArgs) -> Result<(), CliError> {

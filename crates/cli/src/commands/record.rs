@@ -15,7 +15,7 @@ use crate::error::CliError;
 use crate::inputs;
 use crate::log::note;
 use crate::log::progress_bar;
-use crate::render::{csv_cell, csv_header, timestamp};
+use crate::render::{csv_cells, csv_headers, timestamp};
 
 #[derive(Debug, Args)]
 #[command(group = clap::ArgGroup::new("until").args(["duration", "count"]).required(true))]
@@ -39,13 +39,13 @@ pub(crate) struct RecordArgs {
 }
 
 /// Samples until `--duration` has passed, `--count` samples are written, or Ctrl-C; a failed
-/// read leaves its row's values empty and is counted.
+/// read leaves its row's cells empty (nothing read) and is counted.
 pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliError> {
     let (registers, mut core) = global.connect_to_read(&args.names, "record").await?;
     let file = File::create(&args.out)
         .map_err(|e| CliError::failed(format!("cannot write {}: {e}", args.out.display())))?;
     let mut csv = BufWriter::new(file);
-    let columns: Vec<String> = registers.iter().map(|r| csv_header(r)).collect();
+    let columns: Vec<String> = registers.iter().flat_map(|r| csv_headers(r)).collect();
     let write_failed =
         |e: std::io::Error| CliError::failed(format!("cannot write {}: {e}", args.out.display()));
     writeln!(csv, "time,elapsed [s],{}", columns.join(",")).map_err(write_failed)?;
@@ -72,8 +72,11 @@ pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliErr
         let time = timestamp();
         let elapsed = sample_started.duration_since(started).as_secs_f64();
         let cells: Vec<String> = match &outcome {
-            Ok(values) => values.iter().map(|(_, value)| csv_cell(value)).collect(),
-            Err(_) => vec![String::new(); registers.len()],
+            Ok(values) => values
+                .iter()
+                .flat_map(|(register, value)| csv_cells(register, value))
+                .collect(),
+            Err(_) => vec![String::new(); columns.len()],
         };
         failed += u64::from(outcome.is_err());
         writeln!(csv, "{time},{elapsed:.6},{}", cells.join(",")).map_err(write_failed)?;

@@ -23,7 +23,7 @@ use crate::inputs;
 use crate::log::note;
 use crate::models;
 use crate::outlet::{Outlet, Sink};
-use crate::render::{csv_cell, csv_header, redraw, screen, time_of_day, values_text};
+use crate::render::{csv_cells, csv_headers, redraw, screen, time_of_day, values_text};
 
 /// The demo bus: a sensor of every built-in model on one simulated line, with a gateway.
 const DEMO: &str = include_str!("../demo.yaml");
@@ -175,7 +175,9 @@ impl Board {
     }
 }
 
-/// A CSV per device: a row per poll, columns for every register the device's polls read.
+/// A CSV per device: a row per poll, columns for every register the device's polls read (a
+/// column per field of packed and record registers); a row leaves empty the columns its poll
+/// does not read, and marks an invalid reading `NaN`.
 /// It writes on a thread of its own (an [`Outlet`]): a slow disk costs its own oldest samples,
 /// never the runtime's time.
 struct Recorder {
@@ -188,8 +190,12 @@ struct Recorder {
 struct DeviceCsv {
     out: BufWriter<File>,
     path: PathBuf,
-    columns: Vec<&'static str>,
-    /// The poll being gathered: its request time and cells.
+    /// Each register's first column and its count (one per field of a packed or record
+    /// register).
+    columns: HashMap<&'static str, (usize, usize)>,
+    /// Columns in all.
+    width: usize,
+    /// The poll being gathered: its request time and cells (empty until read).
     row: Option<(SystemTime, Vec<String>)>,
 }
 
@@ -210,7 +216,13 @@ impl Recorder {
             let file = File::create(&path)
                 .map_err(|e| CliError::failed(format!("cannot write {}: {e}", path.display())))?;
             let mut out = BufWriter::new(file);
-            let header: Vec<String> = registers.iter().map(|r| csv_header(r)).collect();
+            let mut header = Vec::new();
+            let mut columns = HashMap::new();
+            for register in registers {
+                let split = csv_headers(register);
+                columns.insert(register.name, (header.len(), split.len()));
+                header.extend(split);
+            }
             writeln!(out, "time,elapsed [s],{}", header.join(","))
                 .map_err(|e| CliError::failed(format!("cannot write {}: {e}", path.display())))?;
             files.insert(
@@ -218,7 +230,8 @@ impl Recorder {
                 DeviceCsv {
                     out,
                     path,
-                    columns: registers.iter().map(|r| r.name).collect(),
+                    columns,
+                    width: header.len(),
                     row: None,
                 },
             );
@@ -241,12 +254,15 @@ impl Recorder {
         {
             csv.flush_row(self.started)?;
         }
-        let columns = csv.columns.len();
+        let width = csv.width;
         let (_, cells) = csv
             .row
-            .get_or_insert_with(|| (sample.requested, vec![String::new(); columns]));
-        if let Some(index) = csv.columns.iter().position(|c| *c == sample.register.name) {
-            cells[index] = csv_cell(&sample.value);
+            .get_or_insert_with(|| (sample.requested, vec![String::new(); width]));
+        if let Some(&(first, count)) = csv.columns.get(sample.register.name) {
+            let split = csv_cells(sample.register, &sample.value);
+            for (cell, value) in cells.iter_mut().skip(first).take(count).zip(split) {
+                *cell = value;
+            }
         }
         Ok(())
     }
