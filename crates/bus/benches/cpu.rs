@@ -273,11 +273,21 @@ mod linux {
             "{BAUD} baud, 8 devices, served on a pty by {} ({TRIALS} trials of {SECONDS} s per way, interleaved)",
             binary.display()
         );
+        // `OPTOBUS_CPU_ONLY=WORD` runs only the lines and ways whose names contain WORD (to
+        // look at one under strace or perf).
+        let only = std::env::var("OPTOBUS_CPU_ONLY").unwrap_or_default();
         for (line, timed) in [("untimed pty", false), ("line-timed pty", true)] {
+            let chosen = |way: &str| format!("{line} {way}").contains(&only);
+            if !WAYS.iter().any(|(way, _)| chosen(way)) {
+                continue;
+            }
             let simulator = Simulator::start(&binary, timed);
             let mut totals: Vec<Totals> = WAYS.iter().map(|_| Totals::default()).collect();
             for _ in 0..TRIALS {
-                for ((_, way), totals) in WAYS.iter().zip(&mut totals) {
+                for ((name, way), totals) in WAYS.iter().zip(&mut totals) {
+                    if !chosen(name) {
+                        continue;
+                    }
                     set_precise_wait(*way);
                     runtime.block_on(trial(&simulator, totals));
                 }
@@ -286,6 +296,9 @@ mod linux {
             let per = |count: f64, totals: &Totals| count / totals.transactions.max(1) as f64;
             let anchor = per(totals[0].cpu.as_secs_f64() * 1e6, &totals[0]);
             for ((name, _), totals) in WAYS.iter().zip(&totals) {
+                if totals.transactions == 0 {
+                    continue;
+                }
                 let cpu = per(totals.cpu.as_secs_f64() * 1e6, totals);
                 println!(
                     "{line:<14} {name:<12} bus CPU {cpu:>6.1} µs a transaction ({:.3} of the spin's), {:>5.1} sleeps a transaction  {:>5.0} transactions/s  line limit ratio median {:.3}  errors {}  simulator CPU {:>6.1} µs a transaction  (load {})",
