@@ -62,7 +62,7 @@ mod linux {
         Transport,
     }
 
-    const WAYS: [(&str, PreciseWait, Port); 4] = [
+    const WAYS: [(&str, PreciseWait, Port); 5] = [
         ("spin, tokio-serial", PreciseWait::Spin, Port::TokioSerial),
         (
             "timer thread, tokio-serial",
@@ -71,6 +71,7 @@ mod linux {
         ),
         ("timer thread", PreciseWait::TimerThread, Port::Transport),
         ("timerfd", PreciseWait::TimerFd, Port::Transport),
+        ("own timerfd", PreciseWait::OwnTimer, Port::Transport),
     ];
 
     /// The devices as a bus file writes them: every group of measurements, as fast as the
@@ -339,7 +340,7 @@ mod linux {
                     runtime.block_on(trial(&simulator, *port, totals));
                 }
             }
-            set_precise_wait(PreciseWait::TimerThread);
+            set_precise_wait(PreciseWait::OwnTimer);
             let per = |count: f64, totals: &Totals| count / totals.transactions.max(1) as f64;
             let anchor = per(totals[0].cpu.as_secs_f64() * 1e6, &totals[0]);
             for ((name, _, _), totals) in WAYS.iter().zip(&totals) {

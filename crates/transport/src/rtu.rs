@@ -14,7 +14,7 @@ use tokio::time::{timeout_at, Instant};
 
 use crate::error::Error;
 use crate::frames;
-use crate::timing::{deadline_from, sleep_until_precise, sleep_until_precise_spinning};
+use crate::timing::{deadline_from, PreciseTimer};
 use crate::transact::{Reply, Transact};
 use crate::transport::DEFAULT_TIMEOUT;
 
@@ -125,6 +125,8 @@ pub struct RtuClient<S> {
     unsettled: Option<Unsettled>,
     /// When the last request began to leave, once the line was ready.
     last_request: Option<Instant>,
+    /// The precise waits: t3.5 before each request, and a reply's time on the line.
+    timer: PreciseTimer,
     buffer: Box<[u8; rtu::MAX_FRAME_LEN + 4]>,
 }
 
@@ -143,6 +145,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             last_activity: None,
             unsettled: None,
             last_request: None,
+            timer: PreciseTimer::new(),
             buffer: Box::new([0; rtu::MAX_FRAME_LEN + 4]),
         }
     }
@@ -245,8 +248,8 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             }
         }
         if let Some(last) = self.last_activity {
-            sleep_until_precise_spinning(deadline_from(last, self.config.frame_gap()), GAP_SPIN)
-                .await;
+            let gap_end = deadline_from(last, self.config.frame_gap());
+            self.timer.sleep_until_spinning(gap_end, GAP_SPIN).await;
         }
         Ok(())
     }
@@ -328,7 +331,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                     let crossing = self.config.transmit_time(at_least.saturating_sub(1));
                     if let Some(sleep) = crossing.checked_sub(REPLY_WAKE_MARGIN) {
                         let ready = Instant::now().max(sent) + sleep;
-                        sleep_until_precise(ready.min(deadline)).await;
+                        self.timer.sleep_until(ready.min(deadline)).await;
                     }
                 }
                 Err(DecodeError::Exception { function, code }) => {

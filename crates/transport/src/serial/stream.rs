@@ -74,6 +74,9 @@ impl SerialStream {
         match AsyncFd::try_with_interest(port, wanted) {
             Ok(fd) => {
                 self.port = Port::Watched(fd, wanted);
+                // Precise waits may now use timerfds in this runtime's reactor.
+                #[cfg(target_os = "linux")]
+                crate::timing::runtime_has_io();
                 Ok(())
             }
             Err(error) => {
