@@ -4,8 +4,12 @@
 //! through the pty as through a serial port.
 //!
 //! Each trial runs the bus for a few seconds with one of the ways `sleep_until_precise` can
-//! wait out t3.5 (trials interleaved): the spinning wait the transport had before (the anchor),
-//! the timer thread (the default) and a timerfd in tokio's reactor. For each it prints the
+//! wait out t3.5 and one serial stream (trials interleaved): the spinning wait on
+//! tokio-serial's stream, which the transport had first (the anchor); the timer thread (the
+//! default) on tokio-serial's stream, which stays in tokio's reactor and wakes the thread for
+//! every byte that arrives; the timer thread and a timerfd in tokio's reactor on the
+//! transport's `SerialStream` (the default), which is in the reactor only while a read waits.
+//! For each it prints the
 //! process's CPU time (user + system, every thread, `getrusage`) per transaction, counted
 //! between two of the line's statistics events, the transactions per second and their share
 //! of the line limit (characters both ways plus 2 t3.5 per transaction, over the time taken),
@@ -30,11 +34,10 @@ fn main() {
 
 #[cfg(target_os = "linux")]
 mod linux {
-    use std::io::{BufRead, BufReader};
     use std::path::PathBuf;
-    use std::process::{Child, Command, Stdio};
+    use std::process::{Child, Command};
     use std::sync::atomic::{AtomicU64, Ordering};
-    use std::sync::{Arc, Mutex};
+    use std::sync::Arc;
     use std::time::{Duration, Instant};
 
     use optobus_bus::Event;
@@ -45,15 +48,30 @@ mod linux {
     use super::common::{self, load, median, model_name, models};
 
     const BAUD: u32 = 115_200;
+    /// Trials per way; `OPTOBUS_CPU_TRIALS` changes it.
     const TRIALS: usize = 4;
     /// Statistics events (one a second) a trial measures between, after one to warm up.
     const SECONDS: u64 = 3;
 
-    const WAYS: [(&str, PreciseWait); 4] = [
-        ("spin", PreciseWait::Spin),
-        ("timer thread", PreciseWait::TimerThread),
-        ("condvar", PreciseWait::CondvarThread),
-        ("timerfd", PreciseWait::TimerFd),
+    /// Which stream the bus reads the port through.
+    #[derive(Clone, Copy, PartialEq)]
+    enum Port {
+        /// tokio-serial's `SerialStream`, always in tokio's reactor.
+        TokioSerial,
+        /// The transport's `SerialStream` (what `SerialSettings::open` gives).
+        Transport,
+    }
+
+    const WAYS: [(&str, PreciseWait, Port); 5] = [
+        ("spin, tokio-serial", PreciseWait::Spin, Port::TokioSerial),
+        (
+            "timer thread, tokio-serial",
+            PreciseWait::TimerThread,
+            Port::TokioSerial,
+        ),
+        ("timer thread", PreciseWait::TimerThread, Port::Transport),
+        ("timerfd", PreciseWait::TimerFd, Port::Transport),
+        ("own timerfd", PreciseWait::OwnTimer, Port::Transport),
     ];
 
     /// The devices as a bus file writes them: every group of measurements, as fast as the
@@ -88,12 +106,14 @@ mod linux {
     }
 
     /// `optobus simulate` serving the devices on a line-timed pty; its path, and the
-    /// `optobus:` summary lines it logs, kept by a thread reading its stderr.
+    /// its stdout and stderr go to files (a thread of this process draining a pipe would wake
+    /// once a transaction for the simulator's log line, counted as the bus's CPU).
     struct Simulator {
         child: Child,
         path: String,
-        summary: Arc<Mutex<Vec<String>>>,
         _file: PathBuf,
+        log: PathBuf,
+        output: PathBuf,
     }
 
     impl Simulator {
@@ -107,35 +127,36 @@ mod linux {
                 text += &format!("  - {device}\n");
             }
             std::fs::write(&file, text).expect("write the bus file");
-            let mut child = Command::new(binary)
+            let output = file.with_extension("out");
+            let log = file.with_extension("log");
+            let child = Command::new(binary)
                 .arg("simulate")
                 .arg("--bus")
                 .arg(&file)
                 .args(["--pty", "--duration", "10m"])
                 .args(timed.then_some("--line-timing"))
-                .stdout(Stdio::piped())
-                .stderr(Stdio::piped())
+                .stdout(std::fs::File::create(&output).expect("create the output file"))
+                .stderr(std::fs::File::create(&log).expect("create the log file"))
                 .spawn()
                 .expect("start optobus simulate");
-            let mut lines = BufReader::new(child.stdout.take().expect("stdout")).lines();
-            let path = lines.next().expect("the pty's path").expect("text");
-            // Keep draining stdout (the slaves' lines) so the simulator never blocks on it.
-            std::thread::spawn(move || lines.for_each(drop));
-            let summary = Arc::new(Mutex::new(Vec::new()));
-            let kept = Arc::clone(&summary);
-            let stderr = child.stderr.take().expect("stderr");
-            std::thread::spawn(move || {
-                for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-                    if line.starts_with("optobus:") {
-                        kept.lock().unwrap().push(line);
-                    }
+            let started = Instant::now();
+            let path = loop {
+                let text = std::fs::read_to_string(&output).unwrap_or_default();
+                if let Some((path, _)) = text.split_once('\n') {
+                    break path.to_owned();
                 }
-            });
+                assert!(
+                    started.elapsed() < Duration::from_secs(20),
+                    "no pty path from optobus simulate in 20 s"
+                );
+                std::thread::sleep(Duration::from_millis(20));
+            };
             Self {
                 child,
                 path,
-                summary,
                 _file: file,
+                log,
+                output,
             }
         }
 
@@ -163,8 +184,13 @@ mod linux {
             let _ = self.child.wait();
             std::thread::sleep(Duration::from_millis(200));
             let _ = std::fs::remove_file(&self._file);
-            let summary = self.summary.lock().unwrap().clone();
-            summary
+            let _ = std::fs::remove_file(&self.output);
+            let log = std::fs::read_to_string(&self.log).unwrap_or_default();
+            let _ = std::fs::remove_file(&self.log);
+            log.lines()
+                .filter(|line| line.starts_with("optobus:"))
+                .map(str::to_owned)
+                .collect()
         }
     }
 
@@ -207,21 +233,33 @@ mod linux {
         bytes: u64,
     }
 
-    async fn trial(simulator: &Simulator, totals: &mut Totals) {
+    async fn trial(simulator: &Simulator, port: Port, totals: &mut Totals) {
         let format = LineFormat::new(BAUD);
-        let port = SerialSettings {
-            path: simulator.path.clone(),
-            line: format,
-        }
-        .open()
-        .expect("open the pty");
         let bytes = Arc::new(AtomicU64::new(0));
         let counter = Arc::clone(&bytes);
-        let stream = Tap::new(port, move |_: Flow, chunk: &[u8]| {
+        let count = move |_: Flow, chunk: &[u8]| {
             counter.fetch_add(chunk.len() as u64, Ordering::Relaxed);
-        });
+        };
         let file = common::bus_file(&format!("serial: bench, baud: {BAUD}"), &devices());
-        let bus = optobus_bus::Bus::new(file).with_stream("bench", stream);
+        let bus = optobus_bus::Bus::new(file);
+        let bus = match port {
+            Port::Transport => {
+                let port = SerialSettings {
+                    path: simulator.path.clone(),
+                    line: format,
+                }
+                .open()
+                .expect("open the pty");
+                bus.with_stream("bench", Tap::new(port, count))
+            }
+            Port::TokioSerial => {
+                use tokio_serial::SerialPortBuilderExt;
+                let port = tokio_serial::new(&simulator.path, BAUD)
+                    .open_native_async()
+                    .expect("open the pty");
+                bus.with_stream("bench", Tap::new(port, count))
+            }
+        };
         let mut events = bus.subscribe();
         let running = bus.start().expect("starts");
         let mut marks = Vec::new();
@@ -269,26 +307,49 @@ mod linux {
             return;
         };
         let runtime = common::runtime();
+        let trials = std::env::var("OPTOBUS_CPU_TRIALS")
+            .ok()
+            .and_then(|trials| trials.parse().ok())
+            .unwrap_or(TRIALS);
         println!(
-            "{BAUD} baud, 8 devices, served on a pty by {} ({TRIALS} trials of {SECONDS} s per way, interleaved)",
+            "{BAUD} baud, 8 devices, served on a pty by {} ({trials} trials of {SECONDS} s per way, interleaved)",
             binary.display()
         );
+        // `OPTOBUS_CPU_LINE=untimed|line-timed` and `OPTOBUS_CPU_WAY=NAME|NAME` run only that line
+        // and those ways (to look at one under strace or perf).
+        let only_line = std::env::var("OPTOBUS_CPU_LINE").unwrap_or_default();
+        let only_way = std::env::var("OPTOBUS_CPU_WAY").ok();
         for (line, timed) in [("untimed pty", false), ("line-timed pty", true)] {
+            let chosen = |way: &str| {
+                line.starts_with(&only_line)
+                    && only_way
+                        .as_deref()
+                        .is_none_or(|only| only.split('|').any(|name| name == way))
+            };
+            if !WAYS.iter().any(|(way, _, _)| chosen(way)) {
+                continue;
+            }
             let simulator = Simulator::start(&binary, timed);
             let mut totals: Vec<Totals> = WAYS.iter().map(|_| Totals::default()).collect();
-            for _ in 0..TRIALS {
-                for ((_, way), totals) in WAYS.iter().zip(&mut totals) {
+            for _ in 0..trials {
+                for ((name, way, port), totals) in WAYS.iter().zip(&mut totals) {
+                    if !chosen(name) {
+                        continue;
+                    }
                     set_precise_wait(*way);
-                    runtime.block_on(trial(&simulator, totals));
+                    runtime.block_on(trial(&simulator, *port, totals));
                 }
             }
-            set_precise_wait(PreciseWait::TimerThread);
+            set_precise_wait(PreciseWait::OwnTimer);
             let per = |count: f64, totals: &Totals| count / totals.transactions.max(1) as f64;
             let anchor = per(totals[0].cpu.as_secs_f64() * 1e6, &totals[0]);
-            for ((name, _), totals) in WAYS.iter().zip(&totals) {
+            for ((name, _, _), totals) in WAYS.iter().zip(&totals) {
+                if totals.transactions == 0 {
+                    continue;
+                }
                 let cpu = per(totals.cpu.as_secs_f64() * 1e6, totals);
                 println!(
-                    "{line:<14} {name:<12} bus CPU {cpu:>6.1} µs a transaction ({:.3} of the spin's), {:>5.1} sleeps a transaction  {:>5.0} transactions/s  line limit ratio median {:.3}  errors {}  simulator CPU {:>6.1} µs a transaction  (load {})",
+                    "{line:<14} {name:<26} bus CPU {cpu:>6.1} µs a transaction ({:.3} of the spin's), {:>5.1} sleeps a transaction  {:>5.0} transactions/s  line limit ratio median {:.3}  errors {}  simulator CPU {:>6.1} µs a transaction  (load {})",
                     cpu / anchor,
                     per(totals.sleeps as f64, totals),
                     totals.transactions as f64 / totals.elapsed.as_secs_f64(),

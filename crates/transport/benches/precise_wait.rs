@@ -1,13 +1,16 @@
 //! The precise wait alone: back-to-back waits of one t3.5 at 115200 baud (304 µs) and at
 //! 9600 baud (4.01 ms) on a current-thread runtime, by each way `sleep_until_precise` can wait
-//! (trials interleaved). For each it prints how late the wait ended (p50, p99, max; never
+//! (trials interleaved), and on an RTU client's own `PreciseTimer` (a timerfd of its own in
+//! the reactor, the default where the runtime has IO). For each it prints how late the wait ended (p50, p99, max; never
 //! early is checked) and the process's CPU time (user + system, the timer thread included)
 //! per wait; the anchor is the spinning wait, measured in the same run.
 //! Run with `cargo bench -p optobus-transport --bench precise_wait`.
 
 use std::time::Duration;
 
-use optobus_transport::timing::{set_precise_wait, sleep_until_precise, PreciseWait};
+use optobus_transport::timing::{
+    runtime_has_io, set_precise_wait, sleep_until_precise, PreciseTimer, PreciseWait,
+};
 use tokio::time::Instant;
 
 /// The process's CPU time so far (user + system, every thread).
@@ -39,11 +42,19 @@ struct Totals {
     waits: u64,
 }
 
-async fn trial(wait: Duration, count: u32, totals: &mut Totals) {
+async fn trial(wait: Duration, count: u32, way: PreciseWait, totals: &mut Totals) {
+    // `OwnTimer`: a client's own timer, in a runtime said to have IO (as a serial port does).
+    let mut own = (way == PreciseWait::OwnTimer).then(|| {
+        runtime_has_io();
+        PreciseTimer::new()
+    });
     let cpu = cpu_time();
     for _ in 0..count {
         let deadline = Instant::now() + wait;
-        sleep_until_precise(deadline).await;
+        match &mut own {
+            Some(timer) => timer.sleep_until(deadline).await,
+            None => sleep_until_precise(deadline).await,
+        }
         let now = Instant::now();
         assert!(now >= deadline, "a precise wait ended early");
         totals.late_us.push((now - deadline).as_secs_f64() * 1e6);
@@ -62,6 +73,7 @@ fn main() {
         ("timer thread", PreciseWait::TimerThread),
         ("condvar", PreciseWait::CondvarThread),
         ("timerfd", PreciseWait::TimerFd),
+        ("own timerfd", PreciseWait::OwnTimer),
     ];
     for (name, wait, count) in [
         ("115200 t3.5", Duration::from_nanos(303_820), 300),
@@ -71,7 +83,7 @@ fn main() {
         for _ in 0..10 {
             for ((_, way), totals) in ways.iter().zip(&mut totals) {
                 set_precise_wait(*way);
-                runtime.block_on(trial(wait, count, totals));
+                runtime.block_on(trial(wait, count, *way, totals));
             }
         }
         let spin_cpu = totals[0].cpu.as_secs_f64() / totals[0].waits as f64;
@@ -89,5 +101,5 @@ fn main() {
             );
         }
     }
-    set_precise_wait(PreciseWait::TimerThread);
+    set_precise_wait(PreciseWait::OwnTimer);
 }

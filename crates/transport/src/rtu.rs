@@ -14,7 +14,7 @@ use tokio::time::{timeout_at, Instant};
 
 use crate::error::Error;
 use crate::frames;
-use crate::timing::{deadline_from, sleep_until_precise, sleep_until_precise_spinning};
+use crate::timing::{deadline_from, PreciseTimer};
 use crate::transact::{Reply, Transact};
 use crate::transport::DEFAULT_TIMEOUT;
 
@@ -27,6 +27,10 @@ const GAP_SPIN: Duration = Duration::from_micros(40);
 /// How much earlier than the missing bytes of a reply can have arrived the client wakes to
 /// read them: more than a timer's wake-up is late on a busy machine.
 const REPLY_WAKE_MARGIN: Duration = Duration::from_micros(150);
+
+/// The first bytes of a reply, which tell its length whatever it is (slave, function, then
+/// a read's byte count, an echo's address or an exception's code).
+const REPLY_HEADER: usize = 3;
 
 /// The longest quiet period recovery waits for by default, whatever the timeout.
 const MAX_DEFAULT_RECOVERY: Duration = Duration::from_secs(10);
@@ -81,6 +85,28 @@ impl RtuConfig {
             .max(self.frame_gap())
     }
 
+    /// How long to sleep before reading more of a reply of which `filled` bytes are in and
+    /// at least `at_least` more are needed; `None`: read at once (and wake as bytes come).
+    ///
+    /// The missing bytes cannot all be here before they had time to cross the line (a real
+    /// line and a timed pty hand them over one character time apart): sleeping through most
+    /// of that saves a wake per byte. The sleep ends a timer's lateness early
+    /// (`REPLY_WAKE_MARGIN`), and the read then wakes as the last bytes arrive, so the reply
+    /// is taken no later than without it. Once the reply has begun, while the decoder asks for
+    /// its header a byte at a time, the sleep lasts until the header is in (its end is later
+    /// still, so no margin): one wake instead of one a byte. It comes after each read that
+    /// brought bytes, so a stray byte costs one such sleep, not one every header time. Before
+    /// the first byte nothing is slept: the device's turnaround is unknown.
+    fn reply_wait(&self, filled: usize, at_least: usize) -> Option<Duration> {
+        let wait = if filled > 0 && filled + at_least <= REPLY_HEADER {
+            self.transmit_time(REPLY_HEADER - filled)
+        } else {
+            self.transmit_time(at_least.saturating_sub(1))
+                .checked_sub(REPLY_WAKE_MARGIN)?
+        };
+        (!wait.is_zero()).then_some(wait)
+    }
+
     /// How long `bytes` take to leave on the line (zero without line timing).
     fn transmit_time(&self, bytes: usize) -> Duration {
         self.line
@@ -125,6 +151,8 @@ pub struct RtuClient<S> {
     unsettled: Option<Unsettled>,
     /// When the last request began to leave, once the line was ready.
     last_request: Option<Instant>,
+    /// The precise waits: t3.5 before each request, and a reply's time on the line.
+    timer: PreciseTimer,
     buffer: Box<[u8; rtu::MAX_FRAME_LEN + 4]>,
 }
 
@@ -143,6 +171,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             last_activity: None,
             unsettled: None,
             last_request: None,
+            timer: PreciseTimer::new(),
             buffer: Box::new([0; rtu::MAX_FRAME_LEN + 4]),
         }
     }
@@ -245,8 +274,8 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             }
         }
         if let Some(last) = self.last_activity {
-            sleep_until_precise_spinning(deadline_from(last, self.config.frame_gap()), GAP_SPIN)
-                .await;
+            let gap_end = deadline_from(last, self.config.frame_gap());
+            self.timer.sleep_until_spinning(gap_end, GAP_SPIN).await;
         }
         Ok(())
     }
@@ -320,15 +349,9 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                     return Ok(Some(frame));
                 }
                 Ok(Decoded::NeedMore { at_least }) => {
-                    // The missing bytes cannot all be here before they had time to cross the
-                    // line (a real line and a timed pty hand them over one character time
-                    // apart): sleeping through most of that saves a wake per byte. The sleep
-                    // ends a timer's lateness early, and the read then wakes as the last
-                    // bytes arrive, so the reply is taken no later than without it.
-                    let crossing = self.config.transmit_time(at_least.saturating_sub(1));
-                    if let Some(sleep) = crossing.checked_sub(REPLY_WAKE_MARGIN) {
+                    if let Some(sleep) = self.config.reply_wait(filled, at_least) {
                         let ready = Instant::now().max(sent) + sleep;
-                        sleep_until_precise(ready.min(deadline)).await;
+                        self.timer.sleep_until(ready.min(deadline)).await;
                     }
                 }
                 Err(DecodeError::Exception { function, code }) => {
@@ -377,5 +400,39 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> Transact for RtuClient<S> {
 
     fn read_retries(&self) -> u8 {
         self.config.read_retries
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Issue 28, point 9: how long an RTU client sleeps before reading more of a reply, at
+    /// 115200 baud (a character 86.8 µs).
+    #[test]
+    fn a_reply_is_read_in_few_wakes_not_one_a_byte() {
+        let config = RtuConfig::default();
+        let character = config.transmit_time(1);
+        // Before the first byte: read at once (the turnaround is unknown).
+        assert_eq!(config.reply_wait(0, 2), None);
+        // The reply has begun and the decoder asks for its header a byte at a time: sleep
+        // until the header's three bytes are in, not a wake per byte.
+        assert_eq!(config.reply_wait(1, 1), Some(config.transmit_time(2)));
+        assert_eq!(config.reply_wait(2, 1), Some(character));
+        // The length is known (a 45-byte read reply, 3 bytes in): sleep until 150 µs before
+        // the missing 42 can have crossed.
+        assert_eq!(
+            config.reply_wait(3, 42),
+            Some(config.transmit_time(41) - REPLY_WAKE_MARGIN)
+        );
+        // A byte or two missing: read at once.
+        assert_eq!(config.reply_wait(43, 2), None);
+        // Without line timing nothing is slept.
+        let untimed = RtuConfig {
+            line: None,
+            ..RtuConfig::default()
+        };
+        assert_eq!(untimed.reply_wait(1, 1), None);
+        assert_eq!(untimed.reply_wait(3, 42), None);
     }
 }

@@ -1,9 +1,17 @@
 //! Opening a serial port for the RTU client.
 
+#[cfg(all(feature = "serial", unix))]
+mod stream;
+
+#[cfg(all(feature = "serial", unix))]
+pub use stream::SerialStream;
 #[cfg(feature = "serial")]
+#[cfg(not(unix))]
+use tokio_serial::SerialPortBuilderExt;
+#[cfg(all(feature = "serial", not(unix)))]
 pub use tokio_serial::SerialStream;
 #[cfg(feature = "serial")]
-use tokio_serial::{DataBits, FlowControl, SerialPortBuilderExt, StopBits};
+use tokio_serial::{DataBits, FlowControl, StopBits};
 
 use optobus_codec::LineFormat;
 #[cfg(feature = "serial")]
@@ -54,12 +62,20 @@ impl SerialSettings {
             Parity::Odd => tokio_serial::Parity::Odd,
             Parity::Even => tokio_serial::Parity::Even,
         };
-        tokio_serial::new(&self.path, self.line.baud)
+        let builder = tokio_serial::new(&self.path, self.line.baud)
             .data_bits(data_bits)
             .stop_bits(stop_bits)
             .parity(parity)
-            .flow_control(FlowControl::None)
-            .open_native_async()
-            .map_err(|error| Error::Io(std::io::Error::other(format!("{}: {error}", self.path))))
+            .flow_control(FlowControl::None);
+        let failed = |error: tokio_serial::Error| {
+            Error::Io(std::io::Error::other(format!("{}: {error}", self.path)))
+        };
+        #[cfg(unix)]
+        let port = mio_serial::SerialStream::open(&builder)
+            .map(SerialStream::new)
+            .map_err(failed);
+        #[cfg(not(unix))]
+        let port = builder.open_native_async().map_err(failed);
+        port
     }
 }

@@ -9,6 +9,11 @@ use std::time::Duration;
 use tokio::time::{sleep_until, Instant};
 
 mod kernel;
+#[cfg(target_os = "linux")]
+mod own;
+
+#[cfg(target_os = "linux")]
+pub use own::runtime_has_io;
 
 /// Waits up to this long are left to a kernel timer whole; longer ones sleep on tokio's timer
 /// until this long before the deadline (tokio wakes on whole milliseconds, late by up to one
@@ -41,8 +46,11 @@ pub fn deadline_from(from: Instant, wait: Duration) -> Instant {
 #[doc(hidden)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PreciseWait {
-    /// The process's timer thread (the default), which wakes the waiting task: on Linux it
-    /// sleeps on a timerfd that the waiting task arms, elsewhere on a condition variable.
+    /// The default: a [`PreciseTimer`]'s own timerfd in tokio's reactor where the runtime is
+    /// known to have its IO driver (Linux), else the timer thread.
+    OwnTimer,
+    /// The process's timer thread, which wakes the waiting task: on Linux it sleeps on a
+    /// timerfd that the waiting task arms, elsewhere on a condition variable.
     TimerThread,
     /// The timer thread on a condition variable's timed wait (a futex with a timer slack of
     /// 1 ns on Linux): as `clock_nanosleep`, with a notification for an earlier deadline.
@@ -65,10 +73,11 @@ pub fn set_precise_wait(wait: PreciseWait) {
 
 fn precise_wait() -> PreciseWait {
     match PRECISE_WAIT.load(Ordering::Relaxed) {
-        1 => PreciseWait::CondvarThread,
-        2 => PreciseWait::TimerFd,
-        3 => PreciseWait::Spin,
-        _ => PreciseWait::TimerThread,
+        1 => PreciseWait::TimerThread,
+        2 => PreciseWait::CondvarThread,
+        3 => PreciseWait::TimerFd,
+        4 => PreciseWait::Spin,
+        _ => PreciseWait::OwnTimer,
     }
 }
 
@@ -82,7 +91,7 @@ fn precise_wait() -> PreciseWait {
 pub async fn sleep_until_precise(deadline: Instant) {
     let kernel = match precise_wait() {
         PreciseWait::Spin => return spin_until(deadline).await,
-        PreciseWait::TimerThread => kernel::Kernel::Thread,
+        PreciseWait::OwnTimer | PreciseWait::TimerThread => kernel::Kernel::Thread,
         PreciseWait::CondvarThread => kernel::Kernel::CondvarThread,
         PreciseWait::TimerFd => kernel::Kernel::ReactorFd,
     };
@@ -115,6 +124,44 @@ pub async fn sleep_until_precise_spinning(deadline: Instant, spin: Duration) {
         sleep_until_precise(early).await;
     }
     spin_until(deadline).await;
+}
+
+/// A precise wait for one waiter at a time (an RTU client keeps one): on Linux, in a runtime
+/// known to have its IO driver (one where a serial port of this crate was registered), a
+/// timerfd of its own in tokio's reactor, armed for each wait, so the runtime's thread is
+/// woken straight from epoll: one thread wake per wait, against two through the timer thread
+/// (its own, then the runtime's). Elsewhere, or if the timerfd fails, the timer thread of
+/// [`sleep_until_precise`]. Waits end at their deadline or a little later, never earlier;
+/// cancel-safe (a wait dropped before its timer fires leaves a stale expiry that the next
+/// wait does not take for its own).
+#[derive(Debug, Default)]
+pub struct PreciseTimer {
+    #[cfg(target_os = "linux")]
+    own: own::OwnTimer,
+}
+
+impl PreciseTimer {
+    /// A timer; its timerfd is made at the first wait that can use it.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// As [`sleep_until_precise`].
+    pub async fn sleep_until(&mut self, deadline: Instant) {
+        #[cfg(target_os = "linux")]
+        if precise_wait() == PreciseWait::OwnTimer && self.own.sleep_until(deadline).await {
+            return;
+        }
+        sleep_until_precise(deadline).await;
+    }
+
+    /// As [`sleep_until_precise_spinning`].
+    pub async fn sleep_until_spinning(&mut self, deadline: Instant, spin: Duration) {
+        if let Some(early) = deadline.checked_sub(spin) {
+            self.sleep_until(early).await;
+        }
+        spin_until(deadline).await;
+    }
 }
 
 /// Which of two futures finished first.

@@ -1,0 +1,133 @@
+//! The transport's serial port (`SerialSettings::open`) on a pty that the simulator serves
+//! from its own thread, timed as the line: real request bytes out, real reply bytes in.
+#![cfg(target_os = "linux")]
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use optobus_codec::LineFormat;
+use optobus_simulator::{Line, Reply, Simulator};
+use optobus_tests::generated::ccs;
+use optobus_tests::wire::{holding, rtu_frame, with_crc};
+use optobus_transport::SerialSettings;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::sync::oneshot;
+use tokio::time::timeout;
+
+const BAUD: u32 = 9_600;
+
+/// A CCS served on a pty timed as a `BAUD` line by a runtime on its own thread (so that the
+/// bytes it sends wake nothing in the runtime under test); its path, the simulator, and the
+/// sender that stops it when dropped.
+fn served_ccs() -> (PathBuf, Simulator, oneshot::Sender<()>) {
+    let simulator = Simulator::new(&ccs::DEVICE);
+    let served = simulator.clone();
+    let (path_sent, path) = std::sync::mpsc::channel();
+    let (stop, stopped) = oneshot::channel::<()>();
+    std::thread::spawn(move || {
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        runtime.block_on(async move {
+            let pty = served
+                .serve_pty_line(Line::new(LineFormat::new(BAUD)))
+                .expect("a pty");
+            path_sent.send(pty.path().to_owned()).unwrap();
+            let _ = stopped.await;
+        });
+    });
+    (path.recv().unwrap(), simulator, stop)
+}
+
+/// The reply `simulator` gives to a read of holding registers 0 to 59 (125 bytes).
+fn expected_reply(simulator: &Simulator) -> Vec<u8> {
+    let Reply::Read { words, .. } = simulator.request(1, &holding(0, 60)) else {
+        panic!("the CCS does not answer a read of its 60 holding registers");
+    };
+    let mut body = vec![1, 3, 120];
+    for word in words {
+        body.extend_from_slice(&word.to_be_bytes());
+    }
+    with_crc(&body)
+}
+
+/// Issue 28, point 9: a reply arriving a character at a time while nobody reads the port
+/// wakes nobody. tokio-serial's stream stays in tokio's edge-triggered reactor, which wakes
+/// the runtime's thread for each of the 125 characters (and the RTU client, which sleeps
+/// through a reply in flight, paid a thread wake per byte); the transport's port is in the
+/// reactor only while a read waits, so the thread sleeps until its own timer ends. The
+/// reply read afterwards is whole and right.
+#[test]
+fn bytes_arriving_unread_wake_nobody() {
+    let (path, simulator, _stop) = served_ccs();
+    let unparks = Arc::new(AtomicU64::new(0));
+    let counted = Arc::clone(&unparks);
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .on_thread_unpark(move || {
+            counted.fetch_add(1, Ordering::Relaxed);
+        })
+        .build()
+        .unwrap();
+    runtime.block_on(async {
+        let mut port = SerialSettings {
+            path: path.display().to_string(),
+            line: LineFormat::new(BAUD),
+        }
+        .open()
+        .expect("open the pty");
+        port.write_all(&rtu_frame(1, &holding(0, 60)))
+            .await
+            .unwrap();
+        port.flush().await.unwrap();
+        let before = unparks.load(Ordering::Relaxed);
+        // The reply takes 130 ms to cross a 9600 baud line.
+        tokio::time::sleep(Duration::from_millis(600)).await;
+        let while_unread = unparks.load(Ordering::Relaxed) - before;
+        let mut reply = [0; 125];
+        timeout(Duration::from_secs(10), port.read_exact(&mut reply))
+            .await
+            .expect("the reply within 10 s")
+            .unwrap();
+        assert_eq!(reply.to_vec(), expected_reply(&simulator));
+        // The sleep's own end wakes the thread once.
+        assert!(
+            while_unread < 10,
+            "the runtime's thread woke {while_unread} times while 125 bytes arrived unread"
+        );
+    });
+}
+
+/// A read dropped while it waits (a timeout) leaves the port usable: the reply that then
+/// arrives is read whole by the next read, and the port writes and reads again after it.
+#[tokio::test]
+async fn a_read_dropped_while_waiting_leaves_the_port_usable() {
+    let (path, simulator, _stop) = served_ccs();
+    let mut port = SerialSettings {
+        path: path.display().to_string(),
+        line: LineFormat::new(BAUD),
+    }
+    .open()
+    .expect("open the pty");
+    let expected = expected_reply(&simulator);
+    for _ in 0..2 {
+        let mut byte = [0; 1];
+        // Nothing to read yet: the read waits in the reactor and is dropped.
+        assert!(timeout(Duration::from_millis(20), port.read(&mut byte))
+            .await
+            .is_err());
+        port.write_all(&rtu_frame(1, &holding(0, 60)))
+            .await
+            .unwrap();
+        port.flush().await.unwrap();
+        let mut reply = vec![0; expected.len()];
+        timeout(Duration::from_secs(10), port.read_exact(&mut reply))
+            .await
+            .expect("the reply within 10 s")
+            .unwrap();
+        assert_eq!(reply, expected);
+    }
+}
