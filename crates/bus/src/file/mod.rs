@@ -198,7 +198,7 @@ impl BusFile {
         base: &Path,
         catalogue: &Catalogue,
     ) -> Result<Self, Box<Rejected>> {
-        let source = SourceFile::new(name, text);
+        let source = SourceFile::of_kind(reader::BUS_FILE, name, text);
         let mut diagnostics = Vec::new();
         let bus = match (&source.syntax_error, &source.root) {
             (Some(error), _) => {
@@ -220,12 +220,18 @@ impl BusFile {
         if let Some(bus) = &mut bus {
             diagnostics.append(&mut check::check(bus));
         }
-        match bus {
-            Some(bus) if diagnostics.is_empty() => Ok(bus.file),
-            _ => Err(Box::new(Rejected {
-                source,
-                diagnostics,
-            })),
+        match bus.and_then(read::Parsed::file) {
+            Some(bus) if diagnostics.is_empty() => Ok(bus),
+            file => {
+                if diagnostics.is_empty() && file.is_none() {
+                    // Every item that does not read says why; a safety net all the same.
+                    diagnostics.push(reader::incomplete());
+                }
+                Err(Box::new(Rejected {
+                    source,
+                    diagnostics,
+                }))
+            }
         }
     }
 
