@@ -20,7 +20,7 @@ use super::{
 /// The Modbus serial-line specification's turnaround delay after a broadcast.
 pub(crate) const DEFAULT_BROADCAST_TURNAROUND: Duration = Duration::from_millis(100);
 
-const LINE_KEYS: &[&str] = &[
+pub(super) const LINE_KEYS: &[&str] = &[
     "name",
     "serial",
     "tcp",
@@ -34,9 +34,9 @@ const LINE_KEYS: &[&str] = &[
     "broadcast_turnaround",
     "gateway",
 ];
-const GATEWAY_KEYS: &[&str] = &["listen", "clients", "queue", "idle", "writes"];
-const PORT_KEYS: &[&str] = &["serial", "tcp", "rtu_over_tcp", "simulated"];
-const DEVICE_KEYS: &[&str] = &[
+pub(super) const GATEWAY_KEYS: &[&str] = &["listen", "clients", "queue", "idle", "writes"];
+pub(super) const PORT_KEYS: &[&str] = &["serial", "tcp", "rtu_over_tcp", "simulated"];
+pub(super) const DEVICE_KEYS: &[&str] = &[
     "name",
     "model",
     "spec",
@@ -51,8 +51,8 @@ const DEVICE_KEYS: &[&str] = &[
     "faults",
     "writable",
 ];
-const POLL_KEYS: &[&str] = &["read", "every", "priority"];
-const TOP_KEYS: &[&str] = &["lines", "devices", "outputs"];
+pub(super) const POLL_KEYS: &[&str] = &["read", "every", "priority"];
+pub(super) const TOP_KEYS: &[&str] = &["lines", "devices", "outputs"];
 
 /// A bus file read: every line and device whole where it read whole, and what the checks
 /// across items see of each, whole or not.
