@@ -77,6 +77,21 @@ pub struct GatewayConfig {
     pub writes: bool,
 }
 
+impl GatewayConfig {
+    /// A gateway listening on `listen` with the defaults a bus file's `gateway: ADDRESS`
+    /// gets: [`DEFAULT_GATEWAY_CLIENTS`] clients, as many requests queued, idle after
+    /// [`DEFAULT_GATEWAY_IDLE`], no writes.
+    pub fn new(listen: SocketAddr) -> Self {
+        Self {
+            listen,
+            clients: DEFAULT_GATEWAY_CLIENTS,
+            queue: DEFAULT_GATEWAY_CLIENTS,
+            idle: DEFAULT_GATEWAY_IDLE,
+            writes: false,
+        }
+    }
+}
+
 /// Clients a gateway serves at once unless the file says otherwise.
 pub const DEFAULT_GATEWAY_CLIENTS: usize = 8;
 
