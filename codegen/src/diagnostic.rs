@@ -31,6 +31,14 @@ pub struct Label {
     pub text: String,
 }
 
+impl Label {
+    /// Where the label points in `source`, as rendered (line and column from 1, width in
+    /// characters); `None` for a path the source does not hold.
+    pub fn place(&self, source: &SourceFile) -> Option<Span> {
+        resolve(source, &self.location)
+    }
+}
+
 /// One problem in a spec.
 #[derive(Clone, Debug)]
 pub struct Diagnostic {

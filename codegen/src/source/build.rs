@@ -6,7 +6,7 @@ use std::sync::{mpsc, Arc, OnceLock};
 
 use rlsp_yaml_parser::{Event, ScalarStyle};
 
-use super::{Node, Span, SyntaxError, Text, Value, ALIAS_RULE, NOT_YAML, YAML_RULE};
+use super::{FileKind, Node, Span, SyntaxError, Text, Value, ALIAS_RULE, YAML_RULE};
 
 /// What one parse of a text gives.
 pub(super) struct Parse {
@@ -21,8 +21,11 @@ pub(super) struct Parse {
 }
 
 /// Parses `text`: stops at the first syntax error, anchor or alias.
-pub(super) fn parse(text: &str) -> Parse {
-    let mut builder = Builder::default();
+pub(super) fn parse(text: &str, kind: FileKind) -> Parse {
+    let mut builder = Builder {
+        kind: Some(kind),
+        ..Builder::default()
+    };
     // The scalars of a spec take about a third of its text.
     builder.scalars.reserve(text.len() / 2);
     builder.places = Places::new(text);
@@ -71,6 +74,8 @@ struct Builder {
     places: Places,
     /// The first anchor or alias, which ends the parse.
     problem: Option<SyntaxError>,
+    /// The kind of file, for the words of its errors (a spec unless told).
+    kind: Option<FileKind>,
 }
 
 /// Lines and columns of byte offsets. The parser's events come in order, so the line is
@@ -171,6 +176,10 @@ fn floor_char_boundary(text: &str, mut at: usize) -> usize {
 }
 
 impl Builder {
+    fn kind(&self) -> FileKind {
+        self.kind.unwrap_or(FileKind::SPEC)
+    }
+
     /// Builds the tree of `text`, parsed on a second thread when the text is large enough for
     /// the two to overlap; stops at the first syntax error, anchor or alias.
     fn parse(&mut self, text: &str) -> Option<SyntaxError> {
@@ -215,7 +224,7 @@ impl Builder {
                     return Some(SyntaxError {
                         rule: YAML_RULE,
                         message: error.message,
-                        help: NOT_YAML,
+                        help: self.kind().not_yaml,
                         line: error.pos.line,
                         column: error.pos.column + 1,
                     })
@@ -266,7 +275,7 @@ impl Builder {
     fn refuse(&mut self, text: &str, sigil: &str, name: &str, at: rlsp_yaml_parser::Span) {
         if self.problem.is_none() {
             let span = self.places.span(text, at.start as usize, at.end as usize);
-            self.problem = Some(refusal(span, sigil, name));
+            self.problem = Some(refusal(span, sigil, name, self.kind()));
         }
     }
 
@@ -313,11 +322,14 @@ impl Builder {
 }
 
 /// The refusal of an anchor (`sigil` `&`) or alias (`*`) named `name` at `span`.
-fn refusal(span: Span, sigil: &str, name: &str) -> SyntaxError {
+fn refusal(span: Span, sigil: &str, name: &str, kind: FileKind) -> SyntaxError {
     let what = if sigil == "*" { "alias" } else { "anchor" };
     SyntaxError {
         rule: ALIAS_RULE,
-        message: format!("YAML {what} `{sigil}{name}`: specs use no anchors or aliases"),
+        message: format!(
+            "YAML {what} `{sigil}{name}`: {} use no anchors or aliases",
+            kind.plural
+        ),
         help: "write the value out where it is needed: aliases are refused so that a small file \
                cannot expand into a huge tree",
         line: span.line,

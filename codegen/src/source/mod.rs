@@ -224,8 +224,26 @@ pub const YAML_RULE: &str = "yaml";
 /// Rule name of the refusal of YAML anchors and aliases.
 pub const ALIAS_RULE: &str = "yaml-alias";
 
-/// Help for a text that is not YAML.
-const NOT_YAML: &str = "the spec is not valid YAML";
+/// What kind of file a YAML text is, in the words its syntax errors use ("the spec is not
+/// valid YAML", "the bus file is not valid YAML").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FileKind {
+    /// The kind with its article, as a sentence starts it: `a spec`.
+    pub a: &'static str,
+    /// The kind in the plural: `specs`.
+    pub plural: &'static str,
+    /// The help of a text that is not YAML: `the spec is not valid YAML`.
+    pub not_yaml: &'static str,
+}
+
+impl FileKind {
+    /// A register spec.
+    pub const SPEC: Self = Self {
+        a: "a spec",
+        plural: "specs",
+        not_yaml: "the spec is not valid YAML",
+    };
+}
 
 /// A spec file's text, its parsed tree, and the positions of its nodes by path.
 #[derive(Debug)]
@@ -251,16 +269,22 @@ impl SourceFile {
     /// Parses `text` once, into a tree and an index of positions by path. The parse stops at
     /// the first syntax error, anchor or alias.
     pub fn new(name: impl Into<String>, text: impl Into<String>) -> Self {
+        Self::of_kind(FileKind::SPEC, name, text)
+    }
+
+    /// [`SourceFile::new`] of a YAML file of another kind than a spec, whose syntax errors
+    /// name that kind.
+    pub fn of_kind(kind: FileKind, name: impl Into<String>, text: impl Into<String>) -> Self {
         let text = text.into();
-        let parsed = build::parse(&text);
+        let parsed = build::parse(&text, kind);
         let mut documents = parsed.documents.into_iter();
         let root = documents.next();
         let syntax_error = parsed.syntax_error.or_else(|| {
             let second = documents.next()?;
             Some(SyntaxError {
                 rule: YAML_RULE,
-                message: "a spec is one YAML document; this starts another".into(),
-                help: NOT_YAML,
+                message: format!("{} is one YAML document; this starts another", kind.a),
+                help: kind.not_yaml,
                 line: second.span.line,
                 column: second.span.column,
             })

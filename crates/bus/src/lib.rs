@@ -9,40 +9,9 @@
 //! it with backoff, and sends what it read as [`Event`]s: typed, timestamped samples in the
 //! drivers' serde shapes, health changes and line statistics.
 //!
-//! Two P series heads and a CCS on one simulated RS-485 line:
-//!
-//! ```
-//! use optobus_bus::{Bus, BusFile, Catalogue, Event};
-//!
-//! # #[tokio::main(flavor = "current_thread")]
-//! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
-//! let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
-//! let text = "
-//! lines:
-//!   - name: rs485
-//!     simulated: true
-//!     baud: 115200
-//!     any_format: true
-//! devices:
-//!   - { name: top, model: p-series, slave: 1, poll: [{ read: measurements, every: 50ms }] }
-//!   - { name: bottom, model: p-series, slave: 2, poll: [{ read: measurements, every: 50ms }] }
-//!   - { name: confocal, model: ccs, slave: 3, poll: [{ read: measurements }] }
-//! ";
-//! let file = BusFile::parse("demo.yaml", text, ".".as_ref(), &catalogue)?;
-//! let bus = Bus::new(file);
-//! let mut events = bus.subscribe();
-//! let running = bus.start()?;
-//! let mut seen = std::collections::BTreeSet::new();
-//! while seen.len() < 3 {
-//!     if let Event::Sample(sample) = events.recv().await? {
-//!         println!("{} {} = {}", sample.source.device, sample.register.name, sample.value);
-//!         seen.insert(sample.source.device.to_string());
-//!     }
-//! }
-//! running.stop();
-//! # Ok(())
-//! # }
-//! ```
+//! The crate's README has a complete program (two P series heads and a CCS on one simulated
+//! RS-485 line, with the dependencies it needs), compiled and run as a doctest of this crate;
+//! it also holds the bus file's schema ([`file::SCHEMA`]).
 #![forbid(unsafe_code)]
 
 mod bus;
@@ -71,3 +40,8 @@ pub use link::Stream;
 pub use policy::{Policy, Refusal, RefusalKind};
 pub use schedule::Health;
 pub use trace::{Direction, Frame, FRAMES_KEPT};
+
+/// The README's examples, compiled and run as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeExamples;

@@ -503,3 +503,125 @@ devices: [{ name: head, model: p-series }]
         "an empty list would answer no one"
     );
 }
+
+/// The diagnostics of a rejected file, for counting them.
+fn rejected(text: &str) -> Box<optobus_bus::Rejected> {
+    BusFile::parse("bus.yaml", text, Path::new("."), &catalogue()).expect_err("refused")
+}
+
+/// Point 4 of issue 30: a device whose model is misspelt stays in the checks across devices
+/// and in its own: the slave it takes from another device and its `every: fast` are reported
+/// with the model, not only once the model is mended.
+#[test]
+fn a_device_with_a_misspelt_model_does_not_drop_out_of_the_checks() {
+    let text = "
+lines:
+  - name: rs485
+    serial: /dev/ttyUSB0
+devices:
+  - name: top
+    model: p-series
+    slave: 1
+  - name: range
+    model: rangefinde
+    slave: 1
+    poll:
+      - read: measurements
+        every: fast
+";
+    let refused = rejected(text);
+    let rendered = refused.render();
+    assert_eq!(refused.diagnostics.len(), 3, "{rendered}");
+    for expected in [
+        "there is no built-in model `rangefinde`",
+        "bus.yaml:10:12",
+        "two devices on line `rs485` are slave 1",
+        "bus.yaml:11:12",
+        "`every` `fast`",
+        "bus.yaml:14:16",
+    ] {
+        assert!(rendered.contains(expected), "{expected}: {rendered}");
+    }
+}
+
+/// Point 4 of issue 30: a misspelt model, key, register, line or command name gets a "did you
+/// mean" with the nearest names, as the command line gives for registers.
+#[test]
+fn misspelt_models_keys_and_names_get_a_did_you_mean() {
+    let rendered = parse(
+        "
+lines:
+  - name: rs485
+    serial: /dev/ttyUSB0
+    boud: 9600
+devices:
+  - name: range
+    model: rangefinde
+    timout: 200ms
+  - name: top
+    model: p-series
+    line: rs458
+    slave: 2
+    poll: [{ read: [distanse_1, temprature], evry: 100ms }]
+    writable: [light_powr]
+",
+    )
+    .expect_err("misspelt");
+    for expected in [
+        "there is no built-in model `rangefinde`",
+        "did you mean `rangefinder`?",
+        "a device has no key `timout`",
+        "did you mean `timeout`?",
+        "a line has no key `boud`",
+        "did you mean `baud`?",
+        "there is no line `rs458`",
+        "did you mean `rs485`?",
+        "p-series has no register or group `distanse_1`",
+        "did you mean `distance_1`, `distance_2`?",
+        "p-series has no register or group `temprature`",
+        "did you mean `temperature`?",
+        "a poll has no key `evry`",
+        "did you mean `every`?",
+        "p-series has no register, group or command `light_powr`",
+        "did you mean `light_power`?",
+    ] {
+        assert!(rendered.contains(expected), "{expected}: {rendered}");
+    }
+}
+
+/// Point 4 of issue 30: `every` that is no duration says what else it takes: `fastest`.
+#[test]
+fn every_that_is_no_duration_mentions_fastest() {
+    let rendered = parse(
+        "
+lines: [{ name: a, simulated: true }]
+devices: [{ name: head, model: p-series, poll: [{ read: measurements, every: fast }] }]
+",
+    )
+    .expect_err("`fast` is no period");
+    assert!(rendered.contains("`every` `fast`"), "{rendered}");
+    assert!(rendered.contains("`fastest`"), "{rendered}");
+    assert!(rendered.contains("did you mean `fastest`?"), "{rendered}");
+}
+
+/// Point 4 of issue 30: YAML errors in a bus file speak of the bus file, not of a spec.
+#[test]
+fn yaml_errors_in_a_bus_file_say_the_bus_file_is_not_valid_yaml() {
+    for text in [
+        "lines: [",
+        "lines: []\n---\ndevices: []\n",
+        "a: &a [x]\nlines: *a\n",
+    ] {
+        let rendered = parse(text).expect_err("not a bus file");
+        assert!(!rendered.contains("spec"), "{rendered}");
+        assert!(
+            rendered.contains("the bus file is not valid YAML")
+                || rendered.contains("a bus file is one YAML document")
+                || rendered.contains("bus files use no anchors or aliases"),
+            "{rendered}"
+        );
+    }
+    assert!(parse("lines: [")
+        .unwrap_err()
+        .contains("help: the bus file is not valid YAML"));
+}

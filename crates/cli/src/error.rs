@@ -48,6 +48,14 @@ impl CliError {
         }
     }
 
+    /// The command line itself is malformed (a usage error, as clap reports them).
+    pub(crate) fn usage(message: impl Into<String>) -> Self {
+        Self {
+            error: optobus_inspect::Error::new(message),
+            exit: Exit::Usage,
+        }
+    }
+
     /// The device, the line or the system failed.
     pub(crate) fn failed(message: impl Into<String>) -> Self {
         Self {

@@ -24,6 +24,28 @@ pub(crate) fn timestamp() -> String {
         .to_string()
 }
 
+/// `1 line`, `2 lines`: a count and a noun whose plural takes an `s`.
+pub(crate) fn counted(count: impl Into<Count>, noun: &str) -> String {
+    let Count(count) = count.into();
+    let plural = if count == 1 { "" } else { "s" };
+    format!("{count} {noun}{plural}")
+}
+
+/// A count of things, from any unsigned integer.
+pub(crate) struct Count(u128);
+
+macro_rules! count_from {
+    ($($int:ty),*) => {$(
+        impl From<$int> for Count {
+            fn from(count: $int) -> Self {
+                Self(count as u128)
+            }
+        }
+    )*};
+}
+
+count_from!(u8, u16, u32, u64, usize);
+
 /// Prints `text` on stdout with a final newline, ignoring a closed stdout.
 pub(crate) fn print(text: &str) {
     let mut out = std::io::stdout().lock();

@@ -10,6 +10,8 @@
 //!   decoded ([`Value`]), exception codes with the meanings the spec gives, and notes on
 //!   anything a device would refuse. It never panics, whatever the bytes. An
 //!   [`ExplainedFrame`] displays as the text `optobus frame decode` prints.
+//! - [`near`] and [`did_you_mean`] find the names near a misspelt one, for every message that
+//!   refuses a name.
 //! - [`parse_number`] reads a 16-bit address or raw word in decimal or `0x` hex;
 //!   [`hex_and_decimal`] writes one back as `0x0010 (16)`.
 //! - [`parse_hex`] reads bytes written in hex however a capture or a person writes them;
@@ -30,6 +32,7 @@ mod explain;
 mod frame;
 mod hex;
 mod layout;
+mod near;
 mod number;
 mod parse;
 mod resolve;
@@ -40,6 +43,7 @@ pub use encode::{encode_read, encode_read_of, encode_write, encode_write_of, Enc
 pub use error::Error;
 pub use frame::{CrcCheck, ExplainedFrame, Field, FrameKind, Framing, RegisterValue};
 pub use hex::{hex, parse_hex, HexError};
+pub use near::{did_you_mean, near};
 pub use number::{hex_and_decimal, parse_number};
 pub use optobus_codec::EncodeError;
 pub use parse::{base_unit, code_list, in_base_unit, parse_value, ParseError};

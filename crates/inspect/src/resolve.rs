@@ -202,29 +202,15 @@ fn members(
     }
 }
 
-/// Most names a "did you mean" lists.
-const MOST_NEAR: usize = 5;
-
 fn unknown(device: &DeviceInfo, name: &str) -> ResolveError {
-    // A typo of up to a third of the name's letters (at least one) is near.
-    let most_edits = (name.chars().count() / 3).max(1);
-    let mut near: Vec<(usize, &'static str)> = device
+    let known = device
         .registers
         .iter()
         .map(|r| r.member_name().unwrap_or(r.name))
-        .chain(device.groups.iter().map(|g| g.name))
-        .filter_map(|n| {
-            let edits = strsim::damerau_levenshtein(name, n);
-            let near = edits <= most_edits || n.contains(name) || name.contains(n);
-            near.then_some((edits, n))
-        })
-        .collect();
-    near.sort_unstable();
-    near.dedup();
-    near.truncate(MOST_NEAR);
+        .chain(device.groups.iter().map(|g| g.name));
     ResolveError::Unknown {
         name: name.to_owned(),
         family: device.family,
-        near: near.into_iter().map(|(_, n)| n).collect(),
+        near: crate::near::near(name, known),
     }
 }

@@ -9,103 +9,102 @@ use optobus_codegen::source::Span;
 use optobus_codegen::Diagnostic;
 use optobus_device::DeviceInfo;
 
-use super::read::{Parsed, Places};
-use super::{BusFile, Port};
+use super::read::{Parsed, Seen};
+use super::Port;
 
-/// Every cross-item problem of `parsed`; fills in each serial line's format from its devices'
-/// factory format where the file gives none.
+/// Every cross-item problem of `parsed`, among every line and device as far as each read
+/// (a device with a misspelt model still takes its slave); fills in each serial line's format
+/// from its devices' factory format where the file gives none.
 pub(super) fn check(parsed: &mut Parsed) -> Vec<Diagnostic> {
     let mut problems = Vec::new();
-    let Parsed { file, places } = parsed;
+    let Seen { lines, devices } = &parsed.seen;
     unique(
-        file.lines.iter().map(|l| l.name.as_str()),
-        places.lines.iter().map(|p| p.name),
+        lines
+            .iter()
+            .filter_map(|l| Some((l.name.as_deref()?, l.name_span))),
         "duplicate-line",
         |name| format!("two lines are called `{name}`"),
         &mut problems,
     );
     unique(
-        file.lines
-            .iter()
-            .filter(|l| l.port != Port::Simulated)
-            .map(|l| l.port.address()),
-        places
-            .lines
-            .iter()
-            .zip(&file.lines)
-            .filter(|(_, l)| l.port != Port::Simulated)
-            .map(|(p, _)| p.port),
+        lines.iter().filter_map(|l| match &l.port {
+            Some(port) if *port != Port::Simulated => Some((port.address(), l.port_span)),
+            _ => None,
+        }),
         "duplicate-port",
         |port| format!("two lines use the port `{port}`"),
         &mut problems,
     );
-    let gateways: Vec<String> = file
-        .lines
+    let gateways: Vec<(String, Span)> = lines
         .iter()
-        .filter_map(|l| l.gateway.as_ref().map(|g| g.listen.to_string()))
+        .filter_map(|l| l.gateway.map(|(listen, span)| (listen.to_string(), span)))
         .collect();
     unique(
-        gateways.iter().map(String::as_str),
-        places.lines.iter().filter_map(|p| p.gateway),
+        gateways
+            .iter()
+            .map(|(address, span)| (address.as_str(), *span)),
         "duplicate-gateway",
         |address| format!("two gateways listen on {address}"),
         &mut problems,
     );
     unique(
-        file.devices.iter().map(|d| d.name.as_str()),
-        places.devices.iter().map(|p| p.name),
+        devices
+            .iter()
+            .filter_map(|d| Some((d.name.as_deref()?, d.name_span))),
         "duplicate-device",
         |name| format!("two devices are called `{name}`"),
         &mut problems,
     );
-    let slaves: Vec<String> = file
-        .devices
+    let slaves: Vec<(String, Span)> = devices
         .iter()
-        .map(|d| format!("{}\u{0}{}", d.line, d.slave))
+        .filter_map(|d| Some((format!("{}\u{0}{}", d.line?, d.slave?), d.slave_span)))
         .collect();
     unique(
-        slaves.iter().map(String::as_str),
-        places.devices.iter().map(|p| p.slave),
+        slaves.iter().map(|(key, span)| (key.as_str(), *span)),
         "duplicate-slave",
         |key| {
             let (line, slave) = key.split_once('\u{0}').unwrap_or((key, ""));
             let line = line
                 .parse::<usize>()
                 .ok()
-                .and_then(|i| file.lines.get(i))
-                .map_or("?", |l| l.name.as_str());
+                .and_then(|i| lines.get(i))
+                .and_then(|l| l.name.as_deref())
+                .unwrap_or("?");
             format!("two devices on line `{line}` are slave {slave}")
         },
         &mut problems,
     );
-    formats(file, places, &mut problems);
-    for (device, place) in file.devices.iter().zip(&places.devices) {
-        let line = &file.lines[device.line];
-        if let (Some(span), false) = (place.faults, line.port == Port::Simulated) {
-            problems.push(Diagnostic::at_span(
-                "faults-off-simulation",
-                span,
-                format!(
-                    "`faults` are injected by a simulator: line `{}` is real",
-                    line.name
-                ),
-                "give `faults` to devices on a `simulated: true` line",
-            ));
+    for device in devices {
+        let Some(line) = device.line.and_then(|i| lines.get(i)) else {
+            continue;
+        };
+        if let (Some(span), Some(port)) = (device.faults, &line.port) {
+            if *port != Port::Simulated {
+                problems.push(Diagnostic::at_span(
+                    "faults-off-simulation",
+                    span,
+                    format!(
+                        "`faults` are injected by a simulator: line `{}` is real",
+                        line.name.as_deref().unwrap_or("?")
+                    ),
+                    "give `faults` to devices on a `simulated: true` line",
+                ));
+            }
         }
     }
+    formats(parsed, &mut problems);
     problems
 }
 
 /// Reports every second (third, …) occurrence of a key, pointing back at the first.
 fn unique<'a>(
-    keys: impl Iterator<Item = &'a str>,
-    spans: impl Iterator<Item = Span>,
+    keys: impl Iterator<Item = (&'a str, Span)>,
     rule: &'static str,
     message: impl Fn(&str) -> String,
     problems: &mut Vec<Diagnostic>,
 ) {
     let mut first: HashMap<&str, Span> = HashMap::new();
-    for (key, span) in keys.zip(spans) {
+    for (key, span) in keys {
         match first.get(key) {
             Some(&earlier) => problems.push(Diagnostic {
                 rule,
@@ -147,19 +146,22 @@ fn lists(device: &DeviceInfo, format: LineFormat) -> bool {
     })
 }
 
-fn formats(file: &mut BusFile, places: &Places, problems: &mut Vec<Diagnostic>) {
-    for (index, (line, place)) in file.lines.iter_mut().zip(&places.lines).enumerate() {
+/// The line formats against the devices' manuals, for every line that read whole; a device
+/// whose model did not read is left out.
+fn formats(parsed: &mut Parsed, problems: &mut Vec<Diagnostic>) {
+    let Seen { lines, devices } = &parsed.seen;
+    for (index, (line, place)) in parsed.lines.iter_mut().zip(lines).enumerate() {
+        let Some(line) = line else { continue };
         let Some(format) = line.format else { continue };
-        let devices: Vec<&DeviceInfo> = file
-            .devices
+        let devices: Vec<&DeviceInfo> = devices
             .iter()
-            .filter(|d| d.line == index)
-            .map(|d| d.device)
+            .filter(|d| d.line == Some(index))
+            .filter_map(|d| d.model)
             .collect();
         if let Some(device) = devices.iter().find(|d| d.rtu.is_none()) {
             problems.push(Diagnostic::at_span(
                 "line-format",
-                place.port,
+                place.port_span,
                 format!(
                     "line `{}` carries RTU frames, which {} does not speak",
                     line.name,
@@ -180,7 +182,7 @@ fn formats(file: &mut BusFile, places: &Places, problems: &mut Vec<Diagnostic>) 
                 [(format, _)] => line.format = Some(*format),
                 several => problems.push(Diagnostic::at_span(
                     "line-format",
-                    place.name,
+                    place.name_span,
                     format!(
                         "the devices on line `{}` have different factory formats: {}",
                         line.name,

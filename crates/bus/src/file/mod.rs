@@ -2,7 +2,7 @@
 //!
 //! [`BusFile::parse`] reads the YAML with the spec compiler's positioned parse and reports
 //! every problem at once, located like rustc ([`Rejected`]); nothing is opened before the
-//! whole file passes. The schema and a tour are in the crate's README.
+//! whole file passes. The schema is [`SCHEMA`] (the crate's README shows it, with a tour).
 
 mod check;
 pub mod outputs;
@@ -22,6 +22,11 @@ use optobus_codegen::SourceFile;
 use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
 
 use crate::catalogue::Catalogue;
+
+/// The bus file's schema: every key a bus file takes, with its default or an example value
+/// and what it means, as YAML comments (the crate's README shows the same text;
+/// `optobus bus schema` prints it).
+pub const SCHEMA: &str = include_str!("../../schema.yaml");
 
 /// The longest interval, timeout or wait a bus file may give.
 pub const MAX_DURATION: Duration = Duration::from_secs(24 * 60 * 60);
@@ -70,6 +75,21 @@ pub struct GatewayConfig {
     /// Whether writes pass (Modbus TCP carries no credentials, so they are off by default);
     /// writes to the bus's devices are checked against their specs first.
     pub writes: bool,
+}
+
+impl GatewayConfig {
+    /// A gateway listening on `listen` with the defaults a bus file's `gateway: ADDRESS`
+    /// gets: [`DEFAULT_GATEWAY_CLIENTS`] clients, as many requests queued, idle after
+    /// [`DEFAULT_GATEWAY_IDLE`], no writes.
+    pub fn new(listen: SocketAddr) -> Self {
+        Self {
+            listen,
+            clients: DEFAULT_GATEWAY_CLIENTS,
+            queue: DEFAULT_GATEWAY_CLIENTS,
+            idle: DEFAULT_GATEWAY_IDLE,
+            writes: false,
+        }
+    }
 }
 
 /// Clients a gateway serves at once unless the file says otherwise.
@@ -198,7 +218,7 @@ impl BusFile {
         base: &Path,
         catalogue: &Catalogue,
     ) -> Result<Self, Box<Rejected>> {
-        let source = SourceFile::new(name, text);
+        let source = SourceFile::of_kind(reader::BUS_FILE, name, text);
         let mut diagnostics = Vec::new();
         let bus = match (&source.syntax_error, &source.root) {
             (Some(error), _) => {
@@ -220,12 +240,18 @@ impl BusFile {
         if let Some(bus) = &mut bus {
             diagnostics.append(&mut check::check(bus));
         }
-        match bus {
-            Some(bus) if diagnostics.is_empty() => Ok(bus.file),
-            _ => Err(Box::new(Rejected {
-                source,
-                diagnostics,
-            })),
+        match bus.and_then(read::Parsed::file) {
+            Some(bus) if diagnostics.is_empty() => Ok(bus),
+            file => {
+                if diagnostics.is_empty() && file.is_none() {
+                    // Every item that does not read says why; a safety net all the same.
+                    diagnostics.push(reader::incomplete());
+                }
+                Err(Box::new(Rejected {
+                    source,
+                    diagnostics,
+                }))
+            }
         }
     }
 
@@ -291,3 +317,40 @@ impl std::fmt::Display for LoadError {
 }
 
 impl std::error::Error for LoadError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The YAML block of the crate's README under "The bus file".
+    fn readme_schema() -> &'static str {
+        let readme = include_str!("../../README.md");
+        let start = readme.find("```yaml\n").expect("a YAML block") + "```yaml\n".len();
+        let end = start + readme[start..].find("```").expect("its end");
+        &readme[start..end]
+    }
+
+    /// Point 9 of issue 30: every key the reader takes is in the schema (`faults:` was not),
+    /// and the README shows the schema the tool prints.
+    #[test]
+    fn the_schema_names_every_key_the_reader_takes() {
+        let keys = [
+            read::TOP_KEYS,
+            read::LINE_KEYS,
+            read::PORT_KEYS,
+            read::GATEWAY_KEYS,
+            read::DEVICE_KEYS,
+            read::POLL_KEYS,
+        ]
+        .into_iter()
+        .chain(outputs::KEYS)
+        .flatten();
+        let schema = readme_schema();
+        let missing: Vec<&str> = keys
+            .filter(|key| !schema.contains(&format!("{key}:")))
+            .copied()
+            .collect();
+        assert!(missing.is_empty(), "the schema lacks {missing:?}");
+        assert_eq!(schema, SCHEMA, "the README shows the schema as printed");
+    }
+}

@@ -7,7 +7,11 @@ use optobus_codegen::source::{Node, Span, Value};
 use optobus_device::{DeviceInfo, RegisterInfo};
 
 use super::outputs::Outputs;
-use super::reader::{has_port, listen_address, quoted, scalar, Reader, HELP};
+use optobus_inspect::did_you_mean;
+
+use super::reader::{
+    has_port, listen_address, parse_duration, quoted, scalar, Reader, HELP, NOT_A_DURATION,
+};
 use super::{
     BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, Writable,
     DEFAULT_GATEWAY_CLIENTS, DEFAULT_GATEWAY_IDLE,
@@ -16,7 +20,7 @@ use super::{
 /// The Modbus serial-line specification's turnaround delay after a broadcast.
 pub(crate) const DEFAULT_BROADCAST_TURNAROUND: Duration = Duration::from_millis(100);
 
-const LINE_KEYS: &[&str] = &[
+pub(super) const LINE_KEYS: &[&str] = &[
     "name",
     "serial",
     "tcp",
@@ -30,9 +34,9 @@ const LINE_KEYS: &[&str] = &[
     "broadcast_turnaround",
     "gateway",
 ];
-const GATEWAY_KEYS: &[&str] = &["listen", "clients", "queue", "idle", "writes"];
-const PORT_KEYS: &[&str] = &["serial", "tcp", "rtu_over_tcp", "simulated"];
-const DEVICE_KEYS: &[&str] = &[
+pub(super) const GATEWAY_KEYS: &[&str] = &["listen", "clients", "queue", "idle", "writes"];
+pub(super) const PORT_KEYS: &[&str] = &["serial", "tcp", "rtu_over_tcp", "simulated"];
+pub(super) const DEVICE_KEYS: &[&str] = &[
     "name",
     "model",
     "spec",
@@ -47,38 +51,69 @@ const DEVICE_KEYS: &[&str] = &[
     "faults",
     "writable",
 ];
-const POLL_KEYS: &[&str] = &["read", "every", "priority"];
-const TOP_KEYS: &[&str] = &["lines", "devices", "outputs"];
+pub(super) const POLL_KEYS: &[&str] = &["read", "every", "priority"];
+pub(super) const TOP_KEYS: &[&str] = &["lines", "devices", "outputs"];
 
-/// A bus file read, with the places the cross-checks point at.
+/// A bus file read: every line and device whole where it read whole, and what the checks
+/// across items see of each, whole or not.
 pub(super) struct Parsed {
-    pub(super) file: BusFile,
-    pub(super) places: Places,
+    /// The lines, in file order; `None` where a line did not read whole (and said why).
+    pub(super) lines: Vec<Option<LineConfig>>,
+    /// The devices, in file order; `None` where a device did not read whole.
+    pub(super) devices: Vec<Option<DeviceConfig>>,
+    pub(super) outputs: Outputs,
+    pub(super) seen: Seen,
 }
 
-/// Where things were written, by index of line and device.
+impl Parsed {
+    /// The bus file, when every line and device read whole.
+    pub(super) fn file(self) -> Option<BusFile> {
+        Some(BusFile {
+            lines: self.lines.into_iter().collect::<Option<_>>()?,
+            devices: self.devices.into_iter().collect::<Option<_>>()?,
+            outputs: self.outputs,
+        })
+    }
+}
+
+/// What the checks across items see of every line and device, by index in [`Parsed`]: what
+/// could be read of each, and where it was written. A device whose model is misspelt still
+/// has its name, line and slave checked against the others.
 #[derive(Default)]
-pub(super) struct Places {
-    pub(super) lines: Vec<LinePlaces>,
-    pub(super) devices: Vec<DevicePlaces>,
+pub(super) struct Seen {
+    pub(super) lines: Vec<LineSeen>,
+    pub(super) devices: Vec<DeviceSeen>,
 }
 
-pub(super) struct LinePlaces {
-    pub(super) name: Span,
-    pub(super) port: Span,
+pub(super) struct LineSeen {
+    /// Its name, if it reads.
+    pub(super) name: Option<String>,
+    pub(super) name_span: Span,
+    /// Its port, if it reads.
+    pub(super) port: Option<Port>,
+    pub(super) port_span: Span,
     /// The format keys given (baud first), or the line's name when none is.
     pub(super) format: Span,
     /// The line allows formats its devices' manuals do not list.
     pub(super) any_format: bool,
     /// The file gave a format (else the devices' factory format is taken).
     pub(super) format_given: bool,
-    /// Where the gateway's address is written.
-    pub(super) gateway: Option<Span>,
+    /// Its gateway's address and where it is written, if it reads.
+    pub(super) gateway: Option<(std::net::SocketAddr, Span)>,
 }
 
-pub(super) struct DevicePlaces {
-    pub(super) name: Span,
-    pub(super) slave: Span,
+pub(super) struct DeviceSeen {
+    /// Its name, if it reads.
+    pub(super) name: Option<String>,
+    pub(super) name_span: Span,
+    /// Its line (an index in [`Seen::lines`]), if it reads.
+    pub(super) line: Option<usize>,
+    /// Its slave address, given or its model's default, if either reads.
+    pub(super) slave: Option<u8>,
+    pub(super) slave_span: Span,
+    /// Its model, if it reads.
+    pub(super) model: Option<&'static DeviceInfo>,
+    /// Where its `faults` are written.
     pub(super) faults: Option<Span>,
 }
 
@@ -87,16 +122,15 @@ impl Reader<'_> {
     pub(super) fn bus(&mut self, root: &Node) -> Option<Parsed> {
         let top = self.mapping(root, "the bus file", TOP_KEYS)?;
         let mut lines = Vec::new();
-        let mut line_places = Vec::new();
         let mut devices = Vec::new();
-        let mut device_places = Vec::new();
+        let mut seen = Seen::default();
         let lines_node = top.iter().find(|(k, _)| scalar(k) == Some("lines"));
         match lines_node {
             Some((_, node)) => {
                 for item in self.list(node, "`lines`").unwrap_or_default() {
-                    if let Some((line, places)) = self.line(item) {
+                    if let Some((line, line_seen)) = self.line(item) {
                         lines.push(line);
-                        line_places.push(places);
+                        seen.lines.push(line_seen);
                     }
                 }
             }
@@ -106,9 +140,9 @@ impl Reader<'_> {
         match devices_node {
             Some((_, node)) => {
                 for item in self.list(node, "`devices`").unwrap_or_default() {
-                    if let Some((device, places)) = self.device(item, &lines) {
+                    if let Some((device, device_seen)) = self.device(item, &seen.lines) {
                         devices.push(device);
-                        device_places.push(places);
+                        seen.devices.push(device_seen);
                     }
                 }
             }
@@ -116,31 +150,24 @@ impl Reader<'_> {
         }
         let outputs = match top.iter().find(|(k, _)| scalar(k) == Some("outputs")) {
             Some((_, outputs)) if !outputs.is_null() => {
-                let names: Vec<(&str, Span)> = devices
+                let names: Vec<(&str, Span)> = seen
+                    .devices
                     .iter()
-                    .zip(&device_places)
-                    .map(|(device, places): (&DeviceConfig, &DevicePlaces)| {
-                        (device.name.as_str(), places.name)
-                    })
+                    .filter_map(|d| Some((d.name.as_deref()?, d.name_span)))
                     .collect();
                 self.outputs(outputs, &names)
             }
             _ => Outputs::default(),
         };
         Some(Parsed {
-            file: BusFile {
-                lines,
-                devices,
-                outputs,
-            },
-            places: Places {
-                lines: line_places,
-                devices: device_places,
-            },
+            lines,
+            devices,
+            outputs,
+            seen,
         })
     }
 
-    fn line(&mut self, node: &Node) -> Option<(LineConfig, LinePlaces)> {
+    fn line(&mut self, node: &Node) -> Option<(Option<LineConfig>, LineSeen)> {
         let pairs = self.mapping(node, "a line", LINE_KEYS)?;
         let get = |key: &str| pairs.iter().find(|(k, _)| scalar(k) == Some(key));
         let name_node = get("name").map(|(_, v)| v);
@@ -224,56 +251,63 @@ impl Reader<'_> {
             }
         }
         let any_format = match get("any_format") {
-            Some((_, v)) => self.boolean(v, "`any_format`")?,
-            None => false,
+            Some((_, v)) => self.boolean(v, "`any_format`"),
+            None => Some(false),
         };
         let broadcast_turnaround = match get("broadcast_turnaround") {
-            Some((_, v)) => self.duration(v, "`broadcast_turnaround`", Duration::ZERO)?,
-            None => DEFAULT_BROADCAST_TURNAROUND,
+            Some((_, v)) => self.duration(v, "`broadcast_turnaround`", Duration::ZERO),
+            None => Some(DEFAULT_BROADCAST_TURNAROUND),
         };
         let gateway = match get("gateway") {
-            Some((_, v)) => Some(self.gateway(v)?),
-            None => None,
+            Some((_, v)) => self.gateway(v).map(Some),
+            None => Some(None),
         };
-        let (name, (port, port_span)) = (name?, port?);
-        if let (Port::Tcp(_), Some((_, span))) = (&port, &gateway) {
-            self.error(
-                *span,
-                format!("line `{name}` is Modbus TCP already: a gateway serves RTU lines"),
-                "other masters can reach a Modbus TCP device directly",
-            );
-            return None;
-        }
-        if !format_ok {
-            return None;
-        }
-        let format_given = format_span.is_some();
-        if matches!(port, Port::Tcp(_)) && format_given {
-            self.error(
-                format_span.unwrap_or(port_span),
-                format!("line `{name}` is Modbus TCP: it has no serial format"),
-                "for a serial-to-Ethernet converter that passes RTU frames, use `rtu_over_tcp`",
-            );
-            return None;
-        }
         let name_span = name_node.map_or(node.span, |n| n.span);
-        Some((
-            LineConfig {
+        let format_given = format_span.is_some();
+        let seen = LineSeen {
+            name: name.clone(),
+            name_span,
+            port: port.as_ref().map(|(port, _)| port.clone()),
+            port_span: port.as_ref().map_or(name_span, |(_, span)| *span),
+            format: format_span.unwrap_or(name_span),
+            any_format: any_format.unwrap_or(true),
+            format_given,
+            gateway: gateway
+                .as_ref()
+                .and_then(|g| g.as_ref().map(|(g, span)| (g.listen, *span))),
+        };
+        let line = (|| {
+            let (name, (port, port_span)) = (name?, port?);
+            let gateway = gateway?;
+            if let (Port::Tcp(_), Some((_, span))) = (&port, &gateway) {
+                self.error(
+                    *span,
+                    format!("line `{name}` is Modbus TCP already: a gateway serves RTU lines"),
+                    "other masters can reach a Modbus TCP device directly",
+                );
+                return None;
+            }
+            if matches!(port, Port::Tcp(_)) && format_given {
+                self.error(
+                    format_span.unwrap_or(port_span),
+                    format!("line `{name}` is Modbus TCP: it has no serial format"),
+                    "for a serial-to-Ethernet converter that passes RTU frames, use `rtu_over_tcp`",
+                );
+                return None;
+            }
+            if !format_ok {
+                return None;
+            }
+            any_format?;
+            Some(LineConfig {
                 name,
                 format: port.is_rtu().then_some(format),
                 port,
-                broadcast_turnaround,
-                gateway: gateway.as_ref().map(|(g, _)| g.clone()),
-            },
-            LinePlaces {
-                name: name_span,
-                port: port_span,
-                format: format_span.unwrap_or(name_span),
-                any_format,
-                format_given,
-                gateway: gateway.map(|(_, span)| span),
-            },
-        ))
+                broadcast_turnaround: broadcast_turnaround?,
+                gateway: gateway.map(|(g, _)| g),
+            })
+        })();
+        Some((line, seen))
     }
 
     /// `gateway: ADDRESS` or
@@ -387,8 +421,8 @@ impl Reader<'_> {
     fn device(
         &mut self,
         node: &Node,
-        lines: &[LineConfig],
-    ) -> Option<(DeviceConfig, DevicePlaces)> {
+        lines: &[LineSeen],
+    ) -> Option<(Option<DeviceConfig>, DeviceSeen)> {
         let pairs = self.mapping(node, "a device", DEVICE_KEYS)?;
         let get = |key: &str| {
             pairs
@@ -425,6 +459,7 @@ impl Reader<'_> {
                 None
             }
         };
+        let device = model.as_ref().map(|(device, _)| *device);
         let line = match get("line") {
             Some(v) => self.line_ref(v, lines),
             None if lines.len() == 1 => Some(0),
@@ -440,7 +475,7 @@ impl Reader<'_> {
         let slave_node = get("slave");
         let slave = match slave_node {
             Some(v) => self.number::<u8>(v, "`slave`", (1, 247)),
-            None => model.as_ref().map(|(device, _)| device.default_slave),
+            None => device.map(|device| device.default_slave),
         };
         let timeout = match get("timeout") {
             Some(v) => self.duration(v, "`timeout`", Duration::from_millis(1)),
@@ -457,62 +492,63 @@ impl Reader<'_> {
         let silence_before = wait("silence_before");
         let silence_after = wait("silence_after");
         let power_up = wait("power_up");
-        let polls = match (get("poll"), model.as_ref()) {
-            (Some(v), Some((device, _))) => self.polls(v, device),
-            (Some(v), None) => {
-                // Read what can be read without the model, so the shape is still checked.
-                self.list(v, "`poll`");
-                None
-            }
-            (None, _) => Some(Vec::new()),
+        // Without the model the registers cannot be named, but the rest of each poll is read.
+        let polls = match get("poll") {
+            Some(v) => self.polls(v, device),
+            None => Some(Vec::new()),
         };
         let faults = match get("faults") {
-            Some(v) => {
-                let text = self.text(v, "`faults`")?;
-                match text.parse::<optobus_simulator::Faults>() {
-                    Ok(faults) => Some(faults),
-                    Err(why) => {
-                        self.error(
-                            v.span,
-                            format!("`faults` {why}"),
-                            "e.g. `drop=0.1,corrupt=0.05,seed=7`",
-                        );
-                        return None;
-                    }
-                }
-            }
-            None => None,
+            Some(v) => self.faults(v).map(Some),
+            None => Some(None),
         };
-        let faults_span = get("faults").map(|v| v.span);
-        let writable = match (get("writable"), model.as_ref()) {
-            (Some(v), Some((device, _))) => self.writable(v, device),
+        let writable = match (get("writable"), device) {
+            (Some(v), Some(device)) => self.writable(v, device),
             (Some(_), None) | (None, _) => Some(Writable::default()),
         };
-        let (device, model) = model?;
-        Some((
-            DeviceConfig {
+        let seen = DeviceSeen {
+            name: name.clone(),
+            name_span: span,
+            line,
+            slave,
+            slave_span: slave_node.map_or(span, |n| n.span),
+            model: device,
+            faults: get("faults").map(|v| v.span),
+        };
+        let config = (|| {
+            let (device, model) = model?;
+            Some(DeviceConfig {
                 name: name?,
                 device,
                 model,
                 line: line?,
                 slave: slave?,
-                // A value that did not read is reported already (the file is refused); the
-                // device still takes part in the checks across devices.
-                timeout: timeout.unwrap_or(optobus_transport::DEFAULT_TIMEOUT),
-                retries: retries.unwrap_or(0),
-                silence_before: silence_before.unwrap_or_default(),
-                silence_after: silence_after.unwrap_or_default(),
-                power_up: power_up.unwrap_or_default(),
-                polls: polls.unwrap_or_default(),
-                faults,
-                writable: writable.unwrap_or_default(),
-            },
-            DevicePlaces {
-                name: span,
-                slave: slave_node.map_or(span, |n| n.span),
-                faults: faults_span,
-            },
-        ))
+                timeout: timeout?,
+                retries: retries?,
+                silence_before: silence_before?,
+                silence_after: silence_after?,
+                power_up: power_up?,
+                polls: polls?,
+                faults: faults?,
+                writable: writable?,
+            })
+        })();
+        Some((config, seen))
+    }
+
+    /// `faults: drop=0.1,seed=7`: the simulator's faults in a simulated device's replies.
+    fn faults(&mut self, node: &Node) -> Option<optobus_simulator::Faults> {
+        let text = self.text(node, "`faults`")?;
+        match text.parse::<optobus_simulator::Faults>() {
+            Ok(faults) => Some(faults),
+            Err(why) => {
+                self.error(
+                    node.span,
+                    format!("`faults` {why}"),
+                    "e.g. `drop=0.1,corrupt=0.05,seed=7`",
+                );
+                None
+            }
+        }
     }
 
     fn model(&mut self, node: &Node) -> Option<(&'static DeviceInfo, String)> {
@@ -520,13 +556,19 @@ impl Reader<'_> {
         match self.catalogue.find(name) {
             Some(device) => Some((device, name.to_owned())),
             None => {
+                let names = self.catalogue.names();
+                let models = format!(
+                    "built-in models: {}; or give a spec file with `spec:`",
+                    names.join(", ")
+                );
+                let help = match did_you_mean(name, names.iter().map(String::as_str)) {
+                    Some(near) => format!("{near} {models}"),
+                    None => models,
+                };
                 self.error(
                     node.span,
                     format!("there is no built-in model `{name}`"),
-                    format!(
-                        "built-in models: {}; or give a spec file with `spec:`",
-                        self.catalogue.names().join(", ")
-                    ),
+                    help,
                 );
                 None
             }
@@ -544,21 +586,30 @@ impl Reader<'_> {
         }
     }
 
-    fn line_ref(&mut self, node: &Node, lines: &[LineConfig]) -> Option<usize> {
+    fn line_ref(&mut self, node: &Node, lines: &[LineSeen]) -> Option<usize> {
         let name = self.text(node, "`line`")?;
-        let found = lines.iter().position(|line| line.name == name);
+        let found = lines
+            .iter()
+            .position(|line| line.name.as_deref() == Some(name));
         if found.is_none() {
-            let known: Vec<&str> = lines.iter().map(|l| l.name.as_str()).collect();
-            self.error(
-                node.span,
-                format!("there is no line `{name}`"),
-                format!("lines: {}", quoted(&known)),
-            );
+            let known: Vec<&str> = lines.iter().filter_map(|l| l.name.as_deref()).collect();
+            let lines = format!("lines: {}", quoted(&known));
+            let help = match did_you_mean(name, known.iter().copied()) {
+                Some(near) => format!("{near} {lines}"),
+                None => lines,
+            };
+            self.error(node.span, format!("there is no line `{name}`"), help);
         }
         found
     }
 
-    fn polls(&mut self, node: &Node, device: &'static DeviceInfo) -> Option<Vec<PollConfig>> {
+    /// A device's `poll` list; without the device's model (already reported) every poll is
+    /// still read but for the names of what it reads.
+    fn polls(
+        &mut self,
+        node: &Node,
+        device: Option<&'static DeviceInfo>,
+    ) -> Option<Vec<PollConfig>> {
         let items = self.list(node, "`poll`")?;
         let mut polls = Vec::new();
         let mut ok = true;
@@ -571,7 +622,7 @@ impl Reader<'_> {
         ok.then_some(polls)
     }
 
-    fn poll(&mut self, node: &Node, device: &'static DeviceInfo) -> Option<PollConfig> {
+    fn poll(&mut self, node: &Node, device: Option<&'static DeviceInfo>) -> Option<PollConfig> {
         let pairs = self.mapping(node, "a poll", POLL_KEYS)?;
         let get = |key: &str| {
             pairs
@@ -586,37 +637,42 @@ impl Reader<'_> {
             },
             None => {
                 self.error(node.span, "a poll needs `read`: groups or registers", HELP);
-                return None;
+                Vec::new()
             }
         };
         let mut registers: Vec<&'static RegisterInfo> = Vec::new();
         let mut written = Vec::new();
-        let mut ok = !names.is_empty();
+        let mut ok = !names.is_empty() && device.is_some();
         for name_node in names {
             let Some(name) = self.text(name_node, "a name to read") else {
                 ok = false;
                 continue;
             };
+            let Some(device) = device else { continue };
             match resolve(device, name) {
                 Ok(found) => {
                     registers.extend(found);
                     written.push(name.to_owned());
                 }
                 Err(why) => {
-                    self.error(
-                        name_node.span,
-                        why,
-                        format!("`optobus registers {}` lists them", device.model_name()),
-                    );
+                    let known = device
+                        .registers
+                        .iter()
+                        .map(|r| r.member_name().unwrap_or(r.name))
+                        .chain(device.groups.iter().map(|g| g.name));
+                    let list = format!("`optobus registers {}` lists them", device.model_name());
+                    let help = match did_you_mean(name, known) {
+                        Some(near) => format!("{near} {list}"),
+                        None => list,
+                    };
+                    self.error(name_node.span, why, help);
                     ok = false;
                 }
             }
         }
         let every = match get("every") {
             Some(v) if scalar(v) == Some("fastest") => Some(None),
-            Some(v) => self
-                .duration(v, "`every`", Duration::from_nanos(1))
-                .map(Some),
+            Some(v) => self.every(v).map(Some),
             None => Some(None),
         };
         let priority = match get("priority") {
@@ -636,6 +692,28 @@ impl Reader<'_> {
         })
     }
 
+    /// A poll's period: a duration, or (said in the error) `fastest`.
+    fn every(&mut self, node: &Node) -> Option<Duration> {
+        let text = self.text(node, "`every`")?;
+        match parse_duration(text) {
+            Ok(_) => self.duration(node, "`every`", Duration::from_nanos(1)),
+            Err(why) => {
+                let help = "a period like 100ms, 1.5s or 2m, or `fastest`: as fast as the line \
+                            allows (the default)";
+                let help = match did_you_mean(text, ["fastest"]) {
+                    Some(near) => format!("{near} {help}"),
+                    None => help.to_owned(),
+                };
+                let why = match why {
+                    NOT_A_DURATION => "is neither a duration nor `fastest`",
+                    other => other,
+                };
+                self.error(node.span, format!("`every` `{text}` {why}"), help);
+                None
+            }
+        }
+    }
+
     /// `writable: all`, or a list of register, group and command names.
     fn writable(&mut self, node: &Node, device: &'static DeviceInfo) -> Option<Writable> {
         if scalar(node) == Some("all") {
@@ -652,16 +730,23 @@ impl Reader<'_> {
             match writable(device, name) {
                 Ok(found) => listed.add(found),
                 Err(why) => {
-                    self.error(
-                        item.span,
-                        why,
-                        format!(
-                            "`optobus registers {}` lists registers and commands; `all` allows \
-                             every register and every command that does not store, restart or \
-                             reset",
-                            device.model_name()
-                        ),
+                    let list = format!(
+                        "`optobus registers {}` lists registers and commands; `all` allows every \
+                         register and every command that does not store, restart or reset",
+                        device.model_name()
                     );
+                    let known = device
+                        .registers
+                        .iter()
+                        .filter(|r| r.access.writable())
+                        .map(|r| r.member_name().unwrap_or(r.name))
+                        .chain(device.groups.iter().map(|g| g.name))
+                        .chain(device.commands.iter().map(|c| c.name));
+                    let help = match did_you_mean(name, known) {
+                        Some(near) => format!("{near} {list}"),
+                        None => list,
+                    };
+                    self.error(item.span, why, help);
                     ok = false;
                 }
             }

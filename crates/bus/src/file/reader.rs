@@ -7,15 +7,27 @@ use std::time::Duration;
 
 use jiff::SignedDuration;
 use optobus_codegen::diagnostic::{Label, Location};
-use optobus_codegen::source::{Node, Span, SyntaxError, Value};
+use optobus_codegen::source::{FileKind, Node, Span, SyntaxError, Value};
 use optobus_codegen::Diagnostic;
+use optobus_inspect::did_you_mean;
 
 use super::MAX_DURATION;
 use crate::catalogue::Catalogue;
 
 /// Rule name of reading errors.
 pub(super) const RULE: &str = "bus-file";
-pub(super) const HELP: &str = "see crates/bus/README.md for the keys a bus file takes";
+pub(super) const HELP: &str =
+    "the bus file schema lists the keys a bus file takes (`optobus bus schema` prints it)";
+
+/// What the bus file's syntax errors call it.
+pub(super) const BUS_FILE: FileKind = FileKind {
+    a: "a bus file",
+    plural: "bus files",
+    not_yaml: "the bus file is not valid YAML",
+};
+
+/// Why a text is not a duration at all (as opposed to one out of bounds).
+pub(super) const NOT_A_DURATION: &str = "is not a duration";
 
 /// Reads the bus file's tree, collecting every problem.
 pub(super) struct Reader<'a> {
@@ -51,7 +63,25 @@ pub(super) fn empty() -> Diagnostic {
             text: String::new(),
         },
         secondary: Vec::new(),
-        help: Some("a bus file has `lines` and `devices`; see crates/bus/README.md".into()),
+        help: Some(
+            "a bus file has `lines` and `devices`; the bus file schema lists its keys \
+             (`optobus bus schema` prints it)"
+                .into(),
+        ),
+    }
+}
+
+/// The diagnostic for a file some item of which did not read, without a word why.
+pub(super) fn incomplete() -> Diagnostic {
+    Diagnostic {
+        rule: RULE,
+        message: "the bus file did not read whole".into(),
+        primary: Label {
+            location: Location::Position { line: 1, column: 1 },
+            text: String::new(),
+        },
+        secondary: Vec::new(),
+        help: Some(HELP.into()),
     }
 }
 
@@ -136,11 +166,12 @@ impl<'a> Reader<'a> {
                     help: Some("give each key once".into()),
                 });
             } else if !allowed.contains(&name) {
-                self.error(
-                    key.span,
-                    format!("{what} has no key `{name}`"),
-                    format!("its keys are {}", quoted(allowed)),
-                );
+                let keys = format!("its keys are {}", quoted(allowed));
+                let help = match did_you_mean(name, allowed.iter().copied()) {
+                    Some(near) => format!("{near} {keys}"),
+                    None => keys,
+                };
+                self.error(key.span, format!("{what} has no key `{name}`"), help);
             }
             seen.push((name, key.span));
         }
@@ -290,7 +321,7 @@ pub(crate) fn parse_duration(text: &str) -> Result<Duration, &'static str> {
     if !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit() || b == b'.') {
         return Err("needs a unit (ms, s, m, h)");
     }
-    let signed: SignedDuration = text.parse().map_err(|_| "is not a duration")?;
+    let signed: SignedDuration = text.parse().map_err(|_| NOT_A_DURATION)?;
     if signed.is_negative() {
         return Err("cannot be negative");
     }

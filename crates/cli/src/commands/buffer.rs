@@ -13,7 +13,7 @@ use crate::connect::{DeviceArgs, Global};
 use crate::error::{driver_error, CliError};
 use crate::log::note;
 use crate::log::progress_bar;
-use crate::render::print;
+use crate::render::{counted, print};
 use crate::{inputs, link, models};
 
 #[derive(Debug, Args)]
@@ -75,7 +75,8 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
         .map_err(|e| driver_error(e, Some(buffer.count)))?;
     let what = source.as_ref().map_or("", |s| s.name.as_str());
     note!(
-        "optobus: buffering {count} values of {what}; reading out in {} ms",
+        "optobus: buffering {} of {what}; reading out in {} ms",
+        counted(count, "value"),
         wait.as_millis()
     );
     tokio::time::sleep(wait).await;
@@ -100,7 +101,7 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
         .download_buffer(|p| {
             bar.set_length(p.expected as u64);
             bar.set_position(p.received as u64);
-            bar.set_message(format!("{} pages", p.pages));
+            bar.set_message(counted(p.pages, "page"));
         })
         .await
         .map_err(|e| driver_error(e, Some("buffer")))?;
@@ -140,8 +141,8 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
             std::fs::write(path, csv)
                 .map_err(|e| CliError::new(format!("cannot write {}: {e}", path.display())))?;
             note!(
-                "optobus: {} values written to {}",
-                values.len(),
+                "optobus: {} written to {}",
+                counted(values.len(), "value"),
                 path.display()
             );
         }

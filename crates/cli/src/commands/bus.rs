@@ -1,38 +1,117 @@
 //! `optobus bus check FILE`: a bus file checked as `optobus run` would read it, every problem
-//! at once, located like rustc; nothing is opened.
+//! at once, located like rustc (or as JSON with `--json`); nothing is opened.
+//! `optobus bus schema`: every key a bus file takes, as an annotated bus file.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Subcommand;
-use optobus_bus::BusFile;
+use optobus_bus::{BusFile, LoadError, Rejected};
+use serde_json::{json, Value as Json};
 
 use crate::error::CliError;
 use crate::models;
-use crate::render::print;
+use crate::render::{counted, pretty, print};
 
 #[derive(Debug, Subcommand)]
 pub(crate) enum BusCommand {
-    /// Check a bus file: lines, devices, polls and outputs, every problem at once.
+    /// Check a bus file: lines, devices, polls and outputs, every problem at once (--json:
+    /// each as an object with its severity, message, file, line, column and help).
     Check {
-        /// The bus file (YAML; see crates/bus/README.md).
+        /// The bus file (YAML; `optobus bus schema` prints every key it takes).
         file: PathBuf,
     },
+    /// Print the bus file's schema: every key, with its default or an example, as YAML.
+    Schema,
 }
 
-pub(crate) fn run(command: &BusCommand) -> Result<(), CliError> {
+pub(crate) fn run(json: bool, command: &BusCommand) -> Result<(), CliError> {
     match command {
+        BusCommand::Check { file } if json => check_json(file),
         BusCommand::Check { file } => {
             let bus = load(file)?;
-            let polls: usize = bus.devices.iter().map(|d| d.polls.len()).sum();
-            print(&format!(
-                "{}: {} lines, {} devices, {polls} polls: ok",
-                file.display(),
-                bus.lines.len(),
-                bus.devices.len()
-            ));
+            print(&format!("{}: {}: ok", file.display(), summary(&bus)));
+            Ok(())
+        }
+        BusCommand::Schema => {
+            print(optobus_bus::file::SCHEMA);
             Ok(())
         }
     }
+}
+
+/// `2 lines, 1 device, 3 polls`.
+fn summary(bus: &BusFile) -> String {
+    let polls: usize = bus.devices.iter().map(|d| d.polls.len()).sum();
+    format!(
+        "{}, {}, {}",
+        counted(bus.lines.len(), "line"),
+        counted(bus.devices.len(), "device"),
+        counted(polls, "poll")
+    )
+}
+
+/// `bus check --json`: one JSON object on stdout whether the file passes or not; a file that
+/// does not pass is then refused (exit 3) with a line on stderr.
+fn check_json(path: &Path) -> Result<(), CliError> {
+    let shown = path.display().to_string();
+    match BusFile::load(path, &models::catalogue()) {
+        Ok(bus) => {
+            let polls: usize = bus.devices.iter().map(|d| d.polls.len()).sum();
+            print(&pretty(&json!({
+                "file": shown,
+                "ok": true,
+                "lines": bus.lines.len(),
+                "devices": bus.devices.len(),
+                "polls": polls,
+                "diagnostics": [],
+            })));
+            Ok(())
+        }
+        Err(error @ LoadError::Read { .. }) => Err(CliError::failed(error.to_string())),
+        Err(LoadError::Rejected(rejected)) => {
+            print(&pretty(&json!({
+                "file": shown,
+                "ok": false,
+                "diagnostics": diagnostics_json(&rejected, &shown),
+            })));
+            Err(CliError::new(format!(
+                "{shown} does not pass the bus file checks: {}",
+                counted(rejected.diagnostics.len(), "error")
+            )))
+        }
+    }
+}
+
+/// Each diagnostic as an object: severity, rule, message, file, line, column (from 1; null
+/// when it has no place), help, and the places it refers to besides.
+fn diagnostics_json(rejected: &Rejected, file: &str) -> Vec<Json> {
+    let source = &rejected.source;
+    rejected
+        .diagnostics
+        .iter()
+        .map(|diagnostic| {
+            let place = diagnostic.primary.place(source);
+            let related: Vec<Json> = diagnostic
+                .secondary
+                .iter()
+                .filter_map(|label| {
+                    let place = label.place(source)?;
+                    Some(json!({"line": place.line, "column": place.column, "label": label.text}))
+                })
+                .collect();
+            json!({
+                "severity": "error",
+                "rule": diagnostic.rule,
+                "message": diagnostic.message,
+                "file": file,
+                "line": place.map(|p| p.line),
+                "column": place.map(|p| p.column),
+                "label": diagnostic.primary.text,
+                "help": diagnostic.help,
+                "related": related,
+            })
+        })
+        .collect()
 }
 
 /// Refuses `--spec`: a bus file names each device's model or spec file itself.
@@ -47,10 +126,10 @@ pub(crate) fn no_spec(options: &crate::connect::Options) -> Result<(), CliError>
 
 /// The checked bus file at `path`: a file that cannot be read is the system's failure, one
 /// that does not pass is refused with every problem.
-pub(crate) fn load(path: &std::path::Path) -> Result<BusFile, CliError> {
+pub(crate) fn load(path: &Path) -> Result<BusFile, CliError> {
     BusFile::load(path, &models::catalogue()).map_err(|error| match error {
-        optobus_bus::LoadError::Read { .. } => CliError::failed(error.to_string()),
-        optobus_bus::LoadError::Rejected(rejected) => CliError::new(format!(
+        LoadError::Read { .. } => CliError::failed(error.to_string()),
+        LoadError::Rejected(rejected) => CliError::new(format!(
             "{} does not pass the bus file checks:\n{}",
             path.display(),
             rejected.render().trim_end()

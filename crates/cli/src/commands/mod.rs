@@ -62,7 +62,7 @@ pub(crate) enum Command {
     /// The console in the browser: the demo bus, or one device (--model, --spec, --serial,
     /// --tcp); prints the page's address.
     Ui(ui::UiArgs),
-    /// Bus files: `optobus bus check FILE`.
+    /// Bus files: `optobus bus check FILE` checks one, `optobus bus schema` prints every key.
     #[command(subcommand)]
     Bus(bus::BusCommand),
     /// Read or write registers by address, for those a spec lacks (addresses 0-based).
@@ -97,7 +97,7 @@ pub(crate) async fn run(options: Options, command: Command) -> Result<(), CliErr
         Command::Ui(args) => ui::run(&options.with(&args.device), &args).await,
         Command::Bus(command) => {
             bus::no_spec(&options)?;
-            bus::run(&command)
+            bus::run(options.json, &command)
         }
         Command::Raw(command) => raw::run(&options, &command).await,
         Command::Frame(command) => frame::run(&options, &command),

@@ -10,7 +10,7 @@ use crate::connect::{
 };
 use crate::error::CliError;
 use crate::log::note;
-use crate::render::{pretty, print, values_json, values_text};
+use crate::render::{counted, pretty, print, values_json, values_text};
 
 #[derive(Debug, Args)]
 pub(crate) struct ReadArgs {
@@ -46,8 +46,9 @@ pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
     let skipped = device.readable_registers().count() - registers.len();
     if skipped > 0 {
         note!(
-            "optobus: {skipped} registers left out: reading them changes the device (see \
-             `optobus registers`); read them by name"
+            "optobus: {} left out: reading them changes the device (see `optobus registers`); \
+             read them by name",
+            counted(skipped, "register")
         );
     }
     if global.json {
@@ -60,8 +61,9 @@ pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
     } else {
         print(&values_text(&values));
         note!(
-            "optobus: {} registers in {requests} requests",
-            registers.len()
+            "optobus: {} in {}",
+            counted(registers.len(), "register"),
+            counted(requests, "request")
         );
     }
     Ok(())

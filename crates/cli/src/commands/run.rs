@@ -12,7 +12,10 @@ use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
 use clap::Args;
-use optobus_bus::{Bus, BusFile, Event, Health, HttpConfig, MetricsConfig, MqttConfig, Sample};
+use optobus_bus::file::GatewayConfig;
+use optobus_bus::{
+    Bus, BusFile, Event, Health, HttpConfig, LineConfig, MetricsConfig, MqttConfig, Sample,
+};
 use optobus_device::RegisterInfo;
 use optobus_inspect::Value;
 use tokio::sync::broadcast::{self, error::RecvError, error::TryRecvError};
@@ -23,7 +26,7 @@ use crate::inputs;
 use crate::log::note;
 use crate::models;
 use crate::outlet::{Outlet, Sink};
-use crate::render::{csv_cells, csv_headers, redraw, screen, time_of_day, values_text};
+use crate::render::{counted, csv_cells, csv_headers, redraw, screen, time_of_day, values_text};
 
 /// The demo bus: a sensor of every built-in model on one simulated line, with a gateway.
 const DEMO: &str = include_str!("../demo.yaml");
@@ -43,15 +46,17 @@ const DRAIN_AT_END: Duration = Duration::from_secs(2);
 
 #[derive(Debug, Args)]
 pub(crate) struct RunArgs {
-    /// The bus file (YAML; see `optobus bus check` and crates/bus/README.md).
-    #[arg(required_unless_present = "demo", conflicts_with = "demo")]
+    /// The bus file (YAML): `optobus bus schema` prints every key it takes, `optobus bus check
+    /// FILE` checks one without opening anything.
+    #[arg(conflicts_with = "demo")]
     file: Option<PathBuf>,
     /// Run the built-in demo bus: a simulated sensor of every model on one line, with a Modbus
     /// TCP gateway on 127.0.0.1:5020.
     #[arg(long)]
     demo: bool,
-    /// With --demo: where its gateway listens instead of 127.0.0.1:5020.
-    #[arg(long, requires = "demo", value_name = "ADDRESS")]
+    /// Where the gateway listens: the demo's (instead of 127.0.0.1:5020), or the bus file's
+    /// (its one line with a `gateway`, or else its one RTU line, read-only).
+    #[arg(long, value_name = "ADDRESS")]
     gateway: Option<SocketAddr>,
     /// Serve the console in the browser here (instead of the bus file's `outputs.http`
     /// address, keeping its token, origins and hosts).
@@ -113,12 +118,57 @@ fn command_line_outputs(bus: &mut BusFile, args: &RunArgs) -> Result<(), CliErro
 pub(crate) fn demo(gateway: Option<SocketAddr>) -> Result<BusFile, CliError> {
     let mut bus = BusFile::parse("demo.yaml", DEMO, ".".as_ref(), &models::catalogue())
         .map_err(|rejected| CliError::new(rejected.render()))?;
-    if let (Some(address), Some(line)) = (gateway, bus.lines.first_mut()) {
-        if let Some(config) = line.gateway.as_mut() {
-            config.listen = address;
-        }
+    if let Some(address) = gateway {
+        move_gateway(&mut bus, address)?;
     }
     Ok(bus)
+}
+
+/// `--gateway ADDRESS`: the bus file's one gateway listens there instead; a file without one
+/// gets a read-only gateway there on its one RTU line (a Modbus TCP line needs none). Which
+/// gateway is meant must be plain: several are refused.
+fn move_gateway(bus: &mut BusFile, address: SocketAddr) -> Result<(), CliError> {
+    let names = |lines: &[&LineConfig]| {
+        let names: Vec<String> = lines.iter().map(|l| format!("`{}`", l.name)).collect();
+        names.join(", ")
+    };
+    let with_gateway: Vec<&LineConfig> = bus.lines.iter().filter(|l| l.gateway.is_some()).collect();
+    let rtu: Vec<&LineConfig> = bus.lines.iter().filter(|l| l.port.is_rtu()).collect();
+    let refusal = match (with_gateway.as_slice(), rtu.as_slice()) {
+        ([_], _) | ([], [_]) => None,
+        ([], []) => Some(
+            CliError::new("--gateway: the bus file has no RTU line for a gateway to serve")
+                .hint("other masters reach the devices of a Modbus TCP line directly"),
+        ),
+        ([], several) => Some(
+            CliError::new(format!(
+                "--gateway: which line should it serve? The bus file has RTU lines {}",
+                names(several)
+            ))
+            .hint("give `gateway: ADDRESS` under that line in the bus file"),
+        ),
+        (several, _) => Some(
+            CliError::new(format!(
+                "--gateway: lines {} of the bus file have gateways, and it moves one",
+                names(several)
+            ))
+            .hint("give each its address in the bus file"),
+        ),
+    };
+    if let Some(refusal) = refusal {
+        return Err(refusal);
+    }
+    let line = match with_gateway.first().or(rtu.first()) {
+        Some(line) => line.name.clone(),
+        None => return Ok(()),
+    };
+    if let Some(line) = bus.lines.iter_mut().find(|l| l.name == line) {
+        match line.gateway.as_mut() {
+            Some(gateway) => gateway.listen = address,
+            None => line.gateway = Some(GatewayConfig::new(address)),
+        }
+    }
+    Ok(())
 }
 
 /// The latest of everything, for the terminal view.
@@ -402,8 +452,22 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
         crate::log::show_operations();
     }
     let mut bus_file = match &args.file {
-        Some(path) => load(path)?,
-        None => demo(args.gateway)?,
+        Some(path) => {
+            let mut bus = load(path)?;
+            if let Some(address) = args.gateway {
+                move_gateway(&mut bus, address)?;
+            }
+            bus
+        }
+        None if args.demo => demo(args.gateway)?,
+        None => {
+            let hint = "`optobus run --demo` runs a built-in bus of simulated sensors, one of \
+                        every model; `optobus bus schema` prints what a bus file takes";
+            return Err(CliError::usage(
+                "`optobus run` needs a bus file: `optobus run plant.yaml`",
+            )
+            .hint(hint));
+        }
     };
     command_line_outputs(&mut bus_file, args)?;
     let mut board = Board::new(&bus_file);
@@ -562,8 +626,8 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
         let counts = publisher.counts();
         if counts.dropped > 0 || !counts.connected {
             note!(
-                "optobus: MQTT: {} samples published, {} dropped while the broker was away, {} still queued",
-                counts.published,
+                "optobus: MQTT: {} published, {} dropped while the broker was away, {} still queued",
+                counted(counts.published, "sample"),
                 counts.dropped,
                 counts.queued
             );
@@ -582,14 +646,23 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     .map_err(|e| CliError::failed(format!("the end of the run: {e}")))?;
     if !terminal {
         if stdout_dropped > 0 {
-            note!("optobus: stdout fell behind: its {stdout_dropped} oldest lines were dropped");
+            note!(
+                "optobus: stdout fell behind: {} dropped, the oldest first",
+                counted(stdout_dropped, "line")
+            );
         }
         if unwritten > 0 {
-            note!("optobus: stdout is not being read: its last {unwritten} lines were not written");
+            note!(
+                "optobus: stdout is not being read: {} not written (the last of the run)",
+                counted(unwritten, "line")
+            );
         }
     }
     if missed > 0 {
-        note!("optobus: the display fell behind and skipped {missed} events");
+        note!(
+            "optobus: the display fell behind and skipped {}",
+            counted(missed, "event")
+        );
     }
     if let Some((dropped, recorder)) = recording {
         if dropped > 0 {

@@ -14,7 +14,7 @@ use optobus_simulator::{Bus, Faults, FaultsError, Line, Reply, Simulator};
 use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
 use crate::log::note;
-use crate::render::print;
+use crate::render::{counted, print};
 use crate::{inputs, link, models};
 
 /// `optobus simulate`'s arguments.
@@ -25,7 +25,7 @@ pub(crate) struct SimulateArgs {
     #[arg(value_name = "MODEL[@SLAVE]")]
     models: Vec<String>,
     /// Serve the devices of a line of this bus file on one RTU line, each at its slave with
-    /// its `faults:` (see crates/bus/README.md).
+    /// its `faults:` (`optobus bus schema` prints the keys of a bus file).
     #[arg(long, value_name = "FILE", conflicts_with = "models")]
     bus: Option<PathBuf>,
     /// With --bus, the line whose devices to serve (default: the file's only line, or its
@@ -443,8 +443,8 @@ async fn serve_line_of(
         .collect();
     print(&who.join("\n"));
     note!(
-        "optobus: simulating {} devices ({}) on {place}{extras}",
-        who.len(),
+        "optobus: simulating {} ({}) on {place}{extras}",
+        counted(who.len(), "device"),
         who.join(", ")
     );
     let _ = std::io::Write::flush(&mut std::io::stdout());

@@ -11,7 +11,7 @@ use crate::file::reader::{listen_address, scalar, Reader};
 /// Where the console listens when the file gives `http: true`.
 pub const DEFAULT_HTTP_PORT: u16 = 8080;
 
-const HTTP_KEYS: &[&str] = &["listen", "token_file", "origins", "hosts"];
+pub(in crate::file) const HTTP_KEYS: &[&str] = &["listen", "token_file", "origins", "hosts"];
 const HELP: &str =
     "e.g. `http: 127.0.0.1:8080`, or `http: { listen: 0.0.0.0:8080, token_file: console.token }`";
 

@@ -26,7 +26,11 @@ pub struct Outputs {
     pub http: Option<HttpConfig>,
 }
 
-const OUTPUT_KEYS: &[&str] = &["mqtt", "metrics", "http"];
+pub(in crate::file) const OUTPUT_KEYS: &[&str] = &["mqtt", "metrics", "http"];
+
+/// Every key `outputs` and its parts take, for the test that the schema shows each.
+#[cfg(test)]
+pub(in crate::file) const KEYS: [&[&str]; 3] = [OUTPUT_KEYS, mqtt::MQTT_KEYS, http::HTTP_KEYS];
 
 impl Reader<'_> {
     /// `outputs:`; a problem is reported and leaves its output out.

@@ -10,7 +10,7 @@ use super::super::reader::{entries, has_port, scalar, Reader};
 /// Samples kept for the broker while it cannot be reached, unless the file says otherwise.
 pub const DEFAULT_MQTT_QUEUE: usize = 10_000;
 
-const MQTT_KEYS: &[&str] = &[
+pub(in crate::file) const MQTT_KEYS: &[&str] = &[
     "broker",
     "client_id",
     "prefix",
