@@ -34,7 +34,10 @@ fn metadata(dir: &Path, args: &[&str]) -> (Value, String) {
         .output()
         .expect("cargo runs");
     let said = String::from_utf8_lossy(&output.stderr).into_owned();
-    assert!(output.status.success(), "cargo metadata in {dir:?}:\n{said}");
+    assert!(
+        output.status.success(),
+        "cargo metadata in {dir:?}:\n{said}"
+    );
     let json = serde_json::from_slice(&output.stdout).expect("cargo metadata prints JSON");
     (json, said)
 }
@@ -78,7 +81,10 @@ fn manifest_copy(name: &str, resolver: Option<&str>) -> PathBuf {
     for package in members["packages"].as_array().expect("packages") {
         let place = |path: &Value| {
             let path = Path::new(path.as_str().expect("a path"));
-            copy.join(path.strip_prefix(&root).expect("a member sits in the workspace"))
+            copy.join(
+                path.strip_prefix(&root)
+                    .expect("a member sits in the workspace"),
+            )
         };
         let manifest = place(&package["manifest_path"]);
         std::fs::create_dir_all(manifest.parent().unwrap()).unwrap();
@@ -102,7 +108,11 @@ fn newer_than_declared(dir: &Path) -> (String, Vec<String>, String) {
     let declared = packages
         .iter()
         .filter(ours)
-        .map(|package| package["rust_version"].as_str().expect("every member declares it"))
+        .map(|package| {
+            package["rust_version"]
+                .as_str()
+                .expect("every member declares it")
+        })
         .max_by_key(|version| rust_version(version))
         .expect("members")
         .to_owned();

@@ -63,12 +63,16 @@ fn series(text: &str, name: &str, labels: &str) -> Option<f64> {
         .map(|value| value.parse().expect("a number"))
 }
 
-/// `promtool check metrics` accepts `text` (when promtool is there).
+/// `promtool check metrics` accepts `text` (the tests calling it are ignored without promtool).
 fn assert_promtool_accepts(text: &str) {
     optobus_testkit::assert_promtool_accepts(text);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_promtool),
+    ignore = "promtool is not installed (Debian package prometheus)"
+)]
 async fn metrics_give_readings_in_base_units_and_pass_promtool() {
     let file = file();
     let config = file.outputs.metrics.clone().expect("metrics are on");
@@ -230,6 +234,10 @@ async fn metrics_give_readings_in_base_units_and_pass_promtool() {
 }
 
 #[test]
+#[cfg_attr(
+    not(peer_promtool),
+    ignore = "promtool is not installed (Debian package prometheus)"
+)]
 fn sources_add_series_read_at_every_scrape_under_names_checked_once() {
     use std::sync::atomic::{AtomicU64, Ordering};
     use std::sync::Arc;
@@ -342,6 +350,10 @@ fn sources_add_series_read_at_every_scrape_under_names_checked_once() {
 }
 
 #[test]
+#[cfg_attr(
+    not(peer_promtool),
+    ignore = "promtool is not installed (Debian package prometheus)"
+)]
 fn a_source_later_giving_a_series_it_did_not_declare_has_it_left_out() {
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
@@ -377,19 +389,23 @@ async fn the_exporter_counts_the_bus_events_it_missed_exactly() {
     let late = bus.subscribe();
     let mut events = bus.subscribe();
     let running = bus.start().expect("starts");
+    // The test's own receiver counts every event sent: those it read, and those it fell behind
+    // by (`Lagged` says how many) when the machine is loaded.
     let mut sent = 0u64;
     while sent < 200 {
         match tokio::time::timeout(Duration::from_secs(10), events.recv()).await {
             Ok(Ok(_)) => sent += 1,
-            other => panic!("the test's own receiver must see every event: {other:?}"),
+            Ok(Err(RecvError::Lagged(skipped))) => sent += skipped,
+            other => panic!("the bus sends events: {other:?}"),
         }
     }
     drop(running);
     loop {
         match tokio::time::timeout(Duration::from_secs(10), events.recv()).await {
             Ok(Ok(_)) => sent += 1,
+            Ok(Err(RecvError::Lagged(skipped))) => sent += skipped,
             Ok(Err(RecvError::Closed)) => break,
-            other => panic!("the test's own receiver must see every event: {other:?}"),
+            other => panic!("the bus sends events until it stops: {other:?}"),
         }
     }
     let exporter = Exporter::start(&config, &file, late)
@@ -415,6 +431,10 @@ async fn the_exporter_counts_the_bus_events_it_missed_exactly() {
 /// Point 7 of issue 28: while a device is down its readings are not exported (Home Assistant
 /// or Grafana would show the last values as current); its next sample brings them back.
 #[test]
+#[cfg_attr(
+    not(peer_promtool),
+    ignore = "promtool is not installed (Debian package prometheus)"
+)]
 fn a_down_device_has_no_current_reading_on_metrics() {
     use std::sync::Arc;
     use std::time::SystemTime;
@@ -514,6 +534,10 @@ async fn until_closed(stream: &mut tokio::net::TcpStream) -> String {
 /// Point 4 of issue 28: `/metrics` closes a connection that says nothing, or half a request,
 /// after its header timeout, and counts it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_promtool),
+    ignore = "promtool is not installed (Debian package prometheus)"
+)]
 async fn silent_http_connections_are_closed_after_the_header_timeout() {
     let file = file();
     let config = file.outputs.metrics.clone().expect("metrics are on");
