@@ -7,6 +7,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 fn main() {
+    // Whether mbpoll is installed: without it its test is listed as ignored, with the reason.
+    optobus_testkit::build::peers(&[optobus_testkit::build::MBPOLL]);
     // Links to `../specs` and the codegen's `mini` spec, so that the package holds them.
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let specs = root.join("specs");

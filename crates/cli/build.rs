@@ -6,6 +6,10 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 fn main() {
+    // Which peer programs the interoperability tests can use: without one, its tests are
+    // listed as ignored with the reason (see optobus-testkit).
+    use optobus_testkit::build::{MBPOLL, MOSQUITTO, MOSQUITTO_PUB, PROMTOOL, PYMODBUS, SOCAT};
+    optobus_testkit::build::peers(&[MBPOLL, SOCAT, MOSQUITTO, MOSQUITTO_PUB, PROMTOOL, PYMODBUS]);
     // A link to the workspace's `specs/`, so that the package carries the specs.
     let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("specs");
     // The directory for a spec added or removed, each file for an edit.

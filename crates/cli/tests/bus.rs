@@ -127,10 +127,11 @@ fn run_records_a_csv_per_device_in_the_record_format() {
 }
 
 #[test]
+#[cfg_attr(
+    not(peer_mbpoll),
+    ignore = "mbpoll is not installed (Debian package mbpoll)"
+)]
 fn the_demo_gateway_serves_mbpoll_while_the_bus_polls() {
-    if !common::tool("mbpoll") {
-        return;
-    }
     let mut bus = common::optobus()
         .args([
             "run",

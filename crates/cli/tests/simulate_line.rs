@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
 use std::process::{Child, Command, Stdio};
 
-use common::{json, optobus, outcome, tool};
+use common::{json, optobus, outcome};
 
 fn scratch(name: &str) -> std::path::PathBuf {
     std::env::temp_dir().join(format!("optobus-line-{}-{name}", std::process::id()))
@@ -319,10 +319,11 @@ fn a_dead_device_times_out_while_a_slow_and_a_garbling_one_answer_right() {
 }
 
 #[test]
+#[cfg_attr(
+    not(peer_mbpoll),
+    ignore = "mbpoll is not installed (Debian package mbpoll)"
+)]
 fn mbpoll_reads_two_slaves_of_one_simulated_line() {
-    if !tool("mbpoll") {
-        return;
-    }
     let line = Line::start(&["p-series@1", "rangefinder@5"], 2);
     let mbpoll = |slave: &str, register: &str| -> Vec<i64> {
         // -0: PDU addresses; -t 4: holding; -1: poll once.

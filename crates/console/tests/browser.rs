@@ -31,16 +31,6 @@ devices:
   - { name: ranger, model: rangefinder, slave: 3, timeout: 50ms, poll: [{ read: measurements, every: 100ms }] }
 ";
 
-/// Whether chromedriver and Chromium are here; without them the test is skipped, unless CI
-/// requires them.
-fn browser_present() -> bool {
-    if !Path::new(CHROMIUM).exists() {
-        optobus_testkit::missing(CHROMIUM, "chromium");
-        return false;
-    }
-    optobus_testkit::peer_installed(DRIVER, "--version", "chromium-driver")
-}
-
 /// chromedriver on a free port, ended when dropped.
 struct Driver(Child, u16);
 
@@ -393,10 +383,11 @@ async fn the_stream_reconnects_after_the_server_restarts(
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(all(peer_chromium, peer_chromedriver)),
+    ignore = "chromium or chromedriver is not installed (Debian packages chromium, chromium-driver)"
+)]
 async fn the_page_in_a_real_browser() {
-    if !browser_present() {
-        return;
-    }
     let running = start_bus();
     let config = HttpConfig::new("127.0.0.1:0".parse().unwrap());
     let server = optobus_console::serve(&running, &config).await.unwrap();

@@ -3,8 +3,9 @@
 //! [`Metrics`] follows a bus's [`Event`]s: each reading in its base unit (metres, seconds,
 //! degrees Celsius, ratios; the unit comes from the spec, converted by prefix) with `device`,
 //! `register` and `model` labels, each device's `up` and the time of its last good sample,
-//! and each line's transactions, errors by kind, busy time and utilisation. [`serve`] answers
-//! scrapes with them (127.0.0.1 unless the bus file names another address).
+//! and each line's transactions, errors by kind and busy time (a counter whose `rate()` is
+//! the utilisation), and which build serves them. [`serve`] answers scrapes with them
+//! (127.0.0.1 unless the bus file names another address).
 //! [`Metrics::add_source`] adds series of other outputs, read at every scrape (`optobus run`
 //! adds the MQTT publisher's queue and drops that way; this crate does not know MQTT).
 //!

@@ -44,12 +44,38 @@ struct ReadingLabels {
     model: String,
 }
 
+/// An enumerated reading's labels: those of every reading and the code's name from the spec
+/// (empty for a code the spec does not name).
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+struct CodeLabels {
+    device: String,
+    register: String,
+    model: String,
+    name: String,
+}
+
 #[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
 struct DeviceLabels {
     device: String,
     model: String,
     line: String,
 }
+
+/// Which build serves the metrics: optobus's version, the Rust that compiled it and the target
+/// it runs on.
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+struct BuildLabels {
+    version: &'static str,
+    rust_version: &'static str,
+    target: &'static str,
+}
+
+/// This build's labels (`rust_version` and `target` from the build script).
+const BUILD: BuildLabels = BuildLabels {
+    version: env!("CARGO_PKG_VERSION"),
+    rust_version: env!("OPTOBUS_RUSTC_VERSION"),
+    target: env!("OPTOBUS_TARGET"),
+};
 
 #[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
 struct LineLabels {
@@ -70,15 +96,18 @@ pub struct Metrics {
     readings: Vec<Family<ReadingLabels, FloatGauge>>,
     /// Numbers without a unit (and units with no base unit known), booleans as 0 and 1.
     plain: Family<ReadingLabels, FloatGauge>,
-    codes: Family<ReadingLabels, Gauge>,
+    codes: Family<CodeLabels, Gauge>,
+    /// The name label each code series has now, to remove it when the code changes.
+    code_names: Mutex<HashMap<ReadingLabels, String>>,
     up: Family<DeviceLabels, Gauge>,
     last_sample: Family<DeviceLabels, FloatGauge>,
     transactions: Family<LineLabels, Counter>,
     errors: Family<LineErrorLabels, Counter>,
     busy: Family<LineLabels, Counter<f64, AtomicU64>>,
-    utilisation: Family<LineLabels, FloatGauge>,
     open: Family<LineLabels, Gauge>,
     missed: Counter,
+    /// Always 1: the labels say which build serves the metrics.
+    build_info: Family<BuildLabels, Gauge>,
     /// The names of the families above.
     names: Vec<&'static str>,
     /// Series of other outputs, read at every scrape.
@@ -96,10 +125,7 @@ impl Metrics {
         let mut names = Vec::new();
         let mut readings = Vec::new();
         for (_, name, help) in READINGS {
-            let family = Family::default();
-            registry.register(name, help, family.clone());
-            names.push(name);
-            readings.push(family);
+            readings.push(registered(&mut registry, &mut names, name, help));
         }
         let sources = Arc::new(Sources::default());
         registry.register_collector(Box::new(SourcesCollector(Arc::clone(&sources))));
@@ -116,8 +142,9 @@ impl Metrics {
                 &mut registry,
                 &mut names,
                 "optobus_code",
-                "An enumerated reading's code (its name is in the device's spec).",
+                "An enumerated reading's code, with its name from the device's spec in the label name.",
             ),
+            code_names: Mutex::default(),
             up: registered(
                 &mut registry,
                 &mut names,
@@ -146,13 +173,8 @@ impl Metrics {
                 &mut registry,
                 &mut names,
                 "optobus_line_busy_seconds",
-                "Time the line spent in transactions (request out to reply in, or the timeout).",
-            ),
-            utilisation: registered(
-                &mut registry,
-                &mut names,
-                "optobus_line_utilisation_ratio",
-                "The share of time the line spent in transactions since it started.",
+                "Time the line spent in transactions (request out to reply in, or the timeout); \
+                 its rate() is the share of time the line is busy.",
             ),
             open: registered(
                 &mut registry,
@@ -166,10 +188,17 @@ impl Metrics {
                 "optobus_metrics_events_missed",
                 "Bus events the exporter fell too far behind to see.",
             ),
+            build_info: registered(
+                &mut registry,
+                &mut names,
+                "optobus_build_info",
+                "Always 1; its labels say which build of optobus serves these metrics.",
+            ),
             names,
             registry,
             shown: Mutex::default(),
         };
+        metrics.build_info.get_or_create(&BUILD).set(1);
         for device in &file.devices {
             let line = &file.lines[device.line].name;
             metrics
@@ -249,7 +278,14 @@ impl Metrics {
         for family in self.readings.iter().chain([&self.plain]) {
             family.remove(labels);
         }
-        self.codes.remove(labels);
+        if let Some(name) = self
+            .code_names
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(labels)
+        {
+            self.codes.remove(&code_labels(labels, name));
+        }
     }
 
     /// Sets the series of `register` of `source` to `value` (fields as `register.field`); an
@@ -290,8 +326,21 @@ impl Metrics {
                     .get_or_create(&labels())
                     .set(if *on { 1.0 } else { 0.0 });
             }
-            Value::Code(code, _) => {
-                self.codes.get_or_create(&labels()).set(i64::from(*code));
+            Value::Code(code, name) => {
+                let labels = labels();
+                let name = name.unwrap_or_default().to_owned();
+                let before = self
+                    .code_names
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .insert(labels.clone(), name.clone());
+                // One series per register: the one under the previous code's name goes.
+                if let Some(before) = before.filter(|before| *before != name) {
+                    self.codes.remove(&code_labels(&labels, before));
+                }
+                self.codes
+                    .get_or_create(&code_labels(&labels, name))
+                    .set(i64::from(*code));
             }
             Value::Fields(fields) => {
                 for (name, value) in fields {
@@ -335,9 +384,6 @@ impl Metrics {
         if seconds > busy.get() {
             busy.inc_by(seconds - busy.get());
         }
-        self.utilisation
-            .get_or_create(&labels)
-            .set(stats.utilisation());
         self.open.get_or_create(&labels).set(i64::from(stats.open));
     }
 
@@ -366,6 +412,9 @@ where
     M: prometheus_client::registry::Metric + Clone + Default,
 {
     let metric = M::default();
+    // prometheus-client ends every help text with a period of its own: ours are sentences,
+    // so theirs goes (else `# HELP x A reading..`).
+    let help = help.strip_suffix('.').unwrap_or(help);
     registry.register(name, help, metric.clone());
     names.push(name);
     metric
@@ -374,6 +423,15 @@ where
 /// Raises a counter to `total` (the bus counts; the counter follows).
 fn raise(counter: &Counter, total: u64) {
     counter.inc_by(total.saturating_sub(counter.get()));
+}
+
+fn code_labels(labels: &ReadingLabels, name: String) -> CodeLabels {
+    CodeLabels {
+        device: labels.device.clone(),
+        register: labels.register.clone(),
+        model: labels.model.clone(),
+        name,
+    }
 }
 
 fn device_labels(source: &DeviceId) -> DeviceLabels {

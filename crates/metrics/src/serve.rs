@@ -4,7 +4,7 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 
 use axum::extract::State;
-use axum::http::{header, HeaderMap};
+use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::IntoResponse;
 use axum::routing::get;
 use axum::Router;
@@ -27,12 +27,31 @@ pub const LIMITS: Limits = Limits {
 
 fn router(metrics: Arc<Metrics>) -> Router {
     Router::new()
+        .route("/", get(index))
         .route("/metrics", get(scrape))
+        .fallback(not_found)
         .with_state(metrics)
 }
 
+/// The page at `/`, for whoever opens the listener's address in a browser.
+const INDEX: &str = "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>optobus metrics</title></head>\n\
+<body><h1>optobus metrics</h1><p>Prometheus metrics of the bus are at <a href=\"/metrics\">/metrics</a>.</p></body></html>\n";
+
+async fn index() -> impl IntoResponse {
+    ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], INDEX)
+}
+
+/// Any other path: 404, saying where the metrics are.
+async fn not_found() -> impl IntoResponse {
+    (
+        StatusCode::NOT_FOUND,
+        [(header::CONTENT_TYPE, "text/plain; charset=utf-8")],
+        "Not found: the metrics are at /metrics.\n",
+    )
+}
+
 /// Answers `GET /metrics` on `listener` with `metrics`, with the listener's [`LIMITS`], until
-/// the task is dropped: OpenMetrics to a scraper that asks for it (`Accept:
+/// the task is dropped (and `GET /` with a page linking it): OpenMetrics to a scraper that asks for it (`Accept:
 /// application/openmetrics-text`), the Prometheus text format otherwise.
 pub async fn serve(listener: TcpListener, metrics: Arc<Metrics>) -> std::io::Result<()> {
     optobus_http::serve(listener, router(metrics), LIMITS).await;

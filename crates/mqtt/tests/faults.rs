@@ -499,6 +499,7 @@ mod qos1_through_cuts {
     macro_rules! seeds {
         ($($name:ident: $seed:literal,)*) => {$(
             #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+            #[cfg_attr(not(peer_mosquitto), ignore = "mosquitto is not installed (Debian package mosquitto)")]
             async fn $name() {
                 super::qos1_through_cuts(concat!("qos1_through_cuts::", stringify!($name)), $seed).await;
             }
@@ -516,6 +517,7 @@ mod qos0_through_cuts {
     macro_rules! seeds {
         ($($name:ident: $seed:literal,)*) => {$(
             #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+            #[cfg_attr(not(peer_mosquitto), ignore = "mosquitto is not installed (Debian package mosquitto)")]
             async fn $name() {
                 super::qos0_through_cuts(concat!("qos0_through_cuts::", stringify!($name)), $seed).await;
             }
@@ -531,11 +533,19 @@ mod qos0_through_cuts {
 
 mod beyond_the_queue {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    #[cfg_attr(
+        not(peer_mosquitto),
+        ignore = "mosquitto is not installed (Debian package mosquitto)"
+    )]
     async fn qos1_seed_5() {
         super::beyond_the_queue("beyond_the_queue::qos1_seed_5", 5, 1).await;
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    #[cfg_attr(
+        not(peer_mosquitto),
+        ignore = "mosquitto is not installed (Debian package mosquitto)"
+    )]
     async fn qos0_seed_6() {
         super::beyond_the_queue("beyond_the_queue::qos0_seed_6", 6, 0).await;
     }

@@ -8,7 +8,7 @@ mod common;
 use std::path::Path;
 use std::time::{Duration, SystemTime};
 
-use common::{mosquitto_installed, Broker, Heard, Watcher};
+use common::{Broker, Heard, Watcher};
 use optobus_bus::{Bus, BusFile, Catalogue, Event, Running};
 use optobus_mqtt::{Counts, Publisher, MAX_WRITE_PAYLOAD, WRITE_QUEUE};
 use rumqttc::{AsyncClient, MqttOptions, QoS};
@@ -105,10 +105,11 @@ async fn samples_go_on(
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn a_262_kb_set_payload_is_refused_and_publishing_goes_on() {
-    if !mosquitto_installed() {
-        return;
-    }
     let broker = Broker::start("large-set").await;
     let watcher = Watcher::start(broker.port, "watcher-large", "plant/top/#").await;
     let file = file(broker.port, false);
@@ -205,10 +206,11 @@ async fn a_262_kb_set_payload_is_refused_and_publishing_goes_on() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn ten_thousand_writes_are_refused_beyond_the_queue_and_the_polls_go_on() {
-    if !mosquitto_installed() {
-        return;
-    }
     const WRITES: usize = 10_000;
     let broker = Broker::start("write-flood").await;
     let watcher = Watcher::start(broker.port, "watcher-flood", "plant/top/#").await;
@@ -312,10 +314,11 @@ async fn ten_thousand_writes_are_refused_beyond_the_queue_and_the_polls_go_on() 
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn twenty_thousand_homeassistant_status_messages_keep_the_control_queue_bounded() {
-    if !mosquitto_installed() {
-        return;
-    }
     const BIRTHS: u64 = 20_000;
     let broker = Broker::start("births").await;
     let watcher = Watcher::start(broker.port, "watcher-births", "#").await;
@@ -392,10 +395,11 @@ async fn twenty_thousand_homeassistant_status_messages_keep_the_control_queue_bo
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn a_retained_set_is_refused_and_not_carried_out() {
-    if !mosquitto_installed() {
-        return;
-    }
     let broker = Broker::start("retained-set").await;
     let watcher = Watcher::start(broker.port, "watcher-retained", "plant/top/#").await;
     // Retained before the publisher subscribes: the broker hands it over at the subscription,
@@ -446,10 +450,11 @@ async fn a_retained_set_is_refused_and_not_carried_out() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn a_retained_do_is_refused_at_start_and_at_every_reconnection_and_never_runs() {
-    if !mosquitto_installed() {
-        return;
-    }
     // Issue 29: a retained `zero_position_1/do` re-zeroed the head at start and at every
     // reconnection to the broker.
     let mut broker = Broker::start("retained-do").await;
@@ -514,10 +519,11 @@ async fn a_retained_do_is_refused_at_start_and_at_every_reconnection_and_never_r
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn a_payload_over_the_incoming_limit_breaks_one_connection_and_publishing_goes_on() {
-    if !mosquitto_installed() {
-        return;
-    }
     let broker = Broker::start("over-incoming").await;
     let watcher = Watcher::start(broker.port, "watcher-over", "plant/top/distance_1").await;
     let file = file(broker.port, false);

@@ -5,7 +5,7 @@ mod common;
 use std::path::Path;
 use std::time::Duration;
 
-use common::{mosquitto_installed, Broker, Watcher};
+use common::{Broker, Watcher};
 use optobus_bus::{rfc3339, Bus, BusFile, Catalogue, Event};
 use optobus_mqtt::Publisher;
 use serde_json::Value as Json;
@@ -40,10 +40,11 @@ outputs:
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn samples_are_published_as_json_with_number_exact_text_unit_and_time() {
-    if !mosquitto_installed() {
-        return;
-    }
     let broker = Broker::start("samples").await;
     let watcher = Watcher::start(broker.port, "watcher-samples", "plant/#").await;
     let file = file(&bus_text(broker.port));
@@ -112,10 +113,11 @@ async fn samples_are_published_as_json_with_number_exact_text_unit_and_time() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn availability_follows_health_and_the_last_will_says_offline() {
-    if !mosquitto_installed() {
-        return;
-    }
     let broker = Broker::start("availability").await;
     let file = file(&bus_text(broker.port));
     let bus = Bus::new(file.clone());

@@ -8,7 +8,7 @@ use std::collections::HashSet;
 use std::path::Path;
 use std::time::Duration;
 
-use common::{mosquitto_installed, Broker, Watcher};
+use common::{Broker, Watcher};
 use optobus_bus::{rfc3339, Bus, BusFile, Catalogue, Event, Running};
 use optobus_mqtt::Publisher;
 use tokio::sync::broadcast::Receiver;
@@ -76,10 +76,11 @@ async fn finish(running: Running, publisher: &Publisher) {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn a_broker_restart_loses_no_queued_sample_and_availability_is_published_again() {
-    if !mosquitto_installed() {
-        return;
-    }
     let mut broker = Broker::start("restart").await;
     let watcher = Watcher::start(broker.port, "watcher-restart", "optobus/#").await;
     let file = file(broker.port, 100_000);
@@ -142,10 +143,11 @@ async fn a_broker_restart_loses_no_queued_sample_and_availability_is_published_a
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn a_broker_down_at_start_gets_the_samples_that_waited() {
-    if !mosquitto_installed() {
-        return;
-    }
     let mut broker = Broker::reserve("late");
     let file = file(broker.port, 100_000);
     let bus = Bus::new(file.clone());
@@ -181,10 +183,11 @@ async fn a_broker_down_at_start_gets_the_samples_that_waited() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn beyond_the_queue_the_oldest_samples_are_dropped_and_counted_exactly() {
-    if !mosquitto_installed() {
-        return;
-    }
     let mut broker = Broker::start("drops").await;
     let watcher = Watcher::start(broker.port, "watcher-drops", "optobus/#").await;
     let file = file(broker.port, 20);

@@ -165,13 +165,6 @@ pub fn interrupted(args: &[&str], after: std::time::Duration) -> Output {
     child.wait_with_output().expect("optobus ends")
 }
 
-/// Whether an independent tool (mbpoll, socat) is installed. `.ci/run` installs them and sets
-/// `OPTOBUS_REQUIRE_INTEROP=1`, so there a missing tool fails the test; elsewhere the test
-/// says it was skipped.
-pub fn tool(name: &str) -> bool {
-    optobus_testkit::peer_installed(name, "-h", name)
-}
-
 /// `mbpoll args…` once; the values it printed (`[3]: 425` lines).
 #[allow(dead_code)]
 pub fn mbpoll(args: &[&str]) -> Vec<i64> {
