@@ -28,6 +28,7 @@ mod outbox;
 mod payload;
 mod publisher;
 mod secret;
+mod state;
 mod text;
 mod tls;
 mod topics;
