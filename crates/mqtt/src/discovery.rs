@@ -6,8 +6,8 @@
 //! Every entity reads its register's state topic, `<prefix>/<device>/<register>/state`
 //! (retained, at most one message per `state_every`), not the sample topic, which carries
 //! every sample. A register a command writes is shown as that command's buttons, not also as
-//! a `select` that would do the same. The device block carries the firmware's version where
-//! the spec has one register of type `version`, read once at start.
+//! a `select` that would do the same. The device block carries the firmware's version and the
+//! serial number where the spec gives registers those roles (`role:`), read once at start.
 //!
 //! Topics follow Home Assistant's MQTT discovery documentation:
 //! `<discovery prefix>/<component>/<node id>/<object id>/config`, the node id made of the
@@ -21,7 +21,7 @@ use std::collections::HashMap;
 
 use optobus_bus::{BusFile, DeviceConfig};
 use optobus_codec::value::{Fixed, Scale};
-use optobus_device::{DeviceInfo, RegisterInfo, Scalar, ValueKind};
+use optobus_device::{DeviceInfo, RegisterInfo, Role, Scalar, ValueKind};
 use serde_json::{json, Map, Value as Json};
 
 use crate::topics::Topics;
@@ -32,6 +32,19 @@ use crate::topics::Topics;
 pub struct Identity {
     /// The firmware's version, as its register reads (`sw_version`).
     pub sw_version: Option<String>,
+    /// The serial number, as its register reads (`serial_number`).
+    pub serial_number: Option<String>,
+}
+
+impl Identity {
+    /// Records what the register of `role` read (`text`).
+    pub fn set(&mut self, role: Role, text: String) {
+        match role {
+            Role::FirmwareVersion => self.sw_version = Some(text),
+            Role::SerialNumber => self.serial_number = Some(text),
+            _ => {}
+        }
+    }
 }
 
 /// The discovery configurations of every polled register of every device of `file`, as
@@ -64,11 +77,16 @@ pub fn configurations_with(
             "name": device.name,
             "model": device.device.title,
         }));
-        if let Some(version) = identities
-            .get(&device.name)
-            .and_then(|identity| identity.sw_version.as_ref())
-        {
-            block.insert("sw_version".into(), version.as_str().into());
+        if let Some(identity) = identities.get(&device.name) {
+            let known = [
+                ("sw_version", &identity.sw_version),
+                ("serial_number", &identity.serial_number),
+            ];
+            for (key, value) in known {
+                if let Some(value) = value {
+                    block.insert(key.into(), value.as_str().into());
+                }
+            }
         }
         let block = Json::Object(block);
         let mut all: Vec<Entity> = polled(device).into_iter().flat_map(entities).collect();
@@ -185,18 +203,14 @@ pub(crate) fn read_for_state(device: &DeviceConfig) -> Vec<&'static RegisterInfo
         .collect()
 }
 
-/// The register holding the firmware's version: the one register of type `version` in the
-/// spec (a type the spec language gives a version's parts), read once at start; none when
-/// the spec has none or several.
-pub(crate) fn version_register(device: &DeviceInfo) -> Option<&'static RegisterInfo> {
-    let mut versions = device
-        .registers
-        .iter()
-        .filter(|r| matches!(r.kind, ValueKind::Version(_)) && has_state(r));
-    match (versions.next(), versions.next()) {
-        (Some(only), None) => Some(only),
-        _ => None,
-    }
+/// The registers that name the device, by the role the spec gives them (`role:`): read once
+/// at start for its device block.
+pub(crate) fn identity_registers(device: &DeviceInfo) -> Vec<(Role, &'static RegisterInfo)> {
+    [Role::FirmwareVersion, Role::SerialNumber]
+        .into_iter()
+        .filter_map(|role| Some((role, device.register_with_role(role)?)))
+        .filter(|(_, register)| has_state(register))
+        .collect()
 }
 
 /// One entity before its common members.

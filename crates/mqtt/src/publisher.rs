@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use optobus_bus::{BusFile, Event, Handle, Health, JobError, MqttConfig, Source};
-use optobus_device::RegisterInfo;
+use optobus_device::{RegisterInfo, Role};
 use optobus_inspect::Value;
 use rumqttc::{
     AsyncClient, ConnectionError, Event as MqttEvent, EventLoop, LastWill, MqttOptions, Outgoing,
@@ -161,15 +161,16 @@ impl Shared {
             .any(|d| d.name == device && d.online == Some(false))
     }
 
-    /// `device` said its firmware's version: its entities' device block carries it from now.
-    fn identified(&self, device: &str, version: String) {
+    /// `device` said what its register of `role` holds: its entities' device block carries it
+    /// from now.
+    fn identified(&self, device: &str, role: Role, text: String) {
         let Some(discovery) = &self.discovery else {
             return;
         };
         lock(&discovery.identities)
             .entry(device.to_owned())
             .or_default()
-            .sw_version = Some(version);
+            .set(role, text);
         discovery.make(self.topics.prefix());
         for config in discovery.configs() {
             self.push(config);
@@ -313,17 +314,17 @@ impl Publisher {
             }
             Mutex::new(states)
         });
-        // What is read for them: the firmware's version once, the controls periodically.
+        // What is read for them: what names each device once, the controls periodically.
         let reads: Vec<Reads> = match &config.homeassistant {
             Some(_) => file
                 .devices
                 .iter()
                 .map(|device| Reads {
                     device: device.name.clone(),
-                    version: discovery::version_register(device.device),
+                    identity: discovery::identity_registers(device.device),
                     controls: discovery::read_for_state(device),
                 })
-                .filter(|reads| reads.version.is_some() || !reads.controls.is_empty())
+                .filter(|reads| !reads.identity.is_empty() || !reads.controls.is_empty())
                 .collect(),
             None => Vec::new(),
         };
@@ -537,14 +538,15 @@ async fn write(mut waiting: mpsc::Receiver<Write>, handle: Handle, shared: Arc<S
 #[derive(Debug)]
 struct Reads {
     device: String,
-    /// The firmware's version, until it has been read once.
-    version: Option<&'static RegisterInfo>,
+    /// The registers that name the device (firmware version, serial number), until each has
+    /// been read once.
+    identity: Vec<(Role, &'static RegisterInfo)>,
     /// The controls Home Assistant shows, read at start and at each refresh.
     controls: Vec<&'static RegisterInfo>,
 }
 
-/// Reads the controls' values for their state topics at start and every `every`, and each
-/// device's firmware version once, through `handle` (as MQTT: the line serves them in turn
+/// Reads the controls' values for their state topics at start and every `every`, and what
+/// names each device (its registers with a role: firmware version, serial number) once, through `handle` (as MQTT: the line serves them in turn
 /// with its polls, in its bounded queue for MQTT). One read at a time; a device the bus has
 /// given up on is left for the next round, and so is the rest of a device after a failure or
 /// a busy refusal (counted).
@@ -557,15 +559,23 @@ async fn refresh(handle: Handle, shared: Arc<Shared>, mut reads: Vec<Reads>, eve
             if shared.offline(&device.device) {
                 continue;
             }
-            if let Some(register) = device.version {
-                match read_for_state(&handle, &shared, &device.device, register).await {
-                    Some(Value::Invalid) => {}
-                    Some(version) => {
-                        device.version = None;
-                        shared.identified(&device.device, version.to_string());
+            // Each is read until it has been once (an invalid reading is tried again).
+            let mut failed = false;
+            for (role, register) in std::mem::take(&mut device.identity) {
+                if !failed {
+                    match read_for_state(&handle, &shared, &device.device, register).await {
+                        Some(Value::Invalid) => {}
+                        Some(value) => {
+                            shared.identified(&device.device, role, value.to_string());
+                            continue;
+                        }
+                        None => failed = true,
                     }
-                    None => continue,
                 }
+                device.identity.push((role, register));
+            }
+            if failed {
+                continue;
             }
             for register in &device.controls {
                 let Some(value) = read_for_state(&handle, &shared, &device.device, register).await

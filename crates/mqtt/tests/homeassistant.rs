@@ -1,9 +1,10 @@
 //! Home Assistant on a real mosquitto, as a plant engineer met it (issue 30, point 3, and the
 //! units of point 9): controls get a retained state (read at start, after each write and
 //! periodically), a register a command writes is shown as its buttons only, the device block
-//! carries the firmware's version where the spec has one, the state topics Home Assistant
-//! reads are rate-limited while the sample topics keep every sample, and units are the spec's
-//! ASCII on every topic and Home Assistant's symbols in discovery only.
+//! carries the firmware's version and serial number where the spec marks them (`role:`), the
+//! state topics Home Assistant reads are rate-limited while the sample topics keep every
+//! sample, and units are the spec's ASCII on every topic and Home Assistant's symbols in
+//! discovery only.
 
 mod common;
 
@@ -20,13 +21,14 @@ use serde_json::Value as Json;
 const P: &DeviceInfo = &optobus_p_series::DEVICE;
 const CCS: &DeviceInfo = &optobus_ccs::DEVICE;
 const LC: &DeviceInfo = &optobus_lc_rs::DEVICE;
+const RANGER: &DeviceInfo = &optobus_rangefinder::DEVICE;
 
 fn parse(text: &str) -> BusFile {
     BusFile::parse(
         "bus.yaml",
         text,
         Path::new("."),
-        &Catalogue::new([P, CCS, LC]),
+        &Catalogue::new([P, CCS, LC, RANGER]),
     )
     .unwrap_or_else(|e| panic!("{}", e.render()))
 }
@@ -216,11 +218,11 @@ outputs:
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_device_block_carries_the_firmware_version_the_spec_has() {
+async fn the_device_block_carries_the_firmware_version_and_serial_number_the_spec_marks() {
     if !mosquitto_installed() {
         return;
     }
-    let broker = Broker::start("ha-version").await;
+    let broker = Broker::start("ha-identity").await;
     let file = parse(&format!(
         "
 lines:
@@ -230,6 +232,10 @@ devices:
     model: lc-rs
     slave: 1
     poll: [{{ read: distance, every: 100ms }}]
+  - name: ranger
+    model: rangefinder
+    slave: 25
+    poll: [{{ read: distance, every: 100ms }}]
 outputs:
   mqtt: {{ broker: 127.0.0.1:{}, homeassistant: true }}
 ",
@@ -238,12 +244,27 @@ outputs:
     let bus = Bus::new(file.clone());
     let events = bus.subscribe();
     let running = bus.start().unwrap();
-    let simulator = running.simulator("gauge").unwrap();
-    let version = LC.register("firmware_version").unwrap();
-    simulator
-        .poke(version.table, version.address, &[0x0002, 0x0713])
-        .unwrap();
-    let expected = optobus_inspect::decode_value(version, &[0x0002, 0x0713]).to_string();
+    // Values no simulator starts with: the device block must come from the devices.
+    let poke = |device: &str, info: &'static DeviceInfo, name: &str, words: &[u16]| {
+        let register = info.register(name).unwrap();
+        running
+            .simulator(device)
+            .unwrap()
+            .poke(register.table, register.address, words)
+            .unwrap();
+        optobus_inspect::decode_value(register, words).to_string()
+    };
+    let gauge_version = poke("gauge", LC, "firmware_version", &[0x0002, 0x0713]);
+    let ranger_version = poke("ranger", RANGER, "firmware_version", &[102]);
+    let ranger_serial = poke("ranger", RANGER, "serial_number", &[0x0001, 0xE240]);
+    assert_eq!(
+        (
+            gauge_version.as_str(),
+            ranger_version.as_str(),
+            ranger_serial.as_str()
+        ),
+        ("2.7.19", "102", "123456")
+    );
     let _publisher = Publisher::start(
         file.outputs.mqtt.as_ref().unwrap(),
         &file,
@@ -251,25 +272,38 @@ outputs:
         Some(running.handle()),
     )
     .unwrap();
-    let watcher = Watcher::start(broker.port, "ha-version-watch", "homeassistant/#").await;
-    let topic = "homeassistant/sensor/optobus_gauge/distance/config";
+    let watcher = Watcher::start(broker.port, "ha-identity-watch", "homeassistant/#").await;
+    // The device block of the last configuration heard for `device`.
+    let device_block = |heard: &[Heard], device: &str| {
+        let topic = format!("homeassistant/sensor/optobus_{device}/distance/config");
+        let last = heard.iter().rev().find(|h| h.topic == topic)?;
+        Some(json(last)["device"].clone())
+    };
+    let identified = |heard: &[Heard]| {
+        device_block(heard, "gauge").is_some_and(|d| d["sw_version"] == gauge_version)
+            && device_block(heard, "ranger").is_some_and(|d| {
+                d["sw_version"] == ranger_version && d["serial_number"] == ranger_serial
+            })
+    };
+    let heard = || watcher.heard.lock().unwrap().clone();
     assert!(
-        watcher
-            .wait_for(Duration::from_secs(15), |heard| heard
-                .iter()
-                .any(
-                    |h| h.topic == topic && json(h)["device"]["sw_version"] == expected
-                ))
-            .await,
-        "no sw_version {expected}: {:?}",
-        watcher.on(topic)
+        watcher.wait_for(Duration::from_secs(15), identified).await,
+        "{:?} {:?}",
+        device_block(&heard(), "gauge"),
+        device_block(&heard(), "ranger")
     );
-    let device = &json(watcher.on(topic).last().unwrap())["device"];
-    assert_eq!(device["model"], LC.title);
+    let gauge = device_block(&heard(), "gauge").unwrap();
+    assert_eq!(gauge["model"], LC.title);
     assert!(
-        device.get("manufacturer").is_none(),
-        "no spec names a manufacturer: {device}"
+        gauge.get("serial_number").is_none(),
+        "the LC-RS spec marks no serial number: {gauge}"
     );
+    for device in [gauge, device_block(&heard(), "ranger").unwrap()] {
+        assert!(
+            device.get("manufacturer").is_none(),
+            "no spec names a manufacturer: {device}"
+        );
+    }
     running.stop();
 }
 
