@@ -85,6 +85,8 @@ outputs:
     let power = P.register("light_power").unwrap();
     // 42.0 %, a value no default has: the state must come from the device.
     simulator.poke(power.table, power.address, &[420]).unwrap();
+    let state = "optobus/top/light_power/state";
+    let probe = Watcher::start(broker.port, "ha-probe", state).await;
     let publisher = Publisher::start(
         file.outputs.mqtt.as_ref().unwrap(),
         &file,
@@ -92,12 +94,14 @@ outputs:
         Some(running.handle()),
     )
     .unwrap();
-    let state = "optobus/top/light_power/state";
-    // Home Assistant subscribes after the start: the broker hands it the retained state.
-    let deadline = tokio::time::Instant::now() + Duration::from_secs(15);
-    while publisher.counts().states_published == 0 && tokio::time::Instant::now() < deadline {
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
+    // Home Assistant subscribes once the state is out: the broker hands it over, retained.
+    assert!(
+        probe
+            .wait_for(Duration::from_secs(15), |heard| !heard.is_empty())
+            .await,
+        "no state on {state}: {:?}",
+        publisher.counts()
+    );
     let late = Watcher::start(broker.port, "ha-late", "optobus/top/light_power/#").await;
     assert!(
         late.wait_for(Duration::from_secs(10), |heard| heard
