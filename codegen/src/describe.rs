@@ -240,6 +240,7 @@ impl<'m> Describer<'m> {
                     .unwrap_or_default(),
             ),
             action: register.action,
+            role: register.role,
         }
     }
 

@@ -2,7 +2,7 @@
 //!
 //! Field names are part of the interface: `family`, `device`, `registers[]` with `name`,
 //! `table`, `address`, `words`, `access`, `type`, `scale`, `unit`, `enum`, `range`,
-//! `allowed_values`, `action`, `sentinel`, `section`, then `commands`, `groups` and `buffer`
+//! `allowed_values`, `action`, `role`, `sentinel`, `section`, then `commands`, `groups` and `buffer`
 //! (its keys as in the spec; `null` without one).
 
 use serde_json::{json, Map, Value};
@@ -51,6 +51,7 @@ fn register_json(model: &Model, register: &Register) -> Value {
         "range": register.range.map(|(min, max)| vec![min, max]),
         "allowed_values": register.allowed_values.as_ref().map(|(values, _)| values),
         "action": register.action,
+        "role": register.role.map(crate::model::Role::name),
         "sentinel": register.sentinel,
         "section": register.section,
         "doc": register.doc,

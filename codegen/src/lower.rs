@@ -461,6 +461,7 @@ impl Lowering {
             alias_of: decl.alias_of,
             read_side_effect: decl.read_side_effect,
             action: decl.action,
+            role: decl.role,
             repeat: None,
             path: at,
         }

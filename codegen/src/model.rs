@@ -12,7 +12,7 @@ use optobus_codec::value::{Scale, WordOrder, WriteOrder};
 pub use optobus_codec::Parity;
 
 use crate::source::Path;
-pub use optobus_device::{Access, Addressing, Effect, LongWrites, Scalar, Table};
+pub use optobus_device::{Access, Addressing, Effect, LongWrites, Role, Scalar, Table};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 /// How the device frames exception replies.
@@ -215,6 +215,8 @@ pub struct Register {
     pub read_side_effect: Option<String>,
     /// Writing it acts and the manual does not say what a read returns: it is never read.
     pub action: bool,
+    /// What it is to the device as a whole (firmware version, serial number), if declared.
+    pub role: Option<Role>,
     /// Set for repeat copies.
     pub repeat: Option<RepeatCopy>,
     /// Where it is declared (for copies: the block's entry).

@@ -396,6 +396,13 @@ fn register_info(
         register.write_order.unwrap_or_default(),
     );
     let read_side_effect = option_str(register.read_side_effect.as_deref());
+    let role = match register.role {
+        Some(role) => {
+            let role = variant(imports, "optobus_device::Role", role);
+            quote!(Some(#role))
+        }
+        None => quote!(None),
+    };
     let copy = match &register.repeat {
         Some(copy) => {
             let ty = imports.get("optobus_device::RepeatCopy");
@@ -429,6 +436,7 @@ fn register_info(
             copy: #copy,
             read_side_effect: #read_side_effect,
             action: #action,
+            role: #role,
         }
     }
 }

@@ -18,6 +18,7 @@ pub mod overlap;
 pub mod range;
 pub mod references;
 pub mod repeats;
+pub mod role;
 pub mod scale;
 pub mod sentinel;
 pub mod table_bounds;
@@ -87,6 +88,10 @@ pub const RULES: &[Rule] = &[
     Rule {
         name: action::RULE,
         check: action::check,
+    },
+    Rule {
+        name: role::RULE,
+        check: role::check,
     },
     Rule {
         name: sentinel::RULE,

@@ -20,7 +20,7 @@ use reader::what;
 pub(crate) use reader::{At, Entries, FromNode, Items, Reader, RULE};
 
 pub(crate) use crate::model::{
-    Access, Addressing, Apply, Effect, ExceptionStyle, LongWrites, Parity, Table,
+    Access, Addressing, Apply, Effect, ExceptionStyle, LongWrites, Parity, Role, Table,
 };
 use crate::source::Node;
 
@@ -62,6 +62,10 @@ names! {
         "record" => TypeName::Record,
     }
     OrderName { "high_first" => OrderName::HighFirst, "low_first" => OrderName::LowFirst }
+    Role {
+        "firmware_version" => Role::FirmwareVersion,
+        "serial_number" => Role::SerialNumber,
+    }
 }
 
 /// `none`, `odd` or `even`, exactly as the spec schema spells them.
@@ -276,6 +280,8 @@ record! {
         read_side_effect: Option<String>,
         /// Writing acts and the manual does not say what a read returns.
         action: bool = default,
+        /// What the register is to the device as a whole.
+        role: Option<Role>,
         note: Option<String>,
         fields: Option<Vec<FieldDecl>>,
         parts: Option<Vec<String>>,

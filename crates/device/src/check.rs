@@ -231,6 +231,7 @@ mod tests {
             read_side_effect: None,
             allowed_values: &[],
             action: false,
+            role: None,
         }
     }
 

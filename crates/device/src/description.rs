@@ -311,6 +311,35 @@ pub struct RegisterInfo {
     /// Writing it acts and the manual does not say what a read returns (LC-RS factory reset):
     /// it is written, never read.
     pub action: bool,
+    /// What the register is to the device as a whole, where the spec says so (`role:`).
+    pub role: Option<Role>,
+}
+
+/// What a register is to the device as a whole (the spec's `role:`), so that tools find it
+/// without matching its name; each role is given to at most one register of a spec, one that
+/// can be read without changing the device.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Deserialize, serde::Serialize),
+    serde(rename_all = "snake_case")
+)]
+#[non_exhaustive]
+pub enum Role {
+    /// The version of the device's firmware.
+    FirmwareVersion,
+    /// The device's serial number.
+    SerialNumber,
+}
+
+impl Role {
+    /// Its name in specs.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::FirmwareVersion => "firmware_version",
+            Self::SerialNumber => "serial_number",
+        }
+    }
 }
 
 impl RegisterInfo {
@@ -700,6 +729,11 @@ impl DeviceInfo {
     /// The group called `name`.
     pub fn group(&self, name: &str) -> Option<&'static GroupInfo> {
         self.groups.iter().find(|g| g.name == name)
+    }
+
+    /// The register the spec gives `role` (see [`Role`]).
+    pub fn register_with_role(&self, role: Role) -> Option<&'static RegisterInfo> {
+        self.registers.iter().find(|r| r.role == Some(role))
     }
 
     /// The register holding the device's own Modbus slave address: by convention of the

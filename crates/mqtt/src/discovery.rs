@@ -3,6 +3,12 @@
 //! bus file lets MQTT write and a `button` per command it lets MQTT run, each tied to the
 //! process's and the device's availability.
 //!
+//! Every entity reads its register's state topic, `<prefix>/<device>/<register>/state`
+//! (retained, at most one message per `state_every`), not the sample topic, which carries
+//! every sample. A register a command writes is shown as that command's buttons, not also as
+//! a `select` that would do the same. The device block carries the firmware's version and the
+//! serial number where the spec gives registers those roles (`role:`), read once at start.
+//!
 //! Topics follow Home Assistant's MQTT discovery documentation:
 //! `<discovery prefix>/<component>/<node id>/<object id>/config`, the node id made of the
 //! client id and the device's name, the object id of the register's (characters other than
@@ -11,12 +17,35 @@
 //! accepts that unit for that class; a unit it would refuse gets no class, since an entity
 //! whose unit its class does not accept fails to load.
 
-use optobus_bus::BusFile;
+use std::collections::HashMap;
+
+use optobus_bus::{BusFile, DeviceConfig};
 use optobus_codec::value::{Fixed, Scale};
-use optobus_device::{RegisterInfo, Scalar, ValueKind};
+use optobus_device::{DeviceInfo, RegisterInfo, Role, Scalar, ValueKind};
 use serde_json::{json, Map, Value as Json};
 
 use crate::topics::Topics;
+
+/// What a device said about itself, for its Home Assistant device block.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct Identity {
+    /// The firmware's version, as its register reads (`sw_version`).
+    pub sw_version: Option<String>,
+    /// The serial number, as its register reads (`serial_number`).
+    pub serial_number: Option<String>,
+}
+
+impl Identity {
+    /// Records what the register of `role` read (`text`).
+    pub fn set(&mut self, role: Role, text: String) {
+        match role {
+            Role::FirmwareVersion => self.sw_version = Some(text),
+            Role::SerialNumber => self.serial_number = Some(text),
+            _ => {}
+        }
+    }
+}
 
 /// The discovery configurations of every polled register of every device of `file`, as
 /// (topic, payload), for a publisher with `client_id` and topic `prefix`.
@@ -26,38 +55,49 @@ pub fn configurations(
     client_id: &str,
     prefix: &str,
 ) -> Vec<(String, Json)> {
+    configurations_with(file, discovery_prefix, client_id, prefix, &HashMap::new())
+}
+
+/// [`configurations`], with what each device (by name) said about itself in its device block.
+pub fn configurations_with(
+    file: &BusFile,
+    discovery_prefix: &str,
+    client_id: &str,
+    prefix: &str,
+    identities: &HashMap<String, Identity>,
+) -> Vec<(String, Json)> {
     let topics = Topics::new(prefix);
     let mut configurations = Vec::new();
     for device in &file.devices {
         let line = &file.lines[device.line].name;
         let node = object_id(&format!("{client_id}_{}", device.name));
-        // The spec names no manufacturer, so none is claimed.
-        let block = json!({
+        // No spec names a manufacturer or vendor, so none is claimed.
+        let mut block = object(json!({
             "identifiers": [object_id(&format!("optobus_{client_id}_{line}_{}", device.slave))],
             "name": device.name,
             "model": device.device.title,
-        });
-        let mut registers: Vec<&'static RegisterInfo> = device
-            .polls
-            .iter()
-            .flat_map(|poll| poll.registers.iter().copied())
-            .collect();
-        registers.sort_by_key(|r| (r.table, r.address));
-        registers.dedup_by_key(|r| (r.table, r.address, r.name));
-        let mut all: Vec<Entity> = registers.into_iter().flat_map(entities).collect();
-        for register in &device.writable.registers {
-            all.extend(control(
-                register,
-                &topics.sample(&device.name, register.name),
-            ));
+        }));
+        if let Some(identity) = identities.get(&device.name) {
+            let known = [
+                ("sw_version", &identity.sw_version),
+                ("serial_number", &identity.serial_number),
+            ];
+            for (key, value) in known {
+                if let Some(value) = value {
+                    block.insert(key.into(), value.as_str().into());
+                }
+            }
         }
+        let block = Json::Object(block);
+        let mut all: Vec<Entity> = polled(device).into_iter().flat_map(entities).collect();
+        all.extend(controls(device).into_iter().filter_map(control));
         for command in &device.writable.commands {
             all.push(Entity {
                 component: "button",
                 id: command.name.to_owned(),
                 state: None,
+                command: Some("do"),
                 config: object(json!({
-                    "command_topic": format!("{}/do", topics.sample(&device.name, command.name)),
                     "payload_press": "PRESS",
                     // Said outright: a retained command would be refused (see the README).
                     "retain": false,
@@ -72,10 +112,16 @@ pub fn configurations(
                 "unique_id".into(),
                 format!("{node}_{object}_{}", entity.component).into(),
             );
+            if let Some(verb) = entity.command {
+                config.insert(
+                    "command_topic".into(),
+                    format!("{}/{verb}", topics.sample(&device.name, &entity.id)).into(),
+                );
+            }
             if let Some(register) = entity.state {
                 config.insert(
                     "state_topic".into(),
-                    topics.sample(&device.name, register).into(),
+                    topics.state(&device.name, register).into(),
                 );
             }
             config.insert(
@@ -103,20 +149,86 @@ pub fn configurations(
     configurations
 }
 
+/// The registers `device` polls, once each, in address order.
+fn polled(device: &DeviceConfig) -> Vec<&'static RegisterInfo> {
+    let mut registers: Vec<&'static RegisterInfo> = device
+        .polls
+        .iter()
+        .flat_map(|poll| poll.registers.iter().copied())
+        .collect();
+    registers.sort_by_key(|r| (r.table, r.address));
+    registers.dedup_by_key(|r| (r.table, r.address, r.name));
+    registers
+}
+
+/// The writable registers of `device` shown as controls: all but those a writable command
+/// writes (CCS `position_zero`, `trigger_count_reset`), which its buttons stand for.
+pub(crate) fn controls(device: &DeviceConfig) -> Vec<&'static RegisterInfo> {
+    let writable = &device.writable;
+    writable
+        .registers
+        .iter()
+        .copied()
+        .filter(|register| {
+            !writable.commands.iter().any(|command| {
+                command.register == register.name
+                    || register.member_name() == Some(command.register)
+            })
+        })
+        .collect()
+}
+
+/// Whether a control's register can be read for its state (without changing the device).
+fn has_state(register: &RegisterInfo) -> bool {
+    register.readable() && register.read_is_repeatable()
+}
+
+/// The registers of `device` whose state topics Home Assistant reads: what it polls, and the
+/// controls that can be read.
+pub(crate) fn state_registers(device: &DeviceConfig) -> Vec<&'static RegisterInfo> {
+    let mut registers = polled(device);
+    for register in controls(device) {
+        if has_state(register) && !registers.iter().any(|r| r.name == register.name) {
+            registers.push(register);
+        }
+    }
+    registers
+}
+
+/// The controls of `device` read for their state, at start and at each refresh.
+pub(crate) fn read_for_state(device: &DeviceConfig) -> Vec<&'static RegisterInfo> {
+    controls(device)
+        .into_iter()
+        .filter(|r| has_state(r))
+        .collect()
+}
+
+/// The registers that name the device, by the role the spec gives them (`role:`): read once
+/// at start for its device block.
+pub(crate) fn identity_registers(device: &DeviceInfo) -> Vec<(Role, &'static RegisterInfo)> {
+    [Role::FirmwareVersion, Role::SerialNumber]
+        .into_iter()
+        .filter_map(|role| Some((role, device.register_with_role(role)?)))
+        .filter(|(_, register)| has_state(register))
+        .collect()
+}
+
 /// One entity before its common members.
 struct Entity {
     component: &'static str,
     /// The register's or command's name, or `register.field`.
     id: String,
-    /// The register whose samples are its state.
+    /// The register whose state topic is its state.
     state: Option<&'static str>,
+    /// The verb of its command topic (`set`, `do`), on its id's topic.
+    command: Option<&'static str>,
     config: Map<String, Json>,
 }
 
 /// The entity that sets a writable register: a `select` of its codes, a `switch`, or a
-/// `number` within its range, in its steps.
-fn control(register: &'static RegisterInfo, topic: &str) -> Option<Entity> {
-    let command_topic = format!("{topic}/set");
+/// `number` within its range, in its steps; its state is the register's state topic where it
+/// can be read (otherwise Home Assistant shows what it last sent).
+fn control(register: &'static RegisterInfo) -> Option<Entity> {
     let (component, mut config) = match register.kind {
         ValueKind::Enum => ("select", codes(register.codes, "value_json")),
         ValueKind::Bool => (
@@ -152,13 +264,13 @@ fn control(register: &'static RegisterInfo, topic: &str) -> Option<Entity> {
     if component == "select" {
         config.remove("device_class");
     }
-    config.insert("command_topic".into(), command_topic.into());
     // Said outright: a retained command would be refused (see the README).
     config.insert("retain".into(), false.into());
     Some(Entity {
         component,
         id: register.name.to_owned(),
-        state: Some(register.name),
+        state: has_state(register).then_some(register.name),
+        command: Some("set"),
         config,
     })
 }
@@ -169,6 +281,7 @@ fn entities(register: &'static RegisterInfo) -> Vec<Entity> {
         component: "sensor",
         id: register.name.to_owned(),
         state: Some(register.name),
+        command: None,
         config,
     };
     match register.kind {
@@ -176,6 +289,7 @@ fn entities(register: &'static RegisterInfo) -> Vec<Entity> {
             component: "binary_sensor",
             id: register.name.to_owned(),
             state: Some(register.name),
+            command: None,
             config: object(json!({
                 "value_template": "{{ 'ON' if value_json.value else 'OFF' }}",
             })),
@@ -199,6 +313,7 @@ fn entities(register: &'static RegisterInfo) -> Vec<Entity> {
                     component: "sensor",
                     id: format!("{}.{}", register.name, field.name),
                     state: Some(register.name),
+                    command: None,
                     config,
                 }
             })
@@ -216,6 +331,7 @@ fn entities(register: &'static RegisterInfo) -> Vec<Entity> {
                     component: "sensor",
                     id: format!("{}.{}", register.name, member.name),
                     state: Some(register.name),
+                    command: None,
                     config,
                 }
             })

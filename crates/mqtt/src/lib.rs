@@ -10,6 +10,9 @@
 //!   says `offline`);
 //! - with Home Assistant discovery on, a device per sensor and an entity per polled register
 //!   under the discovery prefix (see [`discovery`]), again whenever Home Assistant comes online.
+//!   Its entities read `<prefix>/<device>/<register>/state`, retained, at most one message per
+//!   register per `state_every` (the sample topics keep every sample); the registers it
+//!   controls are read for it at start, after each write and every `refresh_every`.
 //!
 //! While the broker cannot be reached the bus polls on; samples wait in a bounded queue (the
 //! oldest dropped and counted beyond its size) and the client reconnects with backoff
@@ -28,6 +31,7 @@ mod outbox;
 mod payload;
 mod publisher;
 mod secret;
+mod state;
 mod text;
 mod tls;
 mod topics;

@@ -20,8 +20,11 @@ pub(crate) enum Kind {
     /// Availability and discovery: recomputed and published again at every connection, so a
     /// copy waiting from before is dropped.
     Announce,
-    /// An answer to a write (`…/error`, `…/state`): kept and sent after a break.
+    /// An answer to a write (`…/error`, a read-back): kept and sent after a break.
     Reply,
+    /// A register's state for Home Assistant (retained): one per topic (a newer one
+    /// replaces it), kept and sent after a break unless a newer one waits.
+    State,
 }
 
 /// A message to publish.
@@ -100,6 +103,19 @@ pub struct Counts {
     pub control_queued: usize,
     /// The most control messages that ever waited at once.
     pub control_peak: usize,
+    /// States the broker took on the state topics Home Assistant reads.
+    pub states_published: u64,
+    /// Samples that never reached a state topic: a newer one came within its interval
+    /// (`state_every`). The sample topics carried them.
+    pub states_skipped: u64,
+    /// Reads made for the state topics (at start and at each refresh).
+    pub state_reads: u64,
+    /// Of those, the ones the line refused as busy (its queue for MQTT was full): tried
+    /// again at the next refresh.
+    pub state_reads_busy: u64,
+    /// Of those, the ones the device or the line failed (the rest of that device's reads
+    /// wait for the next refresh).
+    pub state_reads_failed: u64,
 }
 
 #[derive(Debug)]
@@ -111,6 +127,8 @@ pub(crate) struct Outbox {
     rediscovery: Option<Vec<Message>>,
     /// Answers to writes, at most [`REPLY_QUEUE`].
     replies: VecDeque<Message>,
+    /// States: one per topic (a newer one replaces it), so at most one per state topic.
+    states: VecDeque<Message>,
     samples: VecDeque<Message>,
     in_flight: VecDeque<(Option<u16>, Message)>,
     pub(crate) counts: Counts,
@@ -125,6 +143,7 @@ impl Outbox {
             announcements: VecDeque::new(),
             rediscovery: None,
             replies: VecDeque::new(),
+            states: VecDeque::new(),
             samples: VecDeque::new(),
             in_flight: VecDeque::new(),
             counts: Counts::default(),
@@ -159,6 +178,14 @@ impl Outbox {
                 }
                 self.replies.push_back(message);
             }
+            Kind::State => match self
+                .states
+                .iter_mut()
+                .find(|waiting| waiting.topic == message.topic)
+            {
+                Some(waiting) => *waiting = message,
+                None => self.states.push_back(message),
+            },
         }
         self.note_control_peak();
     }
@@ -186,7 +213,7 @@ impl Outbox {
     }
 
     /// The next message to hand to the client (announcements, then answers to writes, then
-    /// samples), kept in flight; none while disconnected. A message whose packet would be
+    /// states, then samples), kept in flight; none while disconnected. A message whose packet would be
     /// over the client's limit is dropped and counted on the way.
     pub(crate) fn next(&mut self) -> Option<Message> {
         if !self.counts.connected {
@@ -202,6 +229,7 @@ impl Outbox {
                 .announcements
                 .pop_front()
                 .or_else(|| self.replies.pop_front())
+                .or_else(|| self.states.pop_front())
                 .or_else(|| self.samples.pop_front())?;
             if message.packet_size() > MAX_PACKET {
                 self.counts.oversize_dropped += 1;
@@ -228,6 +256,7 @@ impl Outbox {
                 Kind::Sample => self.samples.push_front(message),
                 Kind::Announce => self.announcements.push_front(message),
                 Kind::Reply => self.replies.push_front(message),
+                Kind::State => self.states.push_front(message),
             }
         }
     }
@@ -260,8 +289,10 @@ impl Outbox {
     }
 
     fn taken(&mut self, message: &Message) {
-        if message.kind == Kind::Sample {
-            self.counts.published += 1;
+        match message.kind {
+            Kind::Sample => self.counts.published += 1,
+            Kind::State => self.counts.states_published += 1,
+            Kind::Announce | Kind::Reply => {}
         }
     }
 
@@ -276,6 +307,12 @@ impl Outbox {
                     self.samples.push_front(message);
                 }
                 Kind::Reply => self.replies.push_front(message),
+                // Sent again unless a newer state of its topic waits.
+                Kind::State => {
+                    if !self.states.iter().any(|newer| newer.topic == message.topic) {
+                        self.states.push_front(message);
+                    }
+                }
                 Kind::Announce => {}
             }
         }
@@ -315,7 +352,10 @@ impl Outbox {
 
     /// Whether nothing waits and nothing is in flight.
     pub(crate) fn is_idle(&self) -> bool {
-        self.control_len() == 0 && self.samples.is_empty() && self.in_flight.is_empty()
+        self.control_len() == 0
+            && self.states.is_empty()
+            && self.samples.is_empty()
+            && self.in_flight.is_empty()
     }
 }
 

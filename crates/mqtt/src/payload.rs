@@ -46,6 +46,15 @@ pub fn value_json(value: &Value) -> Json {
     }
 }
 
+/// The JSON of a value read now (a read-back, a refresh): its members and `time`, now.
+pub(crate) fn read_json(value: &Value) -> Vec<u8> {
+    let mut json = value_json(value);
+    if let Json::Object(object) = &mut json {
+        object.insert("time".into(), rfc3339(std::time::SystemTime::now()).into());
+    }
+    json.to_string().into_bytes()
+}
+
 fn finite(number: f64) -> Json {
     serde_json::Number::from_f64(number).map_or(Json::Null, Json::Number)
 }

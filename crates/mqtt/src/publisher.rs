@@ -1,10 +1,13 @@
 //! The publisher: a task that turns bus events into messages, one that hands them to the MQTT
 //! client, and one that drives the connection (reconnecting with backoff).
 
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use optobus_bus::{BusFile, Event, Handle, Health, MqttConfig, Source};
+use optobus_bus::{BusFile, Event, Handle, Health, JobError, MqttConfig, Source};
+use optobus_device::{RegisterInfo, Role};
+use optobus_inspect::Value;
 use rumqttc::{
     AsyncClient, ConnectionError, Event as MqttEvent, EventLoop, LastWill, MqttOptions, Outgoing,
     Packet, QoS, StateError, TlsConfiguration, Transport,
@@ -13,10 +16,11 @@ use tokio::sync::broadcast::{self, error::RecvError};
 use tokio::sync::{mpsc, Notify};
 use tokio::task::JoinHandle;
 
-use crate::discovery;
+use crate::discovery::{self, Identity};
 use crate::outbox::{Counts, Kind, Message, Outbox, MAX_PACKET};
-use crate::payload::sample_json;
+use crate::payload::{read_json, sample_json};
 use crate::secret::{Secret, SecretError};
+use crate::state::States;
 use crate::topics::Topics;
 use crate::writes::{Taken, Write, WRITE_QUEUE};
 
@@ -62,6 +66,47 @@ struct DeviceState {
     online: Option<bool>,
 }
 
+/// Home Assistant discovery: what its configurations are made of, and the configurations.
+#[derive(Debug)]
+struct Discovery {
+    /// Home Assistant's status topic (`<discovery prefix>/status`).
+    status: String,
+    prefix: String,
+    client_id: String,
+    file: BusFile,
+    /// What devices said about themselves (read once at start).
+    identities: Mutex<HashMap<String, Identity>>,
+    configs: Mutex<Vec<Message>>,
+}
+
+impl Discovery {
+    fn configs(&self) -> Vec<Message> {
+        lock(&self.configs).clone()
+    }
+
+    /// Makes the configurations again, for the publisher's topic `prefix`.
+    fn make(&self, prefix: &str) {
+        let identities = lock(&self.identities).clone();
+        let configs = discovery::configurations_with(
+            &self.file,
+            &self.prefix,
+            &self.client_id,
+            prefix,
+            &identities,
+        )
+        .into_iter()
+        .map(|(topic, payload)| announce(topic, payload.to_string()))
+        .collect();
+        *lock(&self.configs) = configs;
+    }
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
 #[derive(Debug)]
 struct Shared {
     outbox: Mutex<Outbox>,
@@ -69,15 +114,67 @@ struct Shared {
     devices: Mutex<Vec<DeviceState>>,
     topics: Topics,
     qos: QoS,
-    /// Home Assistant discovery, when on: its status topic and the entities' configurations.
-    discovery: Option<(String, Vec<Message>)>,
+    /// Home Assistant discovery, when on.
+    discovery: Option<Discovery>,
+    /// The state topics Home Assistant reads, when it is on.
+    states: Option<Mutex<States>>,
 }
 
 impl Shared {
     fn outbox(&self) -> MutexGuard<'_, Outbox> {
-        self.outbox
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner())
+        lock(&self.outbox)
+    }
+
+    fn counts(&self) -> Counts {
+        let mut counts = self.outbox().counts();
+        if let Some(states) = &self.states {
+            counts.states_skipped = lock(states).skipped;
+        }
+        counts
+    }
+
+    /// A sample of `register` of `device` for its state topic, if it has one: published now
+    /// or when its interval is over.
+    fn state_sample(&self, device: &str, register: &str, payload: &[u8]) {
+        let Some(states) = &self.states else { return };
+        let topic = self.topics.state(device, register);
+        let now = tokio::time::Instant::now();
+        let message = lock(states).offer(&topic, payload.to_vec(), now);
+        if let Some(message) = message {
+            self.push(message);
+        }
+    }
+
+    /// A value read on purpose for state topic `topic`: published now.
+    fn state_now(&self, topic: &str, payload: Vec<u8>) {
+        let Some(states) = &self.states else { return };
+        let message = lock(states).now(topic, payload, tokio::time::Instant::now());
+        if let Some(message) = message {
+            self.push(message);
+        }
+    }
+
+    /// Whether the bus has given up on `device` for now.
+    fn offline(&self, device: &str) -> bool {
+        lock(&self.devices)
+            .iter()
+            .any(|d| d.name == device && d.online == Some(false))
+    }
+
+    /// `device` said what its register of `role` holds: its entities' device block carries it
+    /// from now.
+    fn identified(&self, device: &str, role: Role, text: String) {
+        let Some(discovery) = &self.discovery else {
+            return;
+        };
+        lock(&discovery.identities)
+            .entry(device.to_owned())
+            .or_default()
+            .set(role, text);
+        discovery.make(self.topics.prefix());
+        for config in discovery.configs() {
+            self.push(config);
+        }
     }
 
     fn push(&self, message: Message) {
@@ -109,8 +206,8 @@ impl Shared {
                 ));
             }
         }
-        if let Some((_, configs)) = &self.discovery {
-            messages.extend(configs.iter().cloned());
+        if let Some(discovery) = &self.discovery {
+            messages.extend(discovery.configs());
         }
         messages
     }
@@ -194,13 +291,43 @@ impl Publisher {
             QoS::AtLeastOnce
         };
         let discovery = config.homeassistant.as_ref().map(|prefix| {
-            let configs =
-                discovery::configurations(file, prefix, &config.client_id, &config.prefix)
-                    .into_iter()
-                    .map(|(topic, payload)| announce(topic, payload.to_string()))
-                    .collect();
-            (format!("{prefix}/status"), configs)
+            let discovery = Discovery {
+                status: format!("{prefix}/status"),
+                prefix: prefix.clone(),
+                client_id: config.client_id.clone(),
+                file: file.clone(),
+                identities: Mutex::new(HashMap::new()),
+                configs: Mutex::new(Vec::new()),
+            };
+            discovery.make(&config.prefix);
+            discovery
         });
+        // Home Assistant's entities read state topics: each register's latest value, at most
+        // once per `state_every`.
+        let states = config.homeassistant.as_ref().map(|_| {
+            let mut states = States::default();
+            for device in &file.devices {
+                let every = config.state_every.of(&device.name);
+                for register in discovery::state_registers(device) {
+                    states.add(topics.state(&device.name, register.name), every);
+                }
+            }
+            Mutex::new(states)
+        });
+        // What is read for them: what names each device once, the controls periodically.
+        let reads: Vec<Reads> = match &config.homeassistant {
+            Some(_) => file
+                .devices
+                .iter()
+                .map(|device| Reads {
+                    device: device.name.clone(),
+                    identity: discovery::identity_registers(device.device),
+                    controls: discovery::read_for_state(device),
+                })
+                .filter(|reads| !reads.identity.is_empty() || !reads.controls.is_empty())
+                .collect(),
+            None => Vec::new(),
+        };
         let shared = Arc::new(Shared {
             outbox: Mutex::new(Outbox::new(config.queue)),
             wake: Notify::new(),
@@ -216,11 +343,27 @@ impl Publisher {
             topics,
             qos,
             discovery,
+            states,
         });
-        // Write topics are listened to only when the file lets something be written.
-        let handle = handle.filter(|_| file.devices.iter().any(|d| !d.writable.is_empty()));
         let (client, eventloop) = AsyncClient::new(options, CLIENT_CHANNEL);
         let mut tasks = Vec::new();
+        if let (Some(handle), false) = (&handle, reads.is_empty()) {
+            tasks.push(tokio::spawn(refresh(
+                handle.for_source(Source::Mqtt),
+                Arc::clone(&shared),
+                reads,
+                config.refresh_every,
+            )));
+        }
+        let tick = shared
+            .states
+            .as_ref()
+            .and_then(|states| lock(states).tick());
+        if let Some(tick) = tick {
+            tasks.push(tokio::spawn(states_due(Arc::clone(&shared), tick)));
+        }
+        // Write topics are listened to only when the file lets something be written.
+        let handle = handle.filter(|_| file.devices.iter().any(|d| !d.writable.is_empty()));
         let writes = handle.map(|handle| {
             // One task does the writes, one at a time: a flood of them waits in a bounded
             // queue (or is refused) instead of becoming a task each.
@@ -251,7 +394,7 @@ impl Publisher {
 
     /// How publishing has gone so far.
     pub fn counts(&self) -> Counts {
-        self.shared.outbox().counts()
+        self.shared.counts()
     }
 
     /// A handle that reads [`counts`](Self::counts) from elsewhere (a metrics exporter's
@@ -293,7 +436,7 @@ pub struct CountsReader {
 impl CountsReader {
     /// How publishing has gone so far (see [`Publisher::counts`]).
     pub fn counts(&self) -> Counts {
-        self.shared.outbox().counts()
+        self.shared.counts()
     }
 }
 
@@ -349,6 +492,7 @@ async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
             Ok(Event::Sample(sample)) => {
                 shared.health(&sample.source.device, true);
                 let payload = sample_json(&sample).to_string().into_bytes();
+                shared.state_sample(&sample.source.device, sample.register.name, &payload);
                 shared.push(Message {
                     topic: shared
                         .topics
@@ -373,6 +517,9 @@ async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
 async fn write(mut waiting: mpsc::Receiver<Write>, handle: Handle, shared: Arc<Shared>) {
     while let Some(write) = waiting.recv().await {
         let done = crate::writes::carry_out(&handle, &shared.topics, write).await;
+        if let Some((topic, payload)) = done.state {
+            shared.state_now(&topic, payload);
+        }
         let count = |counts: &mut Counts| {
             if done.busy {
                 counts.writes_busy += 1;
@@ -383,6 +530,100 @@ async fn write(mut waiting: mpsc::Receiver<Write>, handle: Handle, shared: Arc<S
         match done.reply {
             Some(reply) => shared.reply(reply, count),
             None => count(&mut shared.outbox().counts),
+        }
+    }
+}
+
+/// A device's registers read for the state topics.
+#[derive(Debug)]
+struct Reads {
+    device: String,
+    /// The registers that name the device (firmware version, serial number), until each has
+    /// been read once.
+    identity: Vec<(Role, &'static RegisterInfo)>,
+    /// The controls Home Assistant shows, read at start and at each refresh.
+    controls: Vec<&'static RegisterInfo>,
+}
+
+/// Reads the controls' values for their state topics at start and every `every`, and what
+/// names each device (its registers with a role: firmware version, serial number) once, through `handle` (as MQTT: the line serves them in turn
+/// with its polls, in its bounded queue for MQTT). One read at a time; a device the bus has
+/// given up on is left for the next round, and so is the rest of a device after a failure or
+/// a busy refusal (counted).
+async fn refresh(handle: Handle, shared: Arc<Shared>, mut reads: Vec<Reads>, every: Duration) {
+    let mut rounds = tokio::time::interval(every);
+    rounds.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    loop {
+        rounds.tick().await;
+        for device in &mut reads {
+            if shared.offline(&device.device) {
+                continue;
+            }
+            // Each is read until it has been once (an invalid reading is tried again).
+            let mut failed = false;
+            for (role, register) in std::mem::take(&mut device.identity) {
+                if !failed {
+                    match read_for_state(&handle, &shared, &device.device, register).await {
+                        Some(Value::Invalid) => {}
+                        Some(value) => {
+                            shared.identified(&device.device, role, value.to_string());
+                            continue;
+                        }
+                        None => failed = true,
+                    }
+                }
+                device.identity.push((role, register));
+            }
+            if failed {
+                continue;
+            }
+            for register in &device.controls {
+                let Some(value) = read_for_state(&handle, &shared, &device.device, register).await
+                else {
+                    break;
+                };
+                shared.state_now(
+                    &shared.topics.state(&device.device, register.name),
+                    read_json(&value),
+                );
+            }
+        }
+    }
+}
+
+/// Reads `register` of `device` for a state topic, counting how it went.
+async fn read_for_state(
+    handle: &Handle,
+    shared: &Shared,
+    device: &str,
+    register: &'static RegisterInfo,
+) -> Option<Value> {
+    let result = handle.read_checked(device, register).await;
+    let mut outbox = shared.outbox();
+    outbox.counts.state_reads += 1;
+    match result {
+        Ok(value) => Some(value),
+        Err(JobError::Busy { .. }) => {
+            outbox.counts.state_reads_busy += 1;
+            None
+        }
+        Err(_) => {
+            outbox.counts.state_reads_failed += 1;
+            None
+        }
+    }
+}
+
+/// Publishes the samples that waited for their state topic's interval to be over.
+async fn states_due(shared: Arc<Shared>, tick: Duration) {
+    let Some(states) = &shared.states else { return };
+    let mut ticks = tokio::time::interval(tick);
+    ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    loop {
+        ticks.tick().await;
+        let due = lock(states).due(tokio::time::Instant::now());
+        for message in due {
+            shared.push(message);
         }
     }
 }
@@ -442,8 +683,8 @@ async fn drive(
                 shared.outbox().connected(announcements);
                 shared.wake.notify_one();
                 let mut subscriptions = Vec::new();
-                if let Some((status, _)) = &shared.discovery {
-                    subscriptions.push(status.clone());
+                if let Some(discovery) = &shared.discovery {
+                    subscriptions.push(discovery.status.clone());
                 }
                 if writes.is_some() {
                     subscriptions.extend(shared.topics.write_filters());
@@ -542,12 +783,13 @@ fn incoming(
     payload: &[u8],
     retained: bool,
 ) {
-    if let Some((status, configs)) = &shared.discovery {
-        if topic == status {
+    if let Some(discovery) = &shared.discovery {
+        if topic == discovery.status {
             if payload == b"online" {
                 // Home Assistant (re)started: it forgets entities not announced again. Many
                 // births in a row make one re-announcement.
-                shared.outbox().rediscover(configs);
+                let configs = discovery.configs();
+                shared.outbox().rediscover(&configs);
                 shared.wake.notify_one();
             }
             return;
@@ -578,6 +820,7 @@ mod tests {
             topics: Topics::new("t"),
             qos: QoS::AtLeastOnce,
             discovery: None,
+            states: None,
         })
     }
 

@@ -32,6 +32,12 @@ impl Topics {
         format!("{}/{device}/{register}", self.prefix)
     }
 
+    /// A register's state for Home Assistant: its latest value, retained, at most once per
+    /// `state_every`.
+    pub(crate) fn state(&self, device: &str, register: &str) -> String {
+        format!("{}/{device}/{register}/state", self.prefix)
+    }
+
     /// The filters of the write topics: `<prefix>/<device>/<register>/set` and
     /// `<prefix>/<device>/<command>/do`.
     pub(crate) fn write_filters(&self) -> [String; 2] {

@@ -5,15 +5,12 @@
 //! `<prefix>/<device>/<name>/error` with the tool's one-line message, and then nothing was
 //! sent to the device unless the device itself failed.
 
-use std::time::SystemTime;
-
-use optobus_bus::{rfc3339, Handle, JobError, NETWORK_QUEUE};
+use optobus_bus::{Handle, JobError, NETWORK_QUEUE};
 use rumqttc::QoS;
-use serde_json::Value as Json;
 use tokio::sync::mpsc;
 
 use crate::outbox::{Kind, Message};
-use crate::payload::value_json;
+use crate::payload::read_json;
 use crate::text::excerpt;
 use crate::topics::Topics;
 
@@ -150,6 +147,8 @@ pub(crate) struct Done {
     pub(crate) reply: Option<Message>,
     /// The line refused it as busy (its queue for MQTT was full).
     pub(crate) busy: bool,
+    /// The value read back for the register's state topic: (topic, payload).
+    pub(crate) state: Option<(String, Vec<u8>)>,
 }
 
 /// Does `write` through `handle` (whose source is MQTT) as `optobus set` or `optobus do`
@@ -162,6 +161,7 @@ pub(crate) async fn carry_out(handle: &Handle, topics: &Topics, write: Write) ->
     } = write;
     let failed = |why: JobError, value: Option<&str>| Done {
         busy: matches!(why, JobError::Busy { .. }),
+        state: None,
         reply: Some(error(
             topics,
             &device,
@@ -174,6 +174,7 @@ pub(crate) async fn carry_out(handle: &Handle, topics: &Topics, write: Write) ->
             Ok(()) => Done {
                 reply: None,
                 busy: false,
+                state: None,
             },
             Err(why) => failed(why, None),
         };
@@ -182,18 +183,17 @@ pub(crate) async fn carry_out(handle: &Handle, topics: &Topics, write: Write) ->
         return Done {
             reply: Some(error(topics, &device, &name, "the value is not UTF-8 text")),
             busy: false,
+            state: None,
         };
     };
     match handle.set_listed(&device, &name, text).await {
         Ok(Some(value)) => {
-            let mut json = value_json(&value);
-            if let Json::Object(object) = &mut json {
-                object.insert("time".into(), rfc3339(SystemTime::now()).into());
-            }
+            let payload = read_json(&value);
             Done {
+                state: Some((topics.state(&device, &name), payload.clone())),
                 reply: Some(Message {
                     topic: topics.sample(&device, &name),
-                    payload: json.to_string().into_bytes(),
+                    payload,
                     qos: QoS::AtLeastOnce,
                     retain: false,
                     kind: Kind::Reply,
@@ -204,6 +204,7 @@ pub(crate) async fn carry_out(handle: &Handle, topics: &Topics, write: Write) ->
         Ok(None) => Done {
             reply: None,
             busy: false,
+            state: None,
         },
         Err(why) => failed(why, Some(text)),
     }

@@ -75,7 +75,7 @@ async fn home_assistant_gets_a_device_and_an_entity_per_polled_register() {
     assert_eq!(distance["device_class"], "distance");
     assert_eq!(distance["state_class"], "measurement");
     assert_eq!(distance["suggested_display_precision"], decimals);
-    assert_eq!(distance["state_topic"], "optobus/top/distance_1");
+    assert_eq!(distance["state_topic"], "optobus/top/distance_1/state");
     assert_eq!(distance["value_template"], "{{ value_json.value }}");
     assert_eq!(distance["unique_id"], "hall-2_top_distance_1_sensor");
     assert_eq!(
@@ -132,7 +132,7 @@ async fn home_assistant_gets_a_device_and_an_entity_per_polled_register() {
     assert_eq!(power["step"].as_f64(), Some(value(1)));
     assert_eq!(power["unit_of_measurement"], "%");
     assert_eq!(power["command_topic"], "optobus/top/light_power/set");
-    assert_eq!(power["state_topic"], "optobus/top/light_power");
+    assert_eq!(power["state_topic"], "optobus/top/light_power/state");
     let select = config(
         &watcher,
         "homeassistant/select/hall-2_top/median_filter_width/config",

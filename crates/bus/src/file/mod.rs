@@ -9,7 +9,7 @@ pub mod outputs;
 mod read;
 mod reader;
 
-pub use outputs::{HttpConfig, MetricsConfig, MqttConfig, Outputs, SecretSource};
+pub use outputs::{HttpConfig, MetricsConfig, MqttConfig, Outputs, SecretSource, StateEvery};
 pub use read::{resolve, writable};
 
 use std::net::SocketAddr;

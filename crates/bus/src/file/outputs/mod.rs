@@ -8,7 +8,10 @@ mod mqtt;
 
 pub use http::{HttpConfig, DEFAULT_HTTP_PORT};
 pub use metrics::MetricsConfig;
-pub use mqtt::{MqttConfig, SecretSource, DEFAULT_MQTT_QUEUE};
+pub use mqtt::{
+    MqttConfig, SecretSource, StateEvery, DEFAULT_MQTT_QUEUE, DEFAULT_REFRESH_EVERY,
+    DEFAULT_STATE_EVERY,
+};
 
 use optobus_codegen::source::{Node, Span};
 

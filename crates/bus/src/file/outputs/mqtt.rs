@@ -21,7 +21,46 @@ pub(in crate::file) const MQTT_KEYS: &[&str] = &[
     "queue",
     "keep_alive",
     "homeassistant",
+    "state_every",
+    "refresh_every",
 ];
+
+/// The shortest time between two messages on a register's state topic (what Home Assistant
+/// reads) unless the file says otherwise.
+pub const DEFAULT_STATE_EVERY: Duration = Duration::from_secs(1);
+
+/// How often the values of the registers Home Assistant controls are read again unless the
+/// file says otherwise.
+pub const DEFAULT_REFRESH_EVERY: Duration = Duration::from_secs(60);
+
+/// The shortest time between two messages on a register's state topic, for every device or
+/// per device: `state_every: 1s`, or `state_every: { default: 1s, confocal: 100ms }`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StateEvery {
+    /// For the devices not named in `devices`.
+    pub default: Duration,
+    /// Devices given their own interval.
+    pub devices: Vec<(String, Duration)>,
+}
+
+impl StateEvery {
+    /// The interval of device `device`.
+    pub fn of(&self, device: &str) -> Duration {
+        self.devices
+            .iter()
+            .find(|(name, _)| name == device)
+            .map_or(self.default, |(_, every)| *every)
+    }
+}
+
+impl Default for StateEvery {
+    fn default() -> Self {
+        Self {
+            default: DEFAULT_STATE_EVERY,
+            devices: Vec::new(),
+        }
+    }
+}
 
 /// Where a secret comes from; the bus file never holds a password itself.
 #[derive(Clone, PartialEq, Eq)]
@@ -72,6 +111,13 @@ pub struct MqttConfig {
     pub keep_alive: Duration,
     /// Home Assistant discovery under this prefix (`homeassistant: true` is `homeassistant`).
     pub homeassistant: Option<String>,
+    /// With Home Assistant on: the shortest time between two messages on a register's state
+    /// topic (`<prefix>/<device>/<register>/state`, what its entities read); zero publishes
+    /// every sample there. The sample topics always carry every sample.
+    pub state_every: StateEvery,
+    /// With Home Assistant on: how often the registers it controls (and may read) are read
+    /// again for their state topics, besides at start and after each write.
+    pub refresh_every: Duration,
 }
 
 impl MqttConfig {
@@ -92,6 +138,8 @@ impl MqttConfig {
             queue: DEFAULT_MQTT_QUEUE,
             keep_alive: Duration::from_secs(30),
             homeassistant: None,
+            state_every: StateEvery::default(),
+            refresh_every: DEFAULT_REFRESH_EVERY,
         })
     }
 }
@@ -184,6 +232,14 @@ impl Reader<'_> {
             },
             None => Some(None),
         };
+        let state_every = match get("state_every") {
+            Some(v) => self.state_every(v, devices),
+            None => Some(StateEvery::default()),
+        };
+        let refresh_every = match get("refresh_every") {
+            Some(v) => self.duration(v, "`refresh_every`", Duration::from_secs(1)),
+            None => Some(DEFAULT_REFRESH_EVERY),
+        };
         for (name, span) in devices {
             if !is_topic_level(name) {
                 self.error(
@@ -218,7 +274,42 @@ impl Reader<'_> {
             queue: queue?,
             keep_alive: keep_alive?,
             homeassistant: homeassistant?,
+            state_every: state_every?,
+            refresh_every: refresh_every?,
         })
+    }
+
+    /// `state_every: DURATION`, or a mapping of `default` and device names to durations.
+    fn state_every(&mut self, node: &Node, devices: &[(&str, Span)]) -> Option<StateEvery> {
+        const WHAT: &str = "`state_every`";
+        if entries(node).is_none() {
+            let every = self.duration(node, WHAT, Duration::ZERO)?;
+            return Some(StateEvery {
+                default: every,
+                devices: Vec::new(),
+            });
+        }
+        let mut keys = vec!["default"];
+        keys.extend(devices.iter().map(|(name, _)| *name));
+        let pairs = self.mapping(node, WHAT, &keys)?;
+        let mut every = StateEvery::default();
+        let mut ok = true;
+        for (key, value) in pairs {
+            let (Some(name), Some(duration)) =
+                (scalar(key), self.duration(value, WHAT, Duration::ZERO))
+            else {
+                ok = false;
+                continue;
+            };
+            if name == "default" {
+                every.default = duration;
+            } else if keys.contains(&name) {
+                every.devices.push((name.to_owned(), duration));
+            } else {
+                ok = false;
+            }
+        }
+        ok.then_some(every)
     }
 
     /// `HOST`, `HOST:PORT` or `[IPv6]:PORT`.
