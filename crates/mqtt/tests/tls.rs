@@ -346,7 +346,7 @@ fn a_broker_certificate_the_ca_does_not_vouch_for_is_refused() {
         let warned = warnings.0.lock().unwrap().clone();
         assert_eq!(warned.len(), 1, "{warned:?}");
         assert!(
-            warned[0].contains("MQTT broker unreachable")
+            warned[0].contains("cannot be reached")
                 && warned[0].contains("invalid peer certificate: UnknownIssuer"),
             "{warned:?}"
         );
