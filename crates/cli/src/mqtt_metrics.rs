@@ -104,6 +104,31 @@ fn readings(counts: &Counts) -> Vec<Reading> {
             "MQTT announcements and answers to writes waiting.",
             gauge(counts.control_queued),
         ),
+        Reading::counter(
+            "optobus_mqtt_states_published",
+            "States the broker took on the state topics Home Assistant reads.",
+            counts.states_published,
+        ),
+        Reading::counter(
+            "optobus_mqtt_states_skipped",
+            "Samples left off the state topics: a newer one came within state_every.",
+            counts.states_skipped,
+        ),
+        Reading::counter(
+            "optobus_mqtt_state_reads",
+            "Reads of Home Assistant controls for their state topics, at start and each refresh.",
+            counts.state_reads,
+        ),
+        Reading::counter(
+            "optobus_mqtt_state_reads_busy",
+            "Reads for the state topics the line refused as busy, tried again at the next refresh.",
+            counts.state_reads_busy,
+        ),
+        Reading::counter(
+            "optobus_mqtt_state_reads_failed",
+            "Reads for the state topics the device or the line failed.",
+            counts.state_reads_failed,
+        ),
     ]
 }
 
@@ -302,6 +327,20 @@ outputs:
             (
                 "optobus_mqtt_control_queue_messages",
                 counts.control_queued as u64,
+            ),
+            (
+                "optobus_mqtt_states_published_total",
+                counts.states_published,
+            ),
+            ("optobus_mqtt_states_skipped_total", counts.states_skipped),
+            ("optobus_mqtt_state_reads_total", counts.state_reads),
+            (
+                "optobus_mqtt_state_reads_busy_total",
+                counts.state_reads_busy,
+            ),
+            (
+                "optobus_mqtt_state_reads_failed_total",
+                counts.state_reads_failed,
             ),
         ];
         for (name, value) in expected {
