@@ -210,3 +210,45 @@ outputs:
     drop((run, broker, device));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
+fn a_clean_stop_tells_of_no_lost_broker() {
+    // Found in the README walk: every stop of a run with MQTT ended in "the broker … cannot be
+    // reached", a warning in the journal at each restart of the service.
+    let dir = std::env::temp_dir().join(format!("optobus-clean-stop-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let broker_port = free_port();
+    let _broker = mosquitto(&dir, broker_port);
+    std::thread::sleep(Duration::from_millis(300));
+    let bus = dir.join("bus.yaml");
+    std::fs::write(
+        &bus,
+        format!(
+            "
+lines: [{{ name: sim, simulated: true, baud: 115200, any_format: true }}]
+devices: [{{ name: top, model: p-series, slave: 1, poll: [{{ read: distance_1, every: 100ms }}] }}]
+outputs: {{ mqtt: {{ broker: '127.0.0.1:{broker_port}', prefix: plant }} }}
+"
+        ),
+    )
+    .unwrap();
+    let output = common::optobus()
+        .args(["run", bus.to_str().unwrap(), "--duration", "2s", "--json"])
+        .output()
+        .expect("optobus run");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "MQTT: connected to the broker at 127.0.0.1:{broker_port}"
+        )),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("cannot be reached"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

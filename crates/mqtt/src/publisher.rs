@@ -118,6 +118,8 @@ struct Shared {
     discovery: Option<Discovery>,
     /// The state topics Home Assistant reads, when it is on.
     states: Option<Mutex<States>>,
+    /// Set by [`Publisher::stop`]: the connection's end is ours, nothing to warn about.
+    stopping: std::sync::atomic::AtomicBool,
 }
 
 impl Shared {
@@ -344,6 +346,7 @@ impl Publisher {
             qos,
             discovery,
             states,
+            stopping: Default::default(),
         });
         let (client, eventloop) = AsyncClient::new(options, CLIENT_CHANNEL);
         let mut tasks = Vec::new();
@@ -414,6 +417,9 @@ impl Publisher {
         while !self.shared.outbox().is_idle() && tokio::time::Instant::now() < deadline {
             tokio::time::sleep(Duration::from_millis(10)).await;
         }
+        self.shared
+            .stopping
+            .store(true, std::sync::atomic::Ordering::Relaxed);
         let _ = self.client.disconnect().await;
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
@@ -700,6 +706,10 @@ async fn drive(
             }
             Ok(event) => take_in(&shared, writes.as_ref(), event),
             Err(error) => {
+                if shared.stopping.load(std::sync::atomic::Ordering::Relaxed) {
+                    // The publisher disconnected on purpose: the end of the run, not a loss.
+                    return;
+                }
                 broke(&mut eventloop, &shared, writes.as_ref());
                 if let ConnectionError::MqttState(StateError::Deserialization(
                     rumqttc::Error::PayloadSizeLimitExceeded(size),
@@ -821,6 +831,7 @@ mod tests {
             qos: QoS::AtLeastOnce,
             discovery: None,
             states: None,
+            stopping: Default::default(),
         })
     }
 
