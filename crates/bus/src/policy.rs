@@ -79,6 +79,8 @@ pub enum Refusal {
         device: String,
         /// The function code.
         function: u8,
+        /// The functions its spec lists.
+        taken: &'static [u8],
     },
     /// A request to a slave that is no device of the bus file: nothing lists what it may take.
     UnknownSlave(u8),
@@ -172,10 +174,19 @@ impl std::fmt::Display for Refusal {
                 "`{device}` has no writable register starting at holding address {address}, or \
                  the write covers part of one"
             ),
-            Self::FunctionNotTaken { device, function } => write!(
-                f,
-                "function {function:#04x} writes nothing `{device}`'s spec lets the network write"
-            ),
+            Self::FunctionNotTaken {
+                device,
+                function,
+                taken,
+            } => {
+                let taken: Vec<String> = taken.iter().map(|f| format!("{f:#04x}")).collect();
+                write!(
+                    f,
+                    "`{device}` does not take function {function:#04x} for writing: its manual \
+                     lists {}",
+                    taken.join(", ")
+                )
+            }
             Self::UnknownSlave(0) => f.write_str(
                 "a broadcast on a line where the bus file names no device: nothing lists what it \
                  may take",
@@ -403,6 +414,7 @@ impl<'a> Policy<'a> {
         Refusal::FunctionNotTaken {
             device: self.device.to_owned(),
             function,
+            taken: self.info.functions,
         }
     }
 }

@@ -533,6 +533,14 @@ async fn the_gateway_with_writes_writes_only_what_the_bus_file_lists() {
     assert_eq!(after, before, "nothing reached the device");
     let counts = running.gateway_counts("rs485").unwrap();
     assert_eq!(counts.policy_refused, 4);
+    // FC16, which the P series' manual does not list, even of a listed register: 01.
+    let [high, low] = optobus_p_series::DEVICE
+        .register("light_power")
+        .unwrap()
+        .address
+        .to_be_bytes();
+    let reply = ask(&mut client, 8, 1, &[0x10, high, low, 0, 1, 2, 0x02, 0x58]).await;
+    assert_eq!(&reply[7..], &[0x90, 0x01]);
     // What is listed is written.
     let reply = ask(&mut client, 9, 1, &write_p_series("light_power", 600)).await;
     assert_eq!(reply[7..], write_p_series("light_power", 600)[..]);

@@ -158,3 +158,27 @@ fn secret_sources_do_not_show_a_written_user_name_in_debug() {
         "Env(\"MQTT_PASSWORD\")"
     );
 }
+
+#[test]
+fn homeassistant_yes_is_refused_rather_than_taken_for_a_prefix() {
+    // Found in the README walk: `yes` passed `bus check` and became the discovery prefix
+    // `yes`, so Home Assistant saw no entity.
+    for word in ["yes", "no", "on", "Off"] {
+        let rendered = parse(&format!(
+            "{BUS}outputs:\n  mqtt:\n    broker: localhost\n    homeassistant: {word}\n"
+        ))
+        .expect_err("a YAML 1.1 boolean is no prefix");
+        assert!(
+            rendered.contains(&format!(
+                "`homeassistant: {word}` reads as a discovery prefix `{word}`"
+            )) && rendered.contains("write `true`"),
+            "{rendered}"
+        );
+    }
+    let file = parse(&format!(
+        "{BUS}outputs:\n  mqtt:\n    broker: localhost\n    homeassistant: ha\n"
+    ))
+    .unwrap();
+    let mqtt = file.outputs.mqtt.unwrap();
+    assert_eq!(mqtt.homeassistant.as_deref(), Some("ha"));
+}

@@ -159,6 +159,22 @@ outputs:
         refused.contains("not done: `laser_enabled` of `top` is not writable here"),
         "{refused}"
     );
+    // A request for another Host (DNS rebinding) is refused, and told.
+    let mut stream = std::net::TcpStream::connect(&console).unwrap();
+    write!(
+        stream,
+        "POST /api/devices/top/set HTTP/1.1\r\nHost: evil.example\r\nContent-Length: 0\r\n\
+         Connection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut reply = String::new();
+    stream.read_to_string(&mut reply).unwrap();
+    assert!(reply.starts_with("HTTP/1.1 421"), "{reply}");
+    wait_for(
+        &heard,
+        "<4>optobus: console 127.0.0.1:",
+        "POST /api/devices/top/set: refused, 421: the console does not answer requests for `evil.example`",
+    );
     let gateway_line = wait_for(&heard, "optobus: gateway of sim on ", "");
     let gateway = gateway_line
         .trim_start_matches("optobus: gateway of sim on ")

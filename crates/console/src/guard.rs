@@ -6,7 +6,7 @@
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::sync::Arc;
 
-use axum::extract::{Request, State};
+use axum::extract::{ConnectInfo, Request, State};
 use axum::http::header::{
     ACCESS_CONTROL_ALLOW_HEADERS, ACCESS_CONTROL_ALLOW_METHODS, ACCESS_CONTROL_ALLOW_ORIGIN,
     AUTHORIZATION, HOST, ORIGIN, VARY,
@@ -170,6 +170,13 @@ impl Guard {
             Some(path) => Some(read_token(path)?),
             None => None,
         };
+        if token.is_none() && !address.ip().is_loopback() {
+            tracing::warn!(
+                target: "optobus_console",
+                "the console listens on {address}, beyond 127.0.0.1, without a `token_file`: \
+                 writes and reads of the line are off"
+            );
+        }
         Ok(Self {
             token,
             loopback: address.ip().is_loopback(),
@@ -249,18 +256,18 @@ pub(crate) async fn check(
     let headers = request.headers();
     let host = headers.get(HOST).and_then(|v| v.to_str().ok());
     if !host.is_some_and(|h| guard.hosts.answers(h)) {
-        return misdirected(host).into_response();
+        return refused(&request, misdirected(host));
     }
     let origin = match headers.get(ORIGIN).map(|v| v.to_str()) {
         None => None,
         Some(Ok(origin)) if guard.allows_origin(origin, host) => Some(origin.to_owned()),
         Some(origin) => {
-            let origin = origin.unwrap_or("?");
-            return ApiError::new(
+            let origin: String = origin.unwrap_or("?").chars().take(EXCERPT).collect();
+            let refusal = ApiError::new(
                 StatusCode::FORBIDDEN,
                 format!("pages of {origin} may not call this console"),
-            )
-            .into_response();
+            );
+            return refused(&request, refusal);
         }
     };
     let listed = origin.filter(|o| guard.origins.contains(o));
@@ -271,12 +278,32 @@ pub(crate) async fn check(
     }
     if request.method() == Method::POST {
         if let Some(refusal) = guard.refuses_write(headers) {
-            return refusal.into_response();
+            return refused(&request, refusal);
         }
     }
     let mut response = next.run(request).await;
     allow(response.headers_mut(), listed.as_deref(), false);
     response
+}
+
+/// The most of a request's path or origin a log line or a message quotes.
+const EXCERPT: usize = 80;
+
+/// Refuses `request` with `refusal`, told in the audit trail: who asked what, and why not.
+fn refused(request: &Request, refusal: ApiError) -> Response {
+    let who = match request.extensions().get::<ConnectInfo<SocketAddr>>() {
+        Some(ConnectInfo(peer)) => format!("console {peer}"),
+        None => "console".to_owned(),
+    };
+    let path: String = request.uri().path().chars().take(EXCERPT).collect();
+    tracing::warn!(
+        target: optobus_bus::AUDIT_TARGET,
+        "{who}: {} {path}: refused, {}: {}",
+        request.method(),
+        refusal.status.as_u16(),
+        refusal.message
+    );
+    refusal.into_response()
 }
 
 /// Marks a reply to a listed origin as readable by its page.

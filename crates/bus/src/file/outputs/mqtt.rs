@@ -226,6 +226,20 @@ impl Reader<'_> {
             Some(v) => match scalar(v) {
                 Some("true") => Some(Some("homeassistant".to_owned())),
                 Some("false") => Some(None),
+                // YAML 1.1's booleans: a prefix `yes` would hide every entity from Home
+                // Assistant, which listens under `homeassistant`.
+                Some(word)
+                    if ["yes", "no", "on", "off", "y", "n"]
+                        .contains(&word.to_ascii_lowercase().as_str()) =>
+                {
+                    self.error(
+                        v.span,
+                        format!("`homeassistant: {word}` reads as a discovery prefix `{word}`"),
+                        "write `true` (discovery under `homeassistant`) or `false`; a prefix of \
+                         your own is a topic such as `ha`",
+                    );
+                    None
+                }
                 _ => self
                     .topic_prefix(v, "`homeassistant` (true, false or a discovery prefix)")
                     .map(Some),
