@@ -32,6 +32,7 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
         .route("/api/devices/{device}/set", post(write::set))
         .route("/api/devices/{device}/do", post(write::run))
         .route("/api/devices/{device}/buffer", post(write::buffer))
+        .fallback(no_route)
         .layer(axum::middleware::from_fn_with_state(
             Arc::clone(&shared.guard),
             guard::check,
@@ -196,5 +197,13 @@ async fn read_moved() -> ApiError {
         StatusCode::METHOD_NOT_ALLOWED,
         "a register is read with POST /api/devices/{device}/read and a JSON body \
          {\"register\": \"…\"}",
+    )
+}
+
+/// Any other path: a `404` in the API's own shape, saying where the routes are listed.
+async fn no_route() -> ApiError {
+    ApiError::not_found(
+        "no such route: the console's routes are listed in its README (GET /api/devices, \
+         POST /api/devices/{device}/set, …)",
     )
 }

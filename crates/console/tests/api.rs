@@ -264,6 +264,15 @@ async fn a_register_is_read_on_demand_and_unknown_names_are_refused() {
     .await;
     assert_eq!(status, StatusCode::NOT_FOUND);
     assert_eq!(json["error"], "p-series has no register `lihgt_power`");
+    // A route that is not there (the README walk guessed `/write`): a 404 in the API's shape.
+    let (status, json) = call(&router, post("/api/devices/head/write", "{}")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert!(
+        json["error"]
+            .as_str()
+            .is_some_and(|e| e.starts_with("no such route")),
+        "{json}"
+    );
 }
 
 #[tokio::test]
