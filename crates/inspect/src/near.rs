@@ -30,7 +30,9 @@ pub fn near<'a>(name: &str, known: impl IntoIterator<Item = &'a str>) -> Vec<&'a
 
 /// `did you mean `a`, `b`?` for the names [`near`] finds, or `None` when none is near.
 pub fn did_you_mean<'a>(name: &str, known: impl IntoIterator<Item = &'a str>) -> Option<String> {
-    let found = near(name, known);
+    // A name that is known as written is refused for another reason: no typo to point at.
+    let mut found = near(name, known);
+    found.retain(|candidate| *candidate != name);
     (!found.is_empty()).then(|| {
         let names: Vec<String> = found.iter().map(|n| format!("`{n}`")).collect();
         format!("did you mean {}?", names.join(", "))
@@ -50,6 +52,13 @@ mod tests {
         assert_eq!(near("FASTEST", known), ["fastest"]);
         assert!(near("temperature", known).is_empty());
         assert!(near("", known).is_empty());
+        // Found in the README walk: `slave_address` refused under `writable` was told "did
+        // you mean `slave_address`?".
+        assert_eq!(did_you_mean("light_power", known), None);
+        assert_eq!(
+            did_you_mean("Light_Power", known).as_deref(),
+            Some("did you mean `light_power`?")
+        );
         assert_eq!(
             did_you_mean("timout", ["timeout", "retries"]).as_deref(),
             Some("did you mean `timeout`?")
