@@ -105,7 +105,8 @@ pub(crate) fn take(
             device,
             name,
             "a retained write is not carried out (the broker would hand it over again at every \
-             connection); nothing was sent: publish it without the retain flag",
+             connection); nothing was sent: publish it without the retain flag, and clear the \
+             retained one with an empty retained message on this topic",
         ));
     }
     if payload.len() > MAX_WRITE_PAYLOAD {

@@ -422,7 +422,8 @@ async fn a_retained_set_is_refused_and_not_carried_out() {
     let power = P.register("light_power").unwrap();
     let power_before = simulator.peek(power.table, power.address).unwrap();
     let expected = "a retained write is not carried out (the broker would hand it over again \
-                    at every connection); nothing was sent: publish it without the retain flag";
+                    at every connection); nothing was sent: publish it without the retain flag, \
+                    and clear the retained one with an empty retained message on this topic";
     assert!(
         watcher
             .wait_for(Duration::from_secs(20), |heard| heard
@@ -482,7 +483,8 @@ async fn a_retained_do_is_refused_at_start_and_at_every_reconnection_and_never_r
     let simulator = running.simulator("top").unwrap();
     let zero = P.register("position_1_zero").unwrap();
     let expected = "a retained write is not carried out (the broker would hand it over again \
-                    at every connection); nothing was sent: publish it without the retain flag";
+                    at every connection); nothing was sent: publish it without the retain flag, \
+                    and clear the retained one with an empty retained message on this topic";
     let refusals = |heard: &[Heard]| {
         heard
             .iter()
