@@ -4,7 +4,9 @@
 //! 1. The other seven's rates: trials alternate a bus file of the seven alone (the anchor)
 //!    and the file of all eight with the eighth silent from the start; each trial counts the
 //!    seven's polls over its whole run, the dead device's first timeouts and probes included.
-//!    Prints each device's rate with the dead one over its rate without it (target ≥ 0.9).
+//!    Prints each device's rate with the dead one over its rate without it, and the line time
+//!    each request to the dead one cost the others (target: at most its timeout and the quiet
+//!    a late reply needs after it, as the bus README promises: 0.2 s).
 //! 2. Its return: the eighth is silent until some time after it went offline, then answers
 //!    again. Prints the time from its return to its `Online` health event against the backoff
 //!    period in effect then, the wait between its last failed probe and the probe that found
@@ -16,7 +18,8 @@
 //!    device's polls per second and its longest gap between two polls (targets: ≥ 7 a second,
 //!    no gap over 0.4 s).
 //!
-//! Run with `cargo bench -p optobus-bus --bench dead_device`.
+//! Run with `cargo bench -p optobus-bus --bench dead_device`; `OPTOBUS_BENCH_ONLY=3` runs only
+//! part 3 (`1` parts 1 and 2).
 
 mod common;
 
@@ -31,6 +34,8 @@ use optobus_simulator::{Line, Simulator};
 
 const BAUD: u32 = 115_200;
 const TRIALS: usize = 3;
+/// The dead device's timeout (every device's in parts 1 and 2).
+const DEAD_TIMEOUT: Duration = Duration::from_millis(100);
 /// A trial's length; `OPTOBUS_BENCH_RUN_SECS` sets another (a long trial shows the steady
 /// state, where the backoff has grown: the first failures and probes weigh less).
 fn trial_length() -> Duration {
@@ -53,10 +58,11 @@ fn devices(count: usize) -> Vec<String> {
         .enumerate()
         .map(|(i, model)| {
             format!(
-                "{{ name: d{}, model: {}, slave: {}, timeout: 100ms, poll: [{{ read: {GROUP} }}] }}",
+                "{{ name: d{}, model: {}, slave: {}, timeout: {}ms, poll: [{{ read: {GROUP} }}] }}",
                 i + 1,
                 model_name(model),
-                i + 1
+                i + 1,
+                DEAD_TIMEOUT.as_millis()
             )
         })
         .collect()
@@ -203,16 +209,16 @@ async fn run() {
             beside
         );
     }
-    println!(
-        "worst ratio {worst:.3} (target ≥ 0.9): {}",
-        if worst >= 0.9 { "met" } else { "NOT met" }
-    );
-    // What each request to the dead device cost the others: their lost share of the run.
+    // What each request to the dead device cost the others: their lost share of the run. The
+    // bus README's promise: its own timeout, then the quiet a late reply to it needs (the
+    // timeout again), nothing more (5 % for the transactions it delayed).
     let asked_per_trial = asked as f64 / TRIALS as f64;
+    let per_request = (1.0 - worst) * trial_length().as_secs_f64() / asked_per_trial;
+    let promised = 2.0 * DEAD_TIMEOUT.as_secs_f64();
     println!(
-        "  d8 was asked {asked_per_trial:.1} times a trial; the seven lost {:.3} s a trial, {:.3} s per request to d8 (its timeout: 0.100 s)",
+        "worst ratio {worst:.3}; d8 was asked {asked_per_trial:.1} times a trial; the seven lost {:.3} s a trial, {per_request:.3} s per request to d8 (target ≤ its timeout and the quiet after it, {promised:.3} s, + 5 %): {}",
         (1.0 - worst) * trial_length().as_secs_f64(),
-        (1.0 - worst) * trial_length().as_secs_f64() / asked_per_trial
+        if per_request <= promised * 1.05 { "met" } else { "NOT met" }
     );
     for after in RETURNS {
         let (took, backoff, probes) = recovery(after).await;
@@ -314,8 +320,12 @@ async fn beside_absent(server: &PtyServer, absent: bool) -> [(f64, Duration); 2]
             }
         }
     }
-    drop(running);
     let elapsed = started.elapsed().as_secs_f64();
+    drop(running);
+    // The line's last request may still be answered: let the server finish before the next
+    // trial opens the port, or that trial's first request gets two replies (a fault whose
+    // recovery, the default timeout of 1 s, would show as a gap that is no device's doing).
+    tokio::time::sleep(Duration::from_millis(50)).await;
     polls.map(|times| {
         let gap = times
             .windows(2)
@@ -366,8 +376,13 @@ fn main() {
         common::runtime().block_on(serve_pty());
         return;
     }
+    let only = std::env::var("OPTOBUS_BENCH_ONLY").ok();
     common::runtime().block_on(async {
-        run().await;
-        real_line().await;
+        if only.as_deref() != Some("3") {
+            run().await;
+        }
+        if only.as_deref() != Some("1") {
+            real_line().await;
+        }
     });
 }

@@ -656,6 +656,10 @@ pub enum DecodeError {
         /// The length field received.
         received: u16,
     },
+    /// Another reply to the same request came behind a complete one: another master on the
+    /// line, or the reply to an earlier request still under way. RTU frames carry no
+    /// transaction id, so which one answers this request cannot be told; neither is taken.
+    SecondReply,
 }
 
 impl fmt::Display for DecodeError {
@@ -701,6 +705,9 @@ impl fmt::Display for DecodeError {
             Self::BadLength { expected, received } => {
                 write!(f, "MBAP length {received}, expected {expected}")
             }
+            Self::SecondReply => f.write_str(
+                "a second reply came behind the first, so which one answers the request cannot be told",
+            ),
         }
     }
 }

@@ -121,6 +121,19 @@ pub fn response_len(buf: &[u8], shape: &FrameShape<'_>) -> Option<usize> {
     }
 }
 
+/// Whether `after`, bytes that came behind the complete reply `reply`, begin another reply to
+/// the same request: the same slave address and the same function code, or its exception form.
+/// A lone byte behind a reply (a transceiver's glitch as it lets go of the line) does not.
+/// The transport then takes neither reply ([`DecodeError::SecondReply`]).
+pub fn another_reply_follows(reply: &[u8], after: &[u8]) -> bool {
+    match (reply, after) {
+        ([slave, function, ..], [next_slave, next_function, ..]) => {
+            next_slave == slave && next_function & !EXCEPTION_BIT == function & !EXCEPTION_BIT
+        }
+        _ => false,
+    }
+}
+
 /// Returns `NeedMore` from the enclosing decoder when `$buf` is shorter than `$len`.
 macro_rules! need {
     ($buf:expr, $len:expr) => {{

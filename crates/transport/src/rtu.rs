@@ -341,6 +341,15 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         loop {
             match decode(&self.buffer[..filled]) {
                 Ok(Decoded::Frame { frame, consumed }) => {
+                    let (reply, after) = self.buffer[..filled].split_at(consumed);
+                    if rtu::another_reply_follows(reply, after) {
+                        // Two replies to one request: one of them answered another request
+                        // (a reply still under way from before, another master).
+                        self.unsettled = Some(self.unsettled_since(Instant::now()));
+                        let bytes = &self.buffer[..filled];
+                        frames::received(slave, bytes, written.elapsed(), Some("two replies"));
+                        return Err(Error::Frame(DecodeError::SecondReply));
+                    }
                     frames::received(slave, &self.buffer[..filled], written.elapsed(), None);
                     // Bytes behind a good reply mean something else is talking: recover
                     // before the next request.

@@ -563,3 +563,60 @@ async fn a_garbled_reply_to_a_passed_pdu_is_an_error_and_the_next_one_works() {
         .unwrap();
     assert_eq!(reply, pdu_of(&good[..len]));
 }
+
+/// The reply to one read, as the scripted device gives it (words `first`, `first + 1` …).
+fn read_reply(slave: u8, first: u16, count: u16) -> Vec<u8> {
+    let data: Vec<u8> = (0..count)
+        .flat_map(|i| first.wrapping_add(i).to_be_bytes())
+        .collect();
+    let mut out = [0u8; rtu::MAX_FRAME_LEN];
+    let len = rtu::encode_response(
+        &mut out,
+        slave,
+        &Response::Read {
+            function: ReadFunction::Holding,
+            words: Words::from_bytes(&data).unwrap(),
+        },
+    )
+    .unwrap();
+    out[..len].to_vec()
+}
+
+/// A reply to an earlier request still under way when this one left (a restarted master, a
+/// second master): two well-formed replies come to one request, and RTU cannot tell which is
+/// its answer. Neither is taken; the line is recovered and the next read gets its own.
+#[tokio::test]
+async fn two_replies_to_one_request_give_neither_value() {
+    let (a, b) = tokio::io::duplex(1024);
+    let mut both = read_reply(1, 900, 2);
+    both.extend(read_reply(1, 7, 2));
+    let _seen = device(b, vec![Act::Raw(both)], vec![]);
+    let mut client = client(a, quick());
+    match client.read(1, ReadFunction::Holding, 7, 2).await {
+        Err(Error::Frame(optobus_codec::DecodeError::SecondReply)) => {}
+        other => panic!("two replies must give no value, got {other:?}"),
+    }
+    assert_eq!(
+        client.read(1, ReadFunction::Holding, 7, 2).await.unwrap(),
+        [7, 8]
+    );
+}
+
+/// A lone byte behind a good reply (a transceiver letting go of the line) is no second
+/// reply: the value is the device's answer, and the line is recovered before the next request.
+#[tokio::test]
+async fn a_lone_byte_behind_a_reply_keeps_the_reply() {
+    let (a, b) = tokio::io::duplex(1024);
+    let mut reply = read_reply(1, 7, 2);
+    reply.push(0x00);
+    let _seen = device(b, vec![Act::Raw(reply)], vec![]);
+    let mut client = client(a, quick());
+    assert_eq!(
+        client.read(1, ReadFunction::Holding, 7, 2).await.unwrap(),
+        [7, 8]
+    );
+    assert_eq!(
+        client.read(1, ReadFunction::Holding, 7, 2).await.unwrap(),
+        [7, 8]
+    );
+}
