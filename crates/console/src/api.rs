@@ -6,14 +6,18 @@ use std::sync::Arc;
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{DefaultBodyLimit, Path, State};
 use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
 use axum::routing::{any, get, post};
 use axum::{Json, Router};
 use optobus_bus::{rfc3339, Direction, Source};
 use optobus_inspect::hex;
-use serde_json::{json, Value as Json_};
 
 use crate::error::ApiError;
-use crate::state::{health_json, unix_ms, Shared};
+use crate::reply::{
+    Connections, DeviceJson, DeviceMap, Devices, FrameJson, HealthJson, LatestSample,
+    RegisterValue, Status, Values,
+};
+use crate::state::{unix_ms, Shared};
 use crate::{guard, map, page, stream, write, BODY_LIMIT};
 
 pub(crate) fn router(shared: Arc<Shared>) -> Router {
@@ -42,78 +46,73 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
 }
 
 /// `GET /api/devices`: each device with its health, and each line's statistics.
-async fn devices(State(shared): State<Arc<Shared>>) -> Json<Json_> {
+async fn devices(State(shared): State<Arc<Shared>>) -> Response {
     let board = shared.board();
-    let devices: Vec<Json_> = board
+    let devices = board
         .devices
         .iter()
-        .map(|d| {
-            let mut json = health_json(d);
-            json["model"] = d.id.model.to_string().into();
-            json["line"] = d.id.line.to_string().into();
-            json["slave"] = d.id.slave.into();
-            json["title"] = d.info.title.into();
-            json
+        .map(|d| DeviceJson {
+            health: HealthJson::new(d),
+            model: Arc::clone(&d.id.model),
+            line: Arc::clone(&d.id.line),
+            slave: d.id.slave,
+            title: d.info.title,
         })
         .collect();
-    let lines: Vec<&Json_> = board.lines.iter().map(|(_, json)| json).collect();
-    Json(json!({
-        "devices": devices,
-        "lines": lines,
-        "needs_token": shared.guard.needs_token(),
-    }))
+    let lines = board.lines.iter().map(|(_, json)| json).collect();
+    // Sent while the board is held: the reply borrows from it.
+    Json(Devices {
+        devices,
+        lines,
+        needs_token: shared.guard.needs_token(),
+    })
+    .into_response()
 }
 
 /// `GET /api/values`: the latest sample of every register polled, per device, in the map's
 /// order, each saying whether it is `current`: a down device's last values are not.
-async fn values(State(shared): State<Arc<Shared>>) -> Json<Json_> {
+async fn values(State(shared): State<Arc<Shared>>) -> Response {
     let board = shared.board();
-    let mut devices = serde_json::Map::new();
-    for device in &board.devices {
-        let values: Vec<Json_> = device
-            .info
-            .registers
-            .iter()
-            .filter_map(|r| device.values.get(r.name))
-            .map(|(sample, current)| {
-                let mut sample = sample.clone();
-                sample["current"] = (*current).into();
-                sample
-            })
-            .collect();
-        devices.insert(device.id.device.to_string(), json!(values));
-    }
-    Json(Json_::Object(devices))
+    let devices = board
+        .devices
+        .iter()
+        .map(|device| {
+            let samples = device
+                .info
+                .registers
+                .iter()
+                .filter_map(|r| device.values.get(r.name))
+                .map(|(sample, current)| LatestSample {
+                    sample,
+                    current: *current,
+                })
+                .collect();
+            (&*device.id.device, samples)
+        })
+        .collect();
+    Json(Values(devices)).into_response()
 }
 
 /// `GET /api/status`: the live stream's clients and what was dropped, the console's requests
 /// the lines refused as busy (answered `429`), and the listener's connections.
-async fn status(State(shared): State<Arc<Shared>>) -> Json<Json_> {
-    let connections = shared.connections.get().map(|tally| {
-        let counts = tally.counts();
-        json!({
-            "open": counts.open,
-            "accepted": counts.accepted,
-            "refused": counts.refused,
-            "header_timeouts": counts.header_timeouts,
-            "idle_closed": counts.idle_closed,
-            "request_timeouts": counts.request_timeouts,
-        })
-    });
-    Json(json!({
-        "stream_clients": shared.clients().len(),
-        "dropped_batches": shared.dropped(),
-        "missed_events": shared.missed.load(Ordering::Relaxed),
-        "busy_refusals": shared.handle.busy_refusals(Source::Console),
-        "connections": connections,
-    }))
+async fn status(State(shared): State<Arc<Shared>>) -> Json<Status> {
+    Json(Status {
+        stream_clients: shared.clients().len(),
+        dropped_batches: shared.dropped(),
+        missed_events: shared.missed.load(Ordering::Relaxed),
+        busy_refusals: shared.handle.busy_refusals(Source::Console),
+        connections: shared
+            .connections
+            .get()
+            .map(|tally| Connections::from(tally.counts())),
+    })
 }
 
 /// `GET /api/devices/{device}`: its register map, commands and groups.
 async fn device_map(
     State(shared): State<Arc<Shared>>,
     Path(device): Path<String>,
-) -> Result<Json<Json_>, ApiError> {
+) -> Result<Json<DeviceMap>, ApiError> {
     let info = shared
         .handle
         .device_info(&device)
@@ -126,27 +125,25 @@ async fn device_map(
 async fn frames(
     State(shared): State<Arc<Shared>>,
     Path(device): Path<String>,
-) -> Result<Json<Json_>, ApiError> {
+) -> Result<Json<Vec<FrameJson>>, ApiError> {
     let frames = shared
         .handle
         .frames(&device)
         .map_err(|_| ApiError::unknown_device(&device))?;
-    let frames: Vec<Json_> = frames
+    let frames = frames
         .iter()
-        .map(|frame| {
-            json!({
-                "direction": match frame.direction {
-                    Direction::Sent => "sent",
-                    Direction::Received => "received",
-                },
-                "hex": hex(&frame.bytes),
-                "time": rfc3339(frame.at),
-                "unix_ms": unix_ms(frame.at),
-                "after_us": frame.after_request.map(|d| d.as_micros() as u64),
-            })
+        .map(|frame| FrameJson {
+            direction: match frame.direction {
+                Direction::Sent => "sent",
+                Direction::Received => "received",
+            },
+            hex: hex(&frame.bytes),
+            time: rfc3339(frame.at),
+            unix_ms: unix_ms(frame.at),
+            after_us: frame.after_request.map(|d| d.as_micros() as u64),
         })
         .collect();
-    Ok(Json(json!(frames)))
+    Ok(Json(frames))
 }
 
 /// `POST /api/devices/{device}/read`.
@@ -166,7 +163,7 @@ async fn read(
     State(shared): State<Arc<Shared>>,
     Path(device): Path<String>,
     body: Result<Json<Read>, JsonRejection>,
-) -> Result<Json<Json_>, ApiError> {
+) -> Result<Json<RegisterValue>, ApiError> {
     let Json(Read { register }) = body.map_err(write::body_error)?;
     let info = shared
         .handle
@@ -183,11 +180,11 @@ async fn read(
         .read_checked(&device, found)
         .await
         .map_err(|e| write::job_error(&device, e))?;
-    Ok(Json(json!({
-        "register": found.name,
-        "text": value.to_string(),
-        "value": value,
-    })))
+    Ok(Json(RegisterValue {
+        register: found.name.to_owned(),
+        text: value.to_string(),
+        value: Some(value),
+    }))
 }
 
 /// `/api/devices/{device}/read/{register}`, which a GET once read: refused, with where reads

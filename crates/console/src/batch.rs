@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use serde_json::Value as Json;
+use crate::reply::{BatchJson, HealthJson, LineJson, SampleJson};
 
 /// How often a batch is sent.
 pub const BATCH_EVERY: Duration = Duration::from_millis(100);
@@ -17,49 +17,39 @@ const BATCH_LIMIT: usize = 20_000;
 
 /// What happened since the last batch.
 #[derive(Debug, Default)]
-pub(crate) struct Batch {
-    samples: Vec<Json>,
-    health: Vec<Json>,
-    lines: Vec<Json>,
-    /// Samples dropped because the batch was full.
-    overflow: u64,
-}
+pub(crate) struct Batch(BatchJson);
 
 impl Batch {
-    pub(crate) fn add(&mut self, kind: Kind, json: Json) {
-        match kind {
-            Kind::Sample => {
-                if self.samples.len() == BATCH_LIMIT {
-                    self.samples.remove(0);
-                    self.overflow += 1;
+    pub(crate) fn add(&mut self, entry: Entry) {
+        let batch = &mut self.0;
+        match entry {
+            Entry::Sample(sample) => {
+                if batch.samples.len() == BATCH_LIMIT {
+                    batch.samples.remove(0);
+                    batch.overflow += 1;
                 }
-                self.samples.push(json);
+                batch.samples.push(sample);
             }
-            Kind::Health => self.health.push(json),
-            Kind::Line => self.lines.push(json),
+            Entry::Health(health) => batch.health.push(health),
+            Entry::Line(line) => batch.lines.push(line),
         }
     }
 
     /// The batch as JSON text, if anything happened; it starts again empty.
     pub(crate) fn take(&mut self) -> Option<Arc<str>> {
-        if self.samples.is_empty() && self.health.is_empty() && self.lines.is_empty() {
+        let batch = &self.0;
+        if batch.samples.is_empty() && batch.health.is_empty() && batch.lines.is_empty() {
             return None;
         }
-        let batch = std::mem::take(self);
-        let json = serde_json::json!({
-            "samples": batch.samples,
-            "health": batch.health,
-            "lines": batch.lines,
-            "overflow": batch.overflow,
-        });
-        Some(Arc::from(json.to_string()))
+        let batch = std::mem::take(&mut self.0);
+        serde_json::to_string(&batch).ok().map(Arc::from)
     }
 }
 
-/// What a stream entry is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Kind {
-    Sample,
-    Health,
-    Line,
+/// One entry of the stream.
+#[derive(Debug)]
+pub(crate) enum Entry {
+    Sample(SampleJson),
+    Health(HealthJson),
+    Line(LineJson),
 }

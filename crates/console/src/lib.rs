@@ -51,6 +51,7 @@ mod error;
 mod guard;
 mod map;
 mod page;
+mod reply;
 mod state;
 mod stream;
 mod write;

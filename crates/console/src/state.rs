@@ -8,15 +8,14 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use optobus_bus::{DeviceId, ErrorCounts, Event, Handle, Health, HealthEvent, LineStats, Sample};
-use optobus_device::{DeviceInfo, RegisterInfo, ValueKind};
-use optobus_inspect::Value;
-use serde_json::{json, Value as Json};
+use optobus_bus::{DeviceId, ErrorCounts, Event, Handle, Health, HealthEvent};
+use optobus_device::DeviceInfo;
 use tokio::sync::broadcast::error::RecvError;
 use tokio::sync::{broadcast, watch, Notify};
 
-use crate::batch::{Batch, Kind, BATCH_EVERY, BATCH_QUEUE};
+use crate::batch::{Batch, Entry, BATCH_EVERY, BATCH_QUEUE};
 use crate::guard::Guard;
+use crate::reply::{HealthJson, LineJson, SampleJson};
 
 /// Everything the handlers share.
 #[derive(Debug)]
@@ -96,7 +95,7 @@ pub(crate) struct DeviceState {
     pub(crate) reason: Option<String>,
     /// The latest sample of each register, as the stream sends it, and whether it is current:
     /// a value stops being current when its device goes down, until it is sampled again.
-    pub(crate) values: HashMap<&'static str, (Json, bool)>,
+    pub(crate) values: HashMap<&'static str, (SampleJson, bool)>,
 }
 
 /// The latest of everything.
@@ -105,7 +104,7 @@ pub(crate) struct Board {
     /// In the bus file's order.
     pub(crate) devices: Vec<DeviceState>,
     /// Each line's latest statistics, as the stream sends them.
-    pub(crate) lines: Vec<(Arc<str>, Json)>,
+    pub(crate) lines: Vec<(Arc<str>, LineJson)>,
 }
 
 impl Shared {
@@ -177,95 +176,21 @@ pub(crate) fn unix_ms(time: SystemTime) -> f64 {
         .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
 }
 
-/// A value as a number for a chart, when it is one.
-fn number(value: &Value) -> Option<f64> {
-    match value {
-        Value::Integer(n) => Some(*n as f64),
-        Value::Quantity(fixed, _) => Some(fixed.to_f64()),
-        Value::Bool(b) => Some(f64::from(u8::from(*b))),
-        Value::Code(code, _) => Some(f64::from(*code)),
-        _ => None,
-    }
-}
-
-/// A packed or record register's fields, in its spec's order, each with its text, unit and
-/// number, for a row of its own on the page; `null` for a register of one value.
-fn fields_json(register: &RegisterInfo, value: &Value) -> Json {
-    let fields = match register.kind {
-        ValueKind::Packed(fields) | ValueKind::Record(fields) => fields,
-        _ => return Json::Null,
-    };
-    let values = match value {
-        Value::Fields(values) => values.as_slice(),
-        // The whole register invalid: so is each field.
-        _ => &[],
-    };
-    fields
-        .iter()
-        .map(|field| {
-            let value = values
-                .iter()
-                .find(|(name, _)| *name == field.name)
-                .map_or(&Value::Invalid, |(_, value)| value);
-            json!({
-                "name": field.name,
-                "unit": field.unit,
-                "text": value.to_string(),
-                "number": number(value),
-            })
-        })
-        .collect()
-}
-
-/// A sample as the page takes it: its text as the tool shows it, its JSON value, a number for
-/// charts, the fields of a packed or record register (a row each on the page), and the
-/// reply's time.
-pub(crate) fn sample_json(sample: &Sample) -> Json {
-    json!({
-        "device": &*sample.source.device,
-        "register": sample.register.name,
-        "text": sample.value.to_string(),
-        "value": sample.value,
-        "number": number(&sample.value),
-        "fields": fields_json(sample.register, &sample.value),
-        "time": unix_ms(sample.replied),
-    })
-}
-
-pub(crate) fn health_json(state: &DeviceState) -> Json {
-    json!({
-        "device": &*state.id.device,
-        "health": state.health,
-        "errors": state.errors,
-        "reason": state.reason,
-    })
-}
-
-pub(crate) fn line_json(stats: &LineStats) -> Json {
-    json!({
-        "line": &*stats.line,
-        "transactions": stats.transactions,
-        "errors": stats.errors,
-        "utilisation": stats.utilisation(),
-        "open": stats.open,
-    })
-}
-
 impl Board {
     fn device(&mut self, name: &str) -> Option<&mut DeviceState> {
         self.devices.iter_mut().find(|d| &*d.id.device == name)
     }
 
     /// Takes in one event; gives what the stream sends of it.
-    fn apply(&mut self, event: &Event) -> Option<(Kind, Json)> {
+    fn apply(&mut self, event: &Event) -> Option<Entry> {
         match event {
             Event::Sample(sample) => {
-                let json = sample_json(sample);
+                let json = SampleJson::new(sample);
                 let device = self.device(&sample.source.device)?;
                 device
                     .values
                     .insert(sample.register.name, (json.clone(), true));
-                Some((Kind::Sample, json))
+                Some(Entry::Sample(json))
             }
             Event::Health(health) => {
                 let HealthEvent {
@@ -284,15 +209,15 @@ impl Board {
                 }
                 device.errors = *errors;
                 device.reason.clone_from(reason);
-                Some((Kind::Health, health_json(device)))
+                Some(Entry::Health(HealthJson::new(device)))
             }
             Event::Line(stats) => {
-                let json = line_json(stats);
+                let json = LineJson::new(stats);
                 match self.lines.iter_mut().find(|(line, _)| *line == stats.line) {
                     Some((_, latest)) => *latest = json.clone(),
                     None => self.lines.push((Arc::clone(&stats.line), json.clone())),
                 }
-                Some((Kind::Line, json))
+                Some(Entry::Line(json))
             }
         }
     }
@@ -316,8 +241,8 @@ pub(crate) async fn collect(shared: Weak<Shared>, mut events: broadcast::Receive
         match event {
             Some(event) => match event {
                 Ok(event) => {
-                    if let Some((kind, json)) = shared.board().apply(&event) {
-                        batch.add(kind, json);
+                    if let Some(entry) = shared.board().apply(&event) {
+                        batch.add(entry);
                     }
                 }
                 Err(RecvError::Lagged(missed)) => {

@@ -14,9 +14,9 @@ use axum::Json;
 use optobus_bus::{JobError, RefusalKind};
 use serde::Deserialize;
 use serde_json::value::RawValue;
-use serde_json::{json, Value as Json_};
 
 use crate::error::ApiError;
+use crate::reply::{Done, RegisterValue};
 use crate::state::Shared;
 
 /// `POST …/set`.
@@ -107,18 +107,20 @@ pub(crate) async fn set(
     extensions: Extensions,
     Path(device): Path<String>,
     body: Result<Json<Set>, JsonRejection>,
-) -> Result<Json<Json_>, ApiError> {
+) -> Result<Json<RegisterValue>, ApiError> {
     let Json(Set { register, value }) = body.map_err(body_error)?;
     let text = value_text(&value)?;
     let back = handle_for(&shared, &extensions)
         .set_listed(&device, &register, &text)
         .await
         .map_err(|e| job_error(&device, e))?;
-    Ok(Json(json!({
-        "register": register,
-        "text": back.as_ref().map_or_else(|| "written".to_owned(), ToString::to_string),
-        "value": back,
-    })))
+    Ok(Json(RegisterValue {
+        register,
+        text: back
+            .as_ref()
+            .map_or_else(|| "written".to_owned(), ToString::to_string),
+        value: back,
+    }))
 }
 
 pub(crate) async fn run(
@@ -126,13 +128,16 @@ pub(crate) async fn run(
     extensions: Extensions,
     Path(device): Path<String>,
     body: Result<Json<Do>, JsonRejection>,
-) -> Result<Json<Json_>, ApiError> {
+) -> Result<Json<Done>, ApiError> {
     let Json(Do { command }) = body.map_err(body_error)?;
     handle_for(&shared, &extensions)
         .do_listed(&device, &command)
         .await
         .map_err(|e| job_error(&device, e))?;
-    Ok(Json(json!({ "command": command, "done": true })))
+    Ok(Json(Done {
+        command,
+        done: true,
+    }))
 }
 
 /// `POST …/buffer`: the device's data buffer read out, as CSV: `index`, `time_s` (since the
