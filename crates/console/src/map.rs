@@ -2,7 +2,7 @@
 
 use optobus_bus::Writable;
 use optobus_device::{DeviceInfo, RegisterInfo};
-use optobus_inspect::values_text;
+use optobus_inspect::accepted_values_text;
 
 use crate::reply::{CodeJson, CommandJson, DeviceMap, GroupJson, RegisterJson};
 
@@ -18,7 +18,7 @@ fn register(register: &'static RegisterInfo, writable: &Writable) -> RegisterJso
         writable: writable.allows_register(register),
         kind: register.kind.name(),
         unit: register.unit,
-        range: values_text(register),
+        range: accepted_values_text(register),
         codes: register
             .codes
             .iter()

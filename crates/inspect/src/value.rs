@@ -170,7 +170,7 @@ pub fn decode_value(register: &'static RegisterInfo, words: &[u16]) -> Value {
 
 /// What a register takes, as the register maps show it: its codes (`idle (0), save (1)`), each
 /// packed field's codes, or its range in its units; empty when it has none of them.
-pub fn values_text(register: &RegisterInfo) -> String {
+pub fn accepted_values_text(register: &RegisterInfo) -> String {
     match register.kind {
         ValueKind::Enum => crate::code_list(register.codes),
         ValueKind::Packed(fields) => fields

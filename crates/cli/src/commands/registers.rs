@@ -2,7 +2,7 @@
 
 use clap::Args;
 use optobus_device::{DeviceInfo, RegisterInfo};
-use optobus_inspect::{hex_and_decimal, values_text};
+use optobus_inspect::{accepted_values_text, hex_and_decimal};
 use serde_json::{json, Value as Json};
 
 use crate::connect::Options;
@@ -67,7 +67,7 @@ fn text(device: &'static DeviceInfo, json: bool) -> String {
 /// range or codes.
 fn describe(register: &RegisterInfo) -> (String, Json) {
     let kind = register.kind.name();
-    let values = values_text(register);
+    let values = accepted_values_text(register);
     let text = format!(
         "{:<34} {:<7} {:<14} {:<2} {:<7} {:<4} {}",
         register.name,
