@@ -254,7 +254,7 @@ fn si_parts(unit: &str) -> Option<(i8, &str)> {
 pub fn base_unit(unit: &str) -> Option<(i8, &'static str)> {
     match unit {
         "%" => Some((-2, "")),
-        "degC" => Some((0, "degC")),
+        "degC" | "°C" | "℃" => Some((0, "degC")),
         _ => {
             let (power, base) = si_parts(unit)?;
             SI_BASES.iter().find(|b| **b == base).map(|b| (power, *b))
