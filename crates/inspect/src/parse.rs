@@ -4,7 +4,7 @@
 use std::fmt;
 use std::net::Ipv4Addr;
 
-use optobus_codec::value::{Fixed, Scale};
+use optobus_codec::value::{Fixed, ParseFixedError, Scale};
 use optobus_device::{CodeInfo, RegisterInfo, ValueKind};
 use optobus_driver::{encode_code, encode_packed, Encode};
 
@@ -286,11 +286,31 @@ fn parse_quantity(register: &RegisterInfo, text: &str) -> Result<Fixed, String> 
         .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | '-' | '+')))
         .unwrap_or(text.len());
     let (number, unit) = (text[..split].trim(), text[split..].trim());
-    let not_a_number = || {
-        let unit = register.unit.map(|u| format!(" in {u}"));
-        format!("not a number{}", unit.unwrap_or_default())
+    let exponent = unit.strip_prefix(['e', 'E']).is_some_and(|rest| {
+        rest.trim_start_matches(['-', '+'])
+            .starts_with(|c: char| c.is_ascii_digit())
+    });
+    if exponent && !number.is_empty() {
+        return Err(format!(
+            "write the number as a plain decimal (`10`, `0.001`), not with an exponent (`{text}`)"
+        ));
+    }
+    let not_a_number = |error: ParseFixedError| match error {
+        // Too long for 64 bits at its own last digit: the register's steps say what fits.
+        ParseFixedError::TooManyDigits | ParseFixedError::OutOfRange => match register.scale {
+            Some(scale) => format!(
+                "it holds whole steps of {}{}",
+                scale.step(),
+                register.unit.map(|u| format!(" {u}")).unwrap_or_default()
+            ),
+            None => format!("`{number}` has too many digits to be held exactly"),
+        },
+        _ => {
+            let unit = register.unit.map(|u| format!(" in {u}"));
+            format!("not a number{}", unit.unwrap_or_default())
+        }
     };
-    let value: Fixed = number.parse().map_err(|_| not_a_number())?;
+    let value: Fixed = number.parse().map_err(not_a_number)?;
     let own = register.unit.unwrap_or("");
     if unit.is_empty() || unit == own || unit_spellings(own).contains(&unit) {
         return Ok(value);

@@ -107,6 +107,17 @@ fn bad_values_are_refused_in_one_line() {
             "lots",
             "`light_power` does not take `lots`: not a number in %",
         ),
+        // Digits beyond what 64 bits hold: the register's steps, not "not a number".
+        (
+            "light_power",
+            "0.49999999999999999999",
+            "`light_power` does not take `0.49999999999999999999`: it holds whole steps of 0.1 %",
+        ),
+        (
+            "light_power",
+            "1e1",
+            "`light_power` does not take `1e1`: write the number as a plain decimal (`10`, `0.001`), not with an exponent (`1e1`)",
+        ),
         ("distance_1", "1", "`distance_1` is read-only"),
     ];
     for (name, text, message) in cases {
