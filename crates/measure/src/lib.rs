@@ -8,6 +8,8 @@
 //!   no measurement using itself), then evaluated for each set of inputs with exact decimals.
 //! - [`judge`]: LL / LO / GO / HI / HH against limits with hysteresis, counted.
 //! - [`stats`]: rolling count, mean, sd, min, max, range and Cp/Cpk over a window.
+//! - [`live`]: all of them as readings come: a value once each input was read again, judged,
+//!   summed up, or invalid with the reason (an input without a value, inputs too far apart).
 //!
 //! It knows nothing of lines or devices: the bus gives it the registers' units and values.
 //!
@@ -32,12 +34,14 @@
 pub mod expr;
 pub mod formula;
 pub mod judge;
+pub mod live;
 pub mod number;
 pub mod stats;
 pub mod unit;
 
 pub use formula::{check, Definition, Formula, InputInfo, InputName, Invalid, Plan, Problem};
 pub use judge::{Comparator, Judgement, Limits};
+pub use live::{Live, Outcome, Reading, Settings};
 pub use number::{ArithmeticError, Decimal};
 pub use stats::{Rolling, Summary, Window};
 pub use unit::{Dimension, Unit};
