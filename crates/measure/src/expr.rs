@@ -552,3 +552,54 @@ mod tests {
             .contains("no meaning"));
     }
 }
+
+/// A quantity as a file writes a limit (`9.9mm`, `-0.5`, `10 um`… written as one number with
+/// its unit right after it), in `unit`, exactly; a number without a unit is in `unit`.
+pub fn quantity(text: &str, unit: &Unit) -> Result<Decimal, String> {
+    let node = parse(text.trim()).map_err(|e| e.message)?;
+    let (negative, node) = match node {
+        Node::Negate(inner, _) => (true, *inner),
+        node => (false, node),
+    };
+    let Node::Number {
+        value, unit: given, ..
+    } = node
+    else {
+        return Err(format!("`{text}` is not a number with its unit (`9.9mm`)"));
+    };
+    let value = match given {
+        None => value,
+        Some(given) if given.dimension == unit.dimension => Decimal::new(
+            value.mantissa(),
+            value.exponent() + given.power - unit.power,
+        ),
+        Some(given) => {
+            return Err(format!(
+                "`{text}` is {}, the measurement is {}",
+                given.dimension, unit.dimension
+            ))
+        }
+    };
+    if negative {
+        value.checked_neg().map_err(|e| e.to_string())
+    } else {
+        Ok(value)
+    }
+}
+
+#[cfg(test)]
+mod quantity_tests {
+    use super::*;
+
+    #[test]
+    fn limits_are_read_in_the_measurements_unit() {
+        let mm = Unit::named("mm").unwrap();
+        assert_eq!(quantity("9.9mm", &mm).unwrap(), Decimal::new(99, -1));
+        assert_eq!(quantity("10100um", &mm).unwrap(), Decimal::new(101, -1));
+        assert_eq!(quantity("-0.001", &mm).unwrap(), Decimal::new(-1, -3));
+        assert!(quantity("5s", &mm)
+            .unwrap_err()
+            .contains("is s, the measurement is m"));
+        assert!(quantity("top.distance_1", &mm).is_err());
+    }
+}

@@ -39,6 +39,7 @@ pub mod number;
 pub mod stats;
 pub mod unit;
 
+pub use expr::quantity;
 pub use formula::{check, Definition, Formula, InputInfo, InputName, Invalid, Plan, Problem};
 pub use judge::{Comparator, Judgement, Limits};
 pub use live::{Live, Outcome, Reading, Settings};
