@@ -5,10 +5,12 @@
 //! whole file passes. The schema is [`SCHEMA`] (the crate's README shows it, with a tour).
 
 mod check;
+mod measurements;
 pub mod outputs;
 mod read;
 mod reader;
 
+pub use measurements::Measurements;
 pub use outputs::{HttpConfig, MetricsConfig, MqttConfig, Outputs, SecretSource, StateEvery};
 pub use read::{resolve, writable};
 
@@ -38,6 +40,8 @@ pub struct BusFile {
     pub lines: Vec<LineConfig>,
     /// The devices, in file order.
     pub devices: Vec<DeviceConfig>,
+    /// What the file computes from the registers the devices' polls read.
+    pub measurements: Measurements,
     /// Where the bus sends what it reads besides its events (MQTT, metrics, the console).
     pub outputs: Outputs,
 }

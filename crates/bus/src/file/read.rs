@@ -6,6 +6,7 @@ use optobus_codec::{LineFormat, Parity};
 use optobus_codegen::source::{Node, Span, Value};
 use optobus_device::{DeviceInfo, RegisterInfo};
 
+use super::measurements::Measurements;
 use super::outputs::Outputs;
 use optobus_inspect::did_you_mean;
 
@@ -52,7 +53,7 @@ pub(super) const DEVICE_KEYS: &[&str] = &[
     "writable",
 ];
 pub(super) const POLL_KEYS: &[&str] = &["read", "every", "priority"];
-pub(super) const TOP_KEYS: &[&str] = &["lines", "devices", "outputs"];
+pub(super) const TOP_KEYS: &[&str] = &["lines", "devices", "measurements", "outputs"];
 
 /// A bus file read: every line and device whole where it read whole, and what the checks
 /// across items see of each, whole or not.
@@ -62,6 +63,8 @@ pub(super) struct Parsed {
     /// The devices, in file order; `None` where a device did not read whole.
     pub(super) devices: Vec<Option<DeviceConfig>>,
     pub(super) outputs: Outputs,
+    /// `None` where the measurements did not read (and said why).
+    pub(super) measurements: Option<Measurements>,
     pub(super) seen: Seen,
 }
 
@@ -71,6 +74,7 @@ impl Parsed {
         Some(BusFile {
             lines: self.lines.into_iter().collect::<Option<_>>()?,
             devices: self.devices.into_iter().collect::<Option<_>>()?,
+            measurements: self.measurements?,
             outputs: self.outputs,
         })
     }
@@ -148,6 +152,18 @@ impl Reader<'_> {
             }
             None => self.error(root.span, "the bus file has no `devices`", HELP),
         }
+        let measurements = match top.iter().find(|(k, _)| scalar(k) == Some("measurements")) {
+            Some((_, node)) if !node.is_null() => {
+                let known: Vec<_> = seen
+                    .devices
+                    .iter()
+                    .zip(&devices)
+                    .map(|(seen, config)| (seen.name.clone(), config.as_ref(), seen.model))
+                    .collect();
+                self.measurements(node, &known)
+            }
+            _ => Some(Measurements::default()),
+        };
         let outputs = match top.iter().find(|(k, _)| scalar(k) == Some("outputs")) {
             Some((_, outputs)) if !outputs.is_null() => {
                 let names: Vec<(&str, Span)> = seen
@@ -163,6 +179,7 @@ impl Reader<'_> {
             lines,
             devices,
             outputs,
+            measurements,
             seen,
         })
     }

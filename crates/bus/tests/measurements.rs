@@ -1,0 +1,128 @@
+//! Issue 32, point 1: `measurements:` in the bus file, checked with the rest of it, every
+//! problem at once and at its line and column inside the expression; nothing opened.
+
+use std::path::Path;
+use std::time::Duration;
+
+use optobus_bus::{BusFile, Catalogue};
+use optobus_measure::Window;
+
+fn parse(text: &str) -> Result<BusFile, String> {
+    let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
+    BusFile::parse("bus.yaml", text, Path::new("."), &catalogue).map_err(|e| e.render())
+}
+
+const DEVICES: &str = "
+lines:
+  - { name: rs485, serial: /dev/ttyUSB0 }
+devices:
+  - { name: top, model: p-series, slave: 1, poll: [{ read: distance_1, every: 20ms }] }
+  - { name: bottom, model: p-series, slave: 2, poll: [{ read: distance_1, every: 50ms }] }
+";
+
+#[test]
+fn a_measurement_reads_with_its_limits_statistics_and_skew() {
+    let file = parse(&format!(
+        "{DEVICES}measurements:
+  - name: gap
+    expr: 20mm - top.distance_1 - bottom.distance_1
+    unit: mm
+    limits: {{ lo: 9.9mm, hi: 10100um, hysteresis: 0.001mm }}
+    stats: 200
+  - name: twice
+    expr: gap * 2
+    stats: 10s
+    max_skew: 5ms
+"
+    ))
+    .expect("the file passes");
+    let measurements = &file.measurements;
+    let names: Vec<&str> = measurements
+        .plan
+        .formulas
+        .iter()
+        .map(|f| f.name.as_str())
+        .collect();
+    assert_eq!(names, ["gap", "twice"]);
+    let inputs: Vec<String> = measurements
+        .plan
+        .inputs
+        .iter()
+        .map(ToString::to_string)
+        .collect();
+    assert_eq!(inputs, ["top.distance_1", "bottom.distance_1"]);
+    let gap = &measurements.settings[0];
+    let limits = gap.limits.expect("limits");
+    assert_eq!(limits.hi.unwrap().to_f64(), 10.1);
+    assert_eq!(limits.hysteresis.to_f64(), 0.001);
+    assert_eq!(gap.stats, Some(Window::Count(200)));
+    // By default the slowest input's period.
+    assert_eq!(gap.max_skew, Duration::from_millis(50));
+    let twice = &measurements.settings[1];
+    assert_eq!(twice.stats, Some(Window::Duration(Duration::from_secs(10))));
+    assert_eq!(twice.max_skew, Duration::from_millis(5));
+    assert_eq!(measurements.plan.formulas[1].unit.name, "mm");
+}
+
+#[test]
+fn every_problem_of_the_measurements_is_refused_at_its_line_and_column() {
+    let rendered = parse(&format!(
+        "{DEVICES}measurements:
+  - name: units
+    expr: 20s - top.distance_1
+  - name: names
+    expr: top.distanse_1 + middle.distance_1
+  - name: unpolled
+    expr: top.light_power + 1%
+  - name: dimension
+    expr: top.distance_1
+    unit: s
+  - name: loop_a
+    expr: loop_b + 1mm
+  - name: loop_b
+    expr: loop_a - 1mm
+  - name: limits
+    expr: top.distance_1
+    unit: mm
+    limits: {{ lo: 2mm, hi: 1mm }}
+  - name: window
+    expr: top.distance_1
+    stats: lots
+"
+    ))
+    .expect_err("the measurements have problems");
+    for (expected, place) in [
+        ("m cannot be subtracted from s", "bus.yaml:9:17"),
+        (
+            "`p-series` has no register `distanse_1` (did you mean `distance_1`",
+            "bus.yaml:11:11",
+        ),
+        ("the bus has no device `middle`", "bus.yaml:11:28"),
+        (
+            "no poll of `top` reads `light_power`: add it to one of its polls",
+            "bus.yaml:13:11",
+        ),
+        (
+            "`unit: s` is s, but the expression gives m",
+            "bus.yaml:16:11",
+        ),
+        ("measurements use each other in a circle", "bus.yaml:"),
+        ("`lo` must not be above `hi`", "bus.yaml:"),
+        (
+            "`stats` `lots` is neither a count of values nor a duration",
+            "bus.yaml:",
+        ),
+    ] {
+        assert!(
+            rendered.contains(expected),
+            "missing {expected:?} in:\n{rendered}"
+        );
+        assert!(rendered.contains(place), "missing {place} in:\n{rendered}");
+    }
+}
+
+#[test]
+fn a_bus_file_without_measurements_has_none() {
+    let file = parse(DEVICES).expect("the file passes");
+    assert!(file.measurements.is_empty());
+}
