@@ -121,13 +121,19 @@ impl Live {
             .collect()
     }
 
-    /// Every input of `formula` read, each since its last value.
+    /// Every input of `formula` read, each since its last value; an input without a value
+    /// (its device offline) counts as read, so that the measurement goes on giving values,
+    /// invalid with the reason, at the pace of its other inputs.
     fn is_due(&self, formula: usize) -> bool {
         self.plan.formulas[formula]
             .inputs
             .iter()
             .zip(&self.used[formula])
-            .all(|(&input, &used)| self.latest[input].as_ref().is_some_and(|(n, _)| *n > used))
+            .all(|(&input, &used)| {
+                self.latest[input]
+                    .as_ref()
+                    .is_some_and(|(n, reading)| *n > used || reading.value.is_none())
+            })
     }
 
     fn outcome(&mut self, formula: usize, result: Result<Fixed, Invalid>) -> Outcome {
@@ -148,14 +154,14 @@ impl Live {
             _ => Duration::ZERO,
         };
         let max_skew = self.settings[formula].max_skew;
-        let value = if skew > max_skew {
-            Err(format!(
+        let value = match result {
+            Err(invalid) => Err(self.reason(invalid, &inputs)),
+            Ok(_) if skew > max_skew => Err(format!(
                 "its inputs were read {} ms apart, more than max_skew ({} ms)",
                 skew.as_millis(),
                 max_skew.as_millis()
-            ))
-        } else {
-            result.map_err(|invalid| self.reason(invalid, &inputs))
+            )),
+            Ok(value) => Ok(value),
         };
         let (judgement, stats) = match &value {
             Ok(value) => self.judge(formula, *value),
