@@ -18,6 +18,7 @@ use crate::gateway::{self, GatewayCounters, GatewayCounts};
 use crate::handle::{Entry, Handle, LineQueues, Source};
 use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun, Turns};
 use crate::link::{DeviceLink, DeviceSettings, LineState, Stream};
+use crate::measuring;
 use crate::schedule::Schedule;
 use crate::trace::LineFrames;
 
@@ -88,6 +89,14 @@ impl Bus {
         let mut entries = Vec::new();
         let mut line_frames = Vec::new();
         let start = Instant::now();
+        // Subscribed before any line runs, so that no input's first sample is missed.
+        if !self.file.measurements.is_empty() {
+            tasks.push(tokio::spawn(measuring::follow(
+                self.file.measurements.clone(),
+                self.events.subscribe(),
+                self.events.clone(),
+            )));
+        }
         for (index, line) in self.file.lines.iter().enumerate() {
             let name: Arc<str> = Arc::from(line.name.as_str());
             let frames = Arc::new(LineFrames::new(self.file.devices_on(index).count()));

@@ -8,6 +8,7 @@ use optobus_inspect::Value;
 use serde::ser::{SerializeStruct, Serializer};
 use serde::Serialize;
 
+use crate::measuring::MeasurementEvent;
 use crate::schedule::Health;
 
 /// One event of a running bus.
@@ -19,6 +20,8 @@ pub enum Event {
     Health(Arc<HealthEvent>),
     /// A line's statistics, sent once a second while it runs.
     Line(Arc<LineStats>),
+    /// A measurement of the bus file: its value, or why it has none.
+    Measurement(Arc<MeasurementEvent>),
 }
 
 /// Which device a sample or health event is about.

@@ -126,3 +126,96 @@ fn a_bus_file_without_measurements_has_none() {
     let file = parse(DEVICES).expect("the file passes");
     assert!(file.measurements.is_empty());
 }
+
+mod running {
+    use std::time::Duration;
+
+    use optobus_bus::{Bus, Event, MeasurementEvent};
+    use optobus_codec::value::Fixed;
+    use tokio::sync::broadcast::error::RecvError;
+    use tokio::sync::broadcast::Receiver;
+
+    const GAP: &str = "
+lines:
+  - { name: rs485, simulated: true, baud: 115200, any_format: true }
+devices:
+  - { name: top, model: p-series, slave: 1, timeout: 100ms, poll: [{ read: distance_1, every: 20ms }] }
+  - { name: bottom, model: p-series, slave: 2, timeout: 100ms, poll: [{ read: distance_1, every: 20ms }] }
+measurements:
+  - name: gap
+    expr: 20mm - top.distance_1 - bottom.distance_1
+    unit: mm
+    limits: { lo: 9.9mm, hi: 10.1mm }
+    stats: 50
+    max_skew: 1s           # how close the inputs are is a bench's matter, not a test's
+";
+
+    async fn measurement(events: &mut Receiver<Event>) -> std::sync::Arc<MeasurementEvent> {
+        loop {
+            match tokio::time::timeout(Duration::from_secs(10), events.recv()).await {
+                Ok(Ok(Event::Measurement(measurement))) => return measurement,
+                Ok(Ok(_)) | Ok(Err(RecvError::Lagged(_))) => {}
+                Ok(Err(RecvError::Closed)) => panic!("the bus stopped"),
+                Err(_) => panic!("no measurement within 10 s"),
+            }
+        }
+    }
+
+    /// Issue 32: each value is the exact arithmetic of the inputs it carries, read within
+    /// `max_skew` of each other, judged and summed up; its JSON is the documented contract.
+    #[tokio::test]
+    async fn the_running_bus_computes_the_gap_from_the_samples_it_carries() {
+        let bus = Bus::new(super::parse(GAP).unwrap());
+        let mut events = bus.subscribe();
+        let _running = bus.start().expect("starts");
+        let mut counts = Vec::new();
+        for _ in 0..10 {
+            let gap = measurement(&mut events).await;
+            let value = gap.value.clone().expect("both heads answer");
+            let [top, bottom] = [0, 1].map(|i| gap.inputs[i].value.expect("an input value"));
+            assert_eq!(&*gap.inputs[0].name, "top.distance_1");
+            let exact = 20_000_000
+                - top.to_scale(value.scale()).unwrap().raw()
+                - bottom.to_scale(value.scale()).unwrap().raw();
+            assert_eq!(value, Fixed::new(exact, value.scale()), "{gap:?}");
+            assert!(gap.judgement.is_some());
+            counts.push(gap.stats.expect("stats").count);
+            let json: serde_json::Value = serde_json::to_value(&*gap).unwrap();
+            assert_eq!(json["measurement"], "gap");
+            assert_eq!(json["value"]["value"], value.to_string());
+            assert_eq!(json["value"]["unit"], "mm");
+            assert_eq!(json["inputs"]["top.distance_1"]["value"], top.to_string());
+            assert!(json["skew_us"].is_u64());
+            assert!(json["stats"]["mean"]["value"].is_string());
+            assert!(json["time"].is_string());
+        }
+        assert!(counts.windows(2).all(|c| c[1] > c[0]), "{counts:?}");
+    }
+
+    /// Issue 32: an offline device makes the measurement invalid with the reason, and no value
+    /// made of a stale reading is ever given.
+    #[tokio::test]
+    async fn an_offline_head_makes_the_gap_invalid_with_the_reason() {
+        let bus = Bus::new(super::parse(GAP).unwrap());
+        let mut events = bus.subscribe();
+        let running = bus.start().expect("starts");
+        measurement(&mut events)
+            .await
+            .value
+            .clone()
+            .expect("a first value");
+        running.simulator("top").unwrap().set_silent(true);
+        let reason = loop {
+            let gap = measurement(&mut events).await;
+            if let Err(reason) = &gap.value {
+                break reason.clone();
+            }
+        };
+        // Its failing polls first make the values stop, then it is offline.
+        assert_eq!(reason, "top.distance_1: top is offline");
+        let json = serde_json::to_value(&*measurement(&mut events).await).unwrap();
+        assert!(json["value"].is_null());
+        assert_eq!(json["reason"], "top.distance_1: top is offline");
+        assert!(json["inputs"]["top.distance_1"].is_null());
+    }
+}

@@ -126,8 +126,14 @@ fn an_offline_device_makes_its_measurements_invalid_with_the_reason() {
     assert_eq!(outcomes[0].judgement, None);
     assert_eq!(live.counts(0), Some([0; 5]), "no value is judged");
     // While the top stays offline, each reading of the bottom gives an invalid value again.
-    let outcomes = live.take(bottom, reading(Some(4_969_100), t0 + Duration::from_millis(50)));
-    assert_eq!(outcomes[0].value, Err("top.distance_1: top is offline".to_owned()));
+    let outcomes = live.take(
+        bottom,
+        reading(Some(4_969_100), t0 + Duration::from_millis(50)),
+    );
+    assert_eq!(
+        outcomes[0].value,
+        Err("top.distance_1: top is offline".to_owned())
+    );
 }
 
 #[test]

@@ -513,6 +513,18 @@ async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
                 shared.health(&health.source.device, health.health == Health::Online);
             }
             Ok(Event::Line(_)) => {}
+            Ok(Event::Measurement(measurement)) => {
+                let Ok(payload) = serde_json::to_vec(&*measurement) else {
+                    continue;
+                };
+                shared.push(Message {
+                    topic: shared.topics.measurement(&measurement.measurement),
+                    payload,
+                    qos: shared.qos,
+                    retain: false,
+                    kind: Kind::Sample,
+                });
+            }
             Err(RecvError::Lagged(missed)) => shared.outbox().counts.missed_events += missed,
             Err(RecvError::Closed) => return,
         }

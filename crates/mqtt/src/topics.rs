@@ -32,6 +32,11 @@ impl Topics {
         format!("{}/{device}/{register}", self.prefix)
     }
 
+    /// A measurement's values (the bus file's `measurements`), as their JSON.
+    pub(crate) fn measurement(&self, name: &str) -> String {
+        format!("{}/measurements/{name}", self.prefix)
+    }
+
     /// A register's state for Home Assistant: its latest value, retained, at most once per
     /// `state_every`.
     pub(crate) fn state(&self, device: &str, register: &str) -> String {

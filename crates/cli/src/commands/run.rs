@@ -613,6 +613,31 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
                 }
             }
             Event::Line(_) => {}
+            Event::Measurement(measurement) => {
+                // A line per value, as JSON (its keys are the contract) or as text.
+                let line = if json {
+                    serde_json::to_string(&**measurement).ok()
+                } else if !terminal {
+                    let value = match &measurement.value {
+                        Ok(value) => format!("{value} {}", measurement.unit),
+                        Err(reason) => format!("invalid: {reason}"),
+                    };
+                    let judgement = measurement.judgement.map(|j| format!("  {j}"));
+                    Some(format!(
+                        "{}  {}  {value}{}",
+                        time_of_day(),
+                        measurement.measurement,
+                        judgement.unwrap_or_default()
+                    ))
+                } else {
+                    None
+                };
+                if let Some(line) = line {
+                    if stdout.push(line).first_drop() {
+                        note!("optobus: stdout is not being read: dropping its oldest lines");
+                    }
+                }
+            }
         }
         if terminal && tokio::time::Instant::now() >= redraw_at {
             stdout.push(board.text(&header));
