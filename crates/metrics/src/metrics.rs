@@ -5,7 +5,9 @@ use std::sync::atomic::AtomicU64;
 use std::sync::{Arc, Mutex};
 use std::time::UNIX_EPOCH;
 
-use optobus_bus::{BusFile, DeviceId, ErrorCounts, Event, Health, LineStats, Sample};
+use optobus_bus::{
+    BusFile, DeviceId, ErrorCounts, Event, Health, LineStats, MeasurementEvent, Sample,
+};
 use optobus_inspect::{in_base_unit, Value};
 use prometheus_client::encoding::text::encode;
 use prometheus_client::encoding::EncodeLabelSet;
@@ -37,6 +39,38 @@ const READINGS: [(&str, &str, &str); 7] = [
     ("Hz", "optobus_reading_hertz", "A reading in hertz."),
 ];
 
+/// The bus file's measurements by base unit, in the order of [`READINGS`].
+const MEASUREMENTS: [(&str, &str); 7] = [
+    (
+        "optobus_measurement_meters",
+        "A measurement of the bus file in metres.",
+    ),
+    (
+        "optobus_measurement_seconds",
+        "A measurement of the bus file in seconds.",
+    ),
+    (
+        "optobus_measurement_celsius",
+        "A measurement of the bus file in degrees Celsius.",
+    ),
+    (
+        "optobus_measurement_ratio",
+        "A measurement of the bus file given in percent, as a ratio (1 is 100 %).",
+    ),
+    (
+        "optobus_measurement_volts",
+        "A measurement of the bus file in volts.",
+    ),
+    (
+        "optobus_measurement_amperes",
+        "A measurement of the bus file in amperes.",
+    ),
+    (
+        "optobus_measurement_hertz",
+        "A measurement of the bus file in hertz.",
+    ),
+];
+
 #[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
 struct ReadingLabels {
     device: String,
@@ -52,6 +86,17 @@ struct CodeLabels {
     register: String,
     model: String,
     name: String,
+}
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+struct MeasurementLabels {
+    measurement: String,
+}
+
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+struct JudgementLabels {
+    measurement: String,
+    judgement: &'static str,
 }
 
 #[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
@@ -108,6 +153,12 @@ pub struct Metrics {
     missed: Counter,
     /// Always 1: the labels say which build serves the metrics.
     build_info: Family<BuildLabels, Gauge>,
+    /// The bus file's measurements, one family per base unit as [`READINGS`], and those
+    /// without a unit.
+    measurements: Vec<Family<MeasurementLabels, FloatGauge>>,
+    plain_measurements: Family<MeasurementLabels, FloatGauge>,
+    judgements: Family<JudgementLabels, Counter>,
+    invalid: Family<MeasurementLabels, Counter>,
     /// The names of the families above.
     names: Vec<&'static str>,
     /// Series of other outputs, read at every scrape.
@@ -126,6 +177,10 @@ impl Metrics {
         let mut readings = Vec::new();
         for (_, name, help) in READINGS {
             readings.push(registered(&mut registry, &mut names, name, help));
+        }
+        let mut measurements = Vec::new();
+        for (name, help) in MEASUREMENTS {
+            measurements.push(registered(&mut registry, &mut names, name, help));
         }
         let sources = Arc::new(Sources::default());
         registry.register_collector(Box::new(SourcesCollector(Arc::clone(&sources))));
@@ -194,6 +249,25 @@ impl Metrics {
                 "optobus_build_info",
                 "Always 1; its labels say which build of optobus serves these metrics.",
             ),
+            measurements,
+            plain_measurements: registered(
+                &mut registry,
+                &mut names,
+                "optobus_measurement",
+                "A measurement of the bus file without a unit (or in a unit with no base unit).",
+            ),
+            judgements: registered(
+                &mut registry,
+                &mut names,
+                "optobus_measurement_judgements",
+                "Values of a measurement judged against its limits, by judgement: ll, lo, go, hi, hh.",
+            ),
+            invalid: registered(
+                &mut registry,
+                &mut names,
+                "optobus_measurement_invalid",
+                "Values of a measurement that had none (an input without a value, inputs too far apart).",
+            ),
             names,
             registry,
             shown: Mutex::default(),
@@ -227,8 +301,7 @@ impl Metrics {
                 }
             }
             Event::Line(stats) => self.line(stats),
-            // Exposed with issue 32's outputs; not yet.
-            Event::Measurement(_) => {}
+            Event::Measurement(measurement) => self.measurement(measurement),
         }
     }
 
@@ -254,6 +327,42 @@ impl Metrics {
             self.last_sample
                 .get_or_create(&device_labels(source))
                 .set(since.as_secs_f64());
+        }
+    }
+
+    /// A measurement's value in its base unit, its judgement counted; an invalid one removes
+    /// its series, so that no stale number stands for it, and is counted.
+    fn measurement(&self, measurement: &MeasurementEvent) {
+        let labels = MeasurementLabels {
+            measurement: measurement.measurement.to_string(),
+        };
+        let families = self.measurements.iter().chain([&self.plain_measurements]);
+        let value = match measurement.value {
+            Ok(value) => value,
+            Err(_) => {
+                for family in families {
+                    family.remove(&labels);
+                }
+                self.invalid.get_or_create(&labels).inc();
+                return;
+            }
+        };
+        match in_base_unit(value, &measurement.unit).and_then(|(number, base)| {
+            Some((number, READINGS.iter().position(|(b, _, _)| *b == base)?))
+        }) {
+            Some((number, index)) => self.measurements[index].get_or_create(&labels).set(number),
+            None => self
+                .plain_measurements
+                .get_or_create(&labels)
+                .set(value.to_f64()),
+        };
+        if let Some(judgement) = measurement.judgement {
+            self.judgements
+                .get_or_create(&JudgementLabels {
+                    measurement: labels.measurement.clone(),
+                    judgement: judgement.name(),
+                })
+                .inc();
         }
     }
 
