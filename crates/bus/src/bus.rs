@@ -18,7 +18,7 @@ use crate::gateway::{self, GatewayCounters, GatewayCounts};
 use crate::handle::{Entry, Handle, LineQueues, Source};
 use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun, Turns};
 use crate::link::{DeviceLink, DeviceSettings, LineState, Stream};
-use crate::measuring;
+use crate::measuring::{self, Measuring};
 use crate::schedule::Schedule;
 use crate::trace::LineFrames;
 
@@ -90,13 +90,15 @@ impl Bus {
         let mut line_frames = Vec::new();
         let start = Instant::now();
         // Subscribed before any line runs, so that no input's first sample is missed.
-        if !self.file.measurements.is_empty() {
+        let measuring = (!self.file.measurements.is_empty()).then(|| {
+            let measuring = Arc::new(Measuring::new(self.file.measurements.clone()));
             tasks.push(tokio::spawn(measuring::follow(
-                self.file.measurements.clone(),
+                Arc::clone(&measuring),
                 self.events.subscribe(),
                 self.events.clone(),
             )));
-        }
+            measuring
+        });
         for (index, line) in self.file.lines.iter().enumerate() {
             let name: Arc<str> = Arc::from(line.name.as_str());
             let frames = Arc::new(LineFrames::new(self.file.devices_on(index).count()));
@@ -218,6 +220,7 @@ impl Bus {
                 origin: None,
                 devices: entries.into(),
                 frames: line_frames.into(),
+                measuring,
             },
             events: self.events,
             gateways,

@@ -16,6 +16,7 @@ use tokio::sync::{mpsc, oneshot};
 
 use crate::event::DeviceId;
 use crate::file::Writable;
+use crate::measuring::Measuring;
 use crate::policy::{Policy, Refusal};
 use crate::trace::{Frame, LineFrames};
 
@@ -216,9 +217,31 @@ pub struct Handle {
     pub(crate) devices: Arc<[Entry]>,
     /// Each line's frame rings.
     pub(crate) frames: Arc<[Arc<LineFrames>]>,
+    /// The bus file's measurements, where it has any.
+    pub(crate) measuring: Option<Arc<Measuring>>,
 }
 
 impl Handle {
+    /// The bus file's measurements, by name with their unit, in the order they are computed.
+    pub fn measurements(&self) -> Vec<(&str, &str)> {
+        self.measuring.iter().flat_map(|m| m.names()).collect()
+    }
+
+    /// The judgement counts of measurement `name` since the bus started or the counts were
+    /// last reset, lowest first (ll, lo, go, hi, hh: OK is `go`, the rest NG); `None` for a
+    /// measurement without limits, or none of that name.
+    pub fn judgement_counts(&self, name: &str) -> Option<[u64; 5]> {
+        self.measuring.as_ref()?.counts(name)
+    }
+
+    /// Every measurement's judgement counts back to zero and its statistics window emptied
+    /// (the OK/NG counters' reset).
+    pub fn reset_measurements(&self) {
+        if let Some(measuring) = &self.measuring {
+            measuring.reset();
+        }
+    }
+
     /// The same handle, its jobs queued as `source`'s: a network source's jobs beyond
     /// [`NETWORK_QUEUE`] on a line are refused at once with [`JobError::Busy`].
     pub fn for_source(&self, source: Source) -> Self {

@@ -151,29 +151,70 @@ impl Serialize for Stats<'_> {
     }
 }
 
-/// Follows `events` until the bus stops, computing `measurements` and sending their values on
-/// `sender`. A sample of an input is its reading; a device going offline makes a reading
+/// The live measurements of a running bus, shared by the task that computes them and the
+/// [`Handle`](crate::Handle) that reads their counts and resets them.
+#[derive(Debug)]
+pub(crate) struct Measuring {
+    live: std::sync::Mutex<Live>,
+    /// Each formula's name and unit, in the plan's order.
+    formulas: Vec<(Arc<str>, Arc<str>)>,
+    /// Each input's name (`device.register`), in the plan's order.
+    names: Vec<Arc<str>>,
+}
+
+impl Measuring {
+    pub(crate) fn new(measurements: Measurements) -> Self {
+        let names = measurements
+            .plan
+            .inputs
+            .iter()
+            .map(|input| Arc::from(input.to_string()))
+            .collect();
+        let formulas = measurements
+            .plan
+            .formulas
+            .iter()
+            .map(|f| (Arc::from(f.name.as_str()), Arc::from(f.unit.name.as_str())))
+            .collect();
+        Self {
+            live: std::sync::Mutex::new(Live::new(measurements.plan, measurements.settings)),
+            formulas,
+            names,
+        }
+    }
+
+    fn live(&self) -> std::sync::MutexGuard<'_, Live> {
+        self.live.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The judgement counts of measurement `name` since start or the last reset (lowest
+    /// first: ll, lo, go, hi, hh); `None` for a measurement without limits or not there.
+    pub(crate) fn counts(&self, name: &str) -> Option<[u64; 5]> {
+        let formula = self.formulas.iter().position(|(n, _)| &**n == name)?;
+        self.live().counts(formula)
+    }
+
+    /// Every count back to zero and every statistics window emptied.
+    pub(crate) fn reset(&self) {
+        self.live().reset();
+    }
+
+    /// The measurements' names and units, in the order they are computed.
+    pub(crate) fn names(&self) -> impl Iterator<Item = (&str, &str)> {
+        self.formulas.iter().map(|(name, unit)| (&**name, &**unit))
+    }
+}
+
+/// Follows `events` until the bus stops, computing the measurements and sending their values
+/// on `sender`. A sample of an input is its reading; a device going offline makes a reading
 /// without a value of each of its inputs ("top is offline").
 pub(crate) async fn follow(
-    measurements: Measurements,
+    measuring: Arc<Measuring>,
     mut events: broadcast::Receiver<Event>,
     sender: broadcast::Sender<Event>,
 ) {
-    let names: Vec<Arc<str>> = measurements
-        .plan
-        .inputs
-        .iter()
-        .map(|input| Arc::from(input.to_string()))
-        .collect();
-    let formulas: Vec<(Arc<str>, Arc<str>)> = measurements
-        .plan
-        .formulas
-        .iter()
-        .map(|f| (Arc::from(f.name.as_str()), Arc::from(f.unit.name.as_str())))
-        .collect();
-    let inputs = measurements.plan.inputs.clone();
+    let inputs = measuring.live().plan().inputs.clone();
     let mut units: Vec<Arc<str>> = vec![Arc::from(""); inputs.len()];
-    let mut live = Live::new(measurements.plan, measurements.settings);
     loop {
         let event = match events.recv().await {
             Ok(event) => event,
@@ -205,8 +246,10 @@ pub(crate) async fn follow(
             _ => continue,
         };
         for (index, reading) in readings {
-            for outcome in live.take(index, reading) {
-                let event = measurement_event(outcome, &names, &units, &formulas);
+            let outcomes = measuring.live().take(index, reading);
+            for outcome in outcomes {
+                let event =
+                    measurement_event(outcome, &measuring.names, &units, &measuring.formulas);
                 // No receiver: nobody listens now, which is no error.
                 let _ = sender.send(Event::Measurement(Arc::new(event)));
             }

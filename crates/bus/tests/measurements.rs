@@ -192,6 +192,39 @@ measurements:
         assert!(counts.windows(2).all(|c| c[1] > c[0]), "{counts:?}");
     }
 
+    /// Issue 32, point 3: OK/NG counts of each judgement since start, reset through the
+    /// library's handle (the statistics start again with them).
+    #[tokio::test]
+    async fn judgement_counts_are_kept_and_reset_through_the_handle() {
+        let bus = Bus::new(super::parse(GAP).unwrap());
+        let mut events = bus.subscribe();
+        let running = bus.start().expect("starts");
+        let handle = running.handle();
+        assert_eq!(handle.measurements(), [("gap", "mm")]);
+        let mut judged = 0;
+        while judged < 5 {
+            if measurement(&mut events).await.judgement.is_some() {
+                judged += 1;
+            }
+        }
+        // Values may have come since the last one read here: at least those five.
+        let counts = handle.judgement_counts("gap").expect("gap has limits");
+        assert!(counts.iter().sum::<u64>() >= 5, "{counts:?}");
+        assert_eq!(handle.judgement_counts("nothing"), None);
+        handle.reset_measurements();
+        let after = handle.judgement_counts("gap").unwrap();
+        assert!(after.iter().sum::<u64>() <= 1, "reset: {after:?}");
+        // The statistics begin again: a count far below what had been gathered.
+        let mut counts = Vec::new();
+        for _ in 0..40 {
+            counts.push(measurement(&mut events).await.stats.expect("stats").count);
+        }
+        assert!(
+            counts.iter().any(|&count| count <= 2),
+            "never restarted: {counts:?}"
+        );
+    }
+
     /// Issue 32: an offline device makes the measurement invalid with the reason, and no value
     /// made of a stale reading is ever given.
     #[tokio::test]
