@@ -36,7 +36,7 @@ pub use file::{
 pub use gateway::GatewayCounts;
 pub use handle::{Buffered, Handle, JobError, Source, AUDIT_TARGET, NETWORK_QUEUE};
 pub use line::NETWORK_SHARE;
-pub use link::Stream;
+pub use optobus_transport::Stream;
 pub use policy::{Policy, Refusal, RefusalKind};
 pub use schedule::Health;
 pub use trace::{Direction, Frame, FRAMES_KEPT};

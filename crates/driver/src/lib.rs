@@ -25,6 +25,7 @@
 #![cfg_attr(docsrs, feature(doc_cfg))]
 
 #[cfg(feature = "serde")]
+mod address;
 pub mod array_serde;
 mod buffer;
 #[cfg(feature = "serde")]
@@ -40,6 +41,7 @@ mod plan;
 pub mod shapes;
 pub mod units;
 
+pub use crate::address::{address_change, AddressChange};
 pub use crate::buffer::{BufferTiming, DownloadProgress};
 #[cfg(feature = "tcp")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tcp")))]

@@ -48,4 +48,4 @@ pub use number::{hex_and_decimal, parse_number};
 pub use optobus_codec::EncodeError;
 pub use parse::{base_unit, code_list, in_base_unit, parse_value, ParseError};
 pub use resolve::{resolve, resolve_one, resolve_readable, ResolveError};
-pub use value::{decode_value, range_text, values_text, Value};
+pub use value::{decode_readings, decode_value, range_text, values_text, Value};

@@ -69,6 +69,17 @@ impl Client {
         }
     }
 
+    /// Opens the connection now where the protocol has one (Modbus TCP, which otherwise
+    /// connects on the first request), to tell at once that the server cannot be reached;
+    /// an RTU stream is open already.
+    pub async fn connect(&mut self) -> Result<(), Error> {
+        match self {
+            Self::Rtu(_) => Ok(()),
+            #[cfg(feature = "tcp")]
+            Self::Tcp(client) => client.open().await,
+        }
+    }
+
     /// Sets how the next requests are made.
     pub fn set_requests(&mut self, requests: Requests) {
         match self {

@@ -53,11 +53,9 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
     let Some(path) = &global.target.serial else {
         return Err(CliError::new("scan needs a serial port").hint("give --serial PORT"));
     };
-    let probe = device
-        .registers
-        .iter()
-        .find(|r| r.readable())
-        .ok_or_else(|| CliError::new("the model has no readable register"))?;
+    if !device.registers.iter().any(|r| r.readable()) {
+        return Err(CliError::new("the model has no readable register"));
+    }
     let progress = progress_bar(
         (bauds.len() * slaves.len()) as u64,
         "scanning {msg} ({pos}/{len})",
@@ -79,13 +77,7 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
                     device,
                 )),
             };
-            prober.set_slave(slave)?;
-            let answered = match prober.read_words(probe).await {
-                Ok(_) => true,
-                // An exception is an answer too: something lives at this address.
-                Err(e) => e.exception().is_some(),
-            };
-            if answered {
+            if prober.answers_at(slave).await? {
                 // The port is opened anew for each model identify tries.
                 core = None;
                 let model = global.identify(&target, Some(slave)).await?.verdict();
