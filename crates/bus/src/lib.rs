@@ -30,8 +30,8 @@ pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
 pub use catalogue::Catalogue;
 pub use event::{rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
 pub use file::{
-    BusFile, DeviceConfig, HttpConfig, LineConfig, LoadError, MetricsConfig, MqttConfig, Outputs,
-    PollConfig, Port, Rejected, SecretSource, StateEvery, Writable,
+    BusFile, DeviceConfig, HttpConfig, LineConfig, LinePickError, LoadError, MetricsConfig,
+    MqttConfig, Outputs, PollConfig, Port, Rejected, SecretSource, StateEvery, Writable,
 };
 pub use gateway::GatewayCounts;
 pub use handle::{Buffered, Handle, JobError, Source, AUDIT_TARGET, NETWORK_QUEUE};

@@ -6,10 +6,12 @@
 
 mod check;
 pub mod outputs;
+mod pick;
 mod read;
 mod reader;
 
 pub use outputs::{HttpConfig, MetricsConfig, MqttConfig, Outputs, SecretSource, StateEvery};
+pub use pick::LinePickError;
 pub use read::{resolve, writable};
 
 use std::net::SocketAddr;
