@@ -1,11 +1,13 @@
 //! Device access the bus's lines and the `optobus` tool share from the driver: a group read
 //! whose second request fails keeps what the first read, names the registers of the request
 //! that failed, and decodes once (the inspector's decoding); a write to the slave-address
-//! register says when the device answers at its new address.
+//! register says when the device answers at its new address; a scan finds the slave that
+//! answers.
 
 use std::time::Duration;
 
 use optobus_device::{RegisterInfo, Table};
+use optobus_driver::scan::{scan, ConnectAt, ScanStep};
 use optobus_driver::{AddressChange, Core};
 use optobus_inspect::{decode_readings, decode_value};
 use optobus_transport::{Error, ReadFunction, ReadRequest, Transport, WriteValue};
@@ -104,4 +106,78 @@ fn a_write_to_the_slave_address_register_says_when_the_new_address_applies() {
         assert_eq!(optobus_driver::address_change(device, other, &words), None);
     }
     assert!(with_register > 0, "a model with a slave-address register");
+}
+
+/// Answers every read at slave [`AT`] with zeros; every other slave is silent.
+struct OneSlave;
+
+/// The slave address that answers.
+const AT: u8 = 3;
+
+impl Transport for OneSlave {
+    async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, Error> {
+        if slave != AT {
+            return Err(Error::Timeout {
+                after: Duration::from_millis(1),
+            });
+        }
+        Ok(vec![0; usize::from(read.count)])
+    }
+
+    async fn write(&mut self, _slave: u8, _address: u16, _value: WriteValue) -> Result<(), Error> {
+        Err(Error::Unsupported("the test only reads"))
+    }
+}
+
+/// Links to [`OneSlave`], counting the bauds they were opened at.
+#[derive(Default)]
+struct Line {
+    opened_at: Vec<u32>,
+}
+
+impl ConnectAt for Line {
+    type Link = OneSlave;
+    type Error = optobus_driver::Error;
+
+    async fn connect_at(
+        &mut self,
+        _model: &'static optobus_device::DeviceInfo,
+        baud: u32,
+    ) -> Result<OneSlave, optobus_driver::Error> {
+        self.opened_at.push(baud);
+        Ok(OneSlave)
+    }
+}
+
+#[tokio::test]
+async fn a_scan_finds_the_slave_that_answers_and_stops_there() {
+    let device = &optobus_p_series::DEVICE;
+    let mut line = Line::default();
+    let mut probed = Vec::new();
+    let found = scan(
+        &mut line,
+        device,
+        &[9600, 115_200],
+        &[1, 2, AT, 4],
+        &[device],
+        false,
+        |step| {
+            if let ScanStep::Probing { baud, slave } = step {
+                probed.push((baud, slave));
+            }
+        },
+    )
+    .await
+    .unwrap();
+    assert_eq!(probed, [(9600, 1), (9600, 2), (9600, AT)]);
+    let [found] = found.as_slice() else {
+        panic!("one device: {found:?}");
+    };
+    assert_eq!((found.baud, found.slave), (9600, AT));
+    let [asked] = found.identification.candidates.as_slice() else {
+        panic!("asked as the one candidate");
+    };
+    assert_eq!(asked.slave, AT);
+    // The probe's link, then one for the candidate identify asked.
+    assert_eq!(line.opened_at, [9600, 9600]);
 }

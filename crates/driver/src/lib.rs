@@ -37,6 +37,7 @@ mod error;
 pub mod identify;
 mod memory;
 mod plan;
+pub mod scan;
 #[cfg(feature = "serde")]
 pub mod shapes;
 pub mod units;
