@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use optobus_driver::{rtu_config, Core};
 use optobus_simulator::Simulator;
+use optobus_transport::Stream;
 use std::net::SocketAddr;
 
 use tokio::net::TcpListener;
@@ -17,7 +18,7 @@ use crate::file::{BusFile, Port};
 use crate::gateway::{self, GatewayCounters, GatewayCounts};
 use crate::handle::{Entry, Handle, LineQueues, Source};
 use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun, Turns};
-use crate::link::{DeviceLink, DeviceSettings, LineState, Stream};
+use crate::link::{DeviceLink, DeviceSettings, LineState};
 use crate::measuring::{self, Measuring};
 use crate::schedule::Schedule;
 use crate::trace::LineFrames;
@@ -272,14 +273,21 @@ fn port_opener(
     match port {
         Port::Simulated => Opener::Simulated(optobus_simulator::Bus::new(simulators), format),
         #[cfg(feature = "serial")]
-        Port::Serial(path) => Opener::Serial(optobus_transport::SerialSettings {
-            path: path.clone(),
-            line: format.unwrap_or(optobus_codec::LineFormat::new(115_200)),
+        Port::Serial(path) => Opener::Port(optobus_transport::Port::Serial(
+            optobus_transport::SerialSettings {
+                path: path.clone(),
+                line: format.unwrap_or(optobus_codec::LineFormat::new(115_200)),
+            },
+        )),
+        #[cfg(feature = "tcp")]
+        Port::RtuOverTcp(address) => {
+            Opener::Port(optobus_transport::Port::RtuOverTcp(address.clone()))
+        }
+        #[cfg(feature = "tcp")]
+        Port::Tcp(address) => Opener::Port(optobus_transport::Port::Tcp {
+            address: address.clone(),
+            default_port: 502,
         }),
-        #[cfg(feature = "tcp")]
-        Port::RtuOverTcp(address) => Opener::RtuOverTcp(address.clone()),
-        #[cfg(feature = "tcp")]
-        Port::Tcp(address) => Opener::Tcp(address.clone()),
         #[allow(unreachable_patterns)]
         _ => Opener::Stream(None),
     }

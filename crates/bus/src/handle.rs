@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
 use optobus_driver::{BufferTiming, Encode, Fixed};
-use optobus_inspect::{decode_value, Value};
+use optobus_inspect::Value;
 use tokio::sync::{mpsc, oneshot};
 
 use crate::event::DeviceId;
@@ -515,17 +515,6 @@ impl Handle {
         })
         .await
     }
-}
-
-/// Decodes what a read job read, register by register.
-pub(crate) fn values(
-    registers: &[&'static RegisterInfo],
-    readings: &optobus_driver::Readings,
-) -> Vec<Value> {
-    registers
-        .iter()
-        .map(|register| decode_value(register, readings.words(register)))
-        .collect()
 }
 
 /// Reads the data buffer of `core`'s device out: its timing first, then the values.

@@ -31,14 +31,14 @@ pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
 pub use catalogue::Catalogue;
 pub use event::{rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
 pub use file::{
-    BusFile, DeviceConfig, HttpConfig, LineConfig, LoadError, MetricsConfig, MqttConfig, Outputs,
-    PollConfig, Port, Rejected, SecretSource, StateEvery, Writable,
+    BusFile, DeviceConfig, HttpConfig, LineConfig, LinePickError, LoadError, MetricsConfig,
+    MqttConfig, Outputs, PollConfig, Port, Rejected, SecretSource, StateEvery, Writable,
 };
 pub use gateway::GatewayCounts;
 pub use handle::{Buffered, Handle, JobError, Source, AUDIT_TARGET, NETWORK_QUEUE};
 pub use line::NETWORK_SHARE;
-pub use link::Stream;
 pub use measuring::{InputValue, MeasurementEvent};
+pub use optobus_transport::Stream;
 pub use policy::{Policy, Refusal, RefusalKind};
 pub use schedule::Health;
 pub use trace::{Direction, Frame, FRAMES_KEPT};

@@ -10,7 +10,7 @@ use optobus_codec::{FrameShape, BROADCAST};
 use optobus_device::RegisterInfo;
 use optobus_driver::{CommandWait, Core, Error as DriverError, Finish};
 use optobus_inspect::decode_value;
-use optobus_transport::{Error, RtuClient, RtuConfig};
+use optobus_transport::{Client, ClientConfig, Error, RtuConfig, Stream};
 use tokio::sync::{broadcast, mpsc, Mutex};
 use tokio::time::Instant;
 
@@ -18,7 +18,7 @@ use crate::event::{DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample}
 use crate::file::Writable;
 use crate::gateway::{self, GatewayRequest};
 use crate::handle::{self, Checked, Job, Source};
-use crate::link::{count, Client, DeviceLink, DeviceSettings, LineState, Stream};
+use crate::link::{count, DeviceLink, DeviceSettings, LineState};
 use crate::policy::{Policy, Refusal};
 use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
 use crate::trace::{LineFrames, TracedStream};
@@ -67,15 +67,8 @@ pub(crate) enum Opener {
     Stream(Option<Box<dyn Stream>>),
     /// Simulated devices behind an emulated line, a new connection each time.
     Simulated(optobus_simulator::Bus, Option<LineFormat>),
-    /// A serial port.
-    #[cfg(feature = "serial")]
-    Serial(optobus_transport::SerialSettings),
-    /// RTU over a TCP socket (a serial-to-Ethernet converter).
-    #[cfg(feature = "tcp")]
-    RtuOverTcp(String),
-    /// Modbus TCP.
-    #[cfg(feature = "tcp")]
-    Tcp(String),
+    /// A serial port, RTU over TCP or Modbus TCP, opened by the transport.
+    Port(optobus_transport::Port),
 }
 
 impl Opener {
@@ -84,53 +77,35 @@ impl Opener {
         format: Option<LineFormat>,
         frames: &Arc<LineFrames>,
     ) -> Result<Client, Error> {
-        let rtu = |stream: Box<dyn Stream>| {
-            let traced = TracedStream {
+        // The line's frames are kept for its devices' traces.
+        let traced = |stream: Box<dyn Stream>| -> Box<dyn Stream> {
+            Box::new(TracedStream {
                 inner: stream,
                 frames: Arc::clone(frames),
-            };
-            Client::Rtu(RtuClient::with_config(
-                Box::new(traced),
-                RtuConfig {
-                    line: format,
-                    ..RtuConfig::default()
-                },
-            ))
+            })
+        };
+        let config = RtuConfig {
+            line: format,
+            ..RtuConfig::default()
         };
         match self {
-            Self::Stream(stream) => stream.take().map(rtu).ok_or(Error::Closed),
+            Self::Stream(stream) => stream
+                .take()
+                .map(|stream| Client::rtu(traced(stream), config))
+                .ok_or(Error::Closed),
             Self::Simulated(bus, line) => {
                 let (stream, _server) = match line {
                     Some(format) => bus.duplex_line(optobus_simulator::Line::new(*format)),
                     None => bus.duplex(),
                 };
-                Ok(rtu(Box::new(stream)))
+                Ok(Client::rtu(traced(Box::new(stream)), config))
             }
-            #[cfg(feature = "serial")]
-            Self::Serial(settings) => Ok(rtu(Box::new(settings.open()?))),
-            #[cfg(feature = "tcp")]
-            Self::RtuOverTcp(address) => {
-                let stream = tokio::net::TcpStream::connect(address.as_str())
-                    .await
-                    .map_err(|source| Error::Connect {
-                        attempts: 1,
-                        source,
-                    })?;
-                let _ = stream.set_nodelay(true);
-                Ok(rtu(Box::new(stream)))
-            }
-            #[cfg(feature = "tcp")]
-            Self::Tcp(address) => {
-                let address = optobus_transport::resolve(address, 502)
-                    .await
-                    .map_err(|source| Error::Connect {
-                        attempts: 1,
-                        source,
-                    })?;
-                Ok(Client::Tcp(optobus_transport::TcpClient::new(
-                    address,
-                    optobus_transport::TcpConfig::default(),
-                )))
+            Self::Port(port) => {
+                let config = ClientConfig {
+                    rtu: config,
+                    ..ClientConfig::default()
+                };
+                port.open(config, traced).await
             }
         }
     }
@@ -541,7 +516,9 @@ impl LineTask {
                 done,
             } => {
                 let result = self.devices[device].core.read_group(&registers).await;
-                let _ = done.send(result.map(|readings| handle::values(&registers, &readings)));
+                let _ = done.send(
+                    result.map(|readings| optobus_inspect::decode_readings(&registers, &readings)),
+                );
             }
             Job::Buffer { device, done } => {
                 let _ = done.send(handle::download(&mut self.devices[device].core).await);
@@ -630,8 +607,8 @@ impl LineTask {
         let started = Instant::now();
         let result = match state.client_for(index, &settings) {
             Ok(Client::Rtu(rtu)) => rtu.transact_pdu(unit, &pass, &shape).await,
-            #[cfg(feature = "tcp")]
-            Ok(Client::Tcp(_)) => Err(Error::Unsupported("a gateway serves RTU lines")),
+            #[allow(unreachable_patterns)]
+            Ok(_) => Err(Error::Unsupported("a gateway serves RTU lines")),
             Err(error) => return refused(path_or_target(&error)),
         };
         state.record(&settings, started, &result);

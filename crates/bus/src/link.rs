@@ -1,40 +1,16 @@
-//! One line's client, and each device's view of it: the device's own timeout, retries,
+//! One line's client (the transport's [`Client`]), and each device's view of it: the device's own timeout, retries,
 //! exception framing and silences applied to every request it makes.
 
 use std::sync::Arc;
 use std::time::Duration;
 
 use optobus_codec::{ExceptionShape, WriteValue};
-use optobus_transport::{Error, ReadRequest, RtuClient, Transport};
-use tokio::io::{AsyncRead, AsyncWrite};
+use optobus_transport::{Client, Error, ReadRequest, Requests, Transport};
 use tokio::sync::Mutex;
 use tokio::time::Instant;
 
 use crate::event::ErrorCounts;
 use crate::trace::LineFrames;
-
-/// A byte stream a line's RTU frames travel on.
-pub trait Stream: AsyncRead + AsyncWrite + Unpin + Send + 'static {}
-impl<S: AsyncRead + AsyncWrite + Unpin + Send + 'static> Stream for S {}
-
-/// The client of a line.
-pub(crate) enum Client {
-    /// RTU frames on a stream (a serial port, a converter's TCP socket, a simulated line).
-    Rtu(RtuClient<Box<dyn Stream>>),
-    /// Modbus TCP.
-    #[cfg(feature = "tcp")]
-    Tcp(optobus_transport::TcpClient),
-}
-
-impl std::fmt::Debug for Client {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Rtu(client) => f.debug_tuple("Rtu").field(client.config()).finish(),
-            #[cfg(feature = "tcp")]
-            Self::Tcp(client) => f.debug_tuple("Tcp").field(client.config()).finish(),
-        }
-    }
-}
 
 /// How a device's requests are made.
 #[derive(Clone, Copy, Debug)]
@@ -131,21 +107,13 @@ impl LineState {
         self.frames.begin(device);
         let gap = self.owed.max(self.frame_gap + settings.silence_before);
         let client = self.client.as_mut().ok_or(Error::Closed)?;
-        match client {
-            Client::Rtu(rtu) => {
-                let config = rtu.config_mut();
-                config.timeout = settings.timeout;
-                config.read_retries = settings.retries;
-                config.exception = settings.exception;
-                config.frame_gap = Some(gap);
-            }
-            #[cfg(feature = "tcp")]
-            Client::Tcp(tcp) => {
-                let config = tcp.config_mut();
-                config.timeout = settings.timeout;
-                config.read_retries = settings.retries;
-                config.exception = settings.exception;
-            }
+        client.set_requests(Requests {
+            timeout: settings.timeout,
+            retries: settings.retries,
+            exception: settings.exception,
+        });
+        if let Client::Rtu(rtu) = client {
+            rtu.config_mut().frame_gap = Some(gap);
         }
         Ok(client)
     }
@@ -185,11 +153,10 @@ impl Transport for DeviceLink {
     async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, Error> {
         let mut line = self.line.lock().await;
         let started = Instant::now();
-        let result = match line.client_for(Some(self.index), &self.settings)? {
-            Client::Rtu(rtu) => rtu.read_words(slave, read).await,
-            #[cfg(feature = "tcp")]
-            Client::Tcp(tcp) => tcp.read_words(slave, read).await,
-        };
+        let result = line
+            .client_for(Some(self.index), &self.settings)?
+            .read_words(slave, read)
+            .await;
         line.record(&self.settings, started, &result);
         self.count_error(&result);
         result
@@ -198,11 +165,10 @@ impl Transport for DeviceLink {
     async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), Error> {
         let mut line = self.line.lock().await;
         let started = Instant::now();
-        let result = match line.client_for(Some(self.index), &self.settings)? {
-            Client::Rtu(rtu) => rtu.write(slave, address, value).await,
-            #[cfg(feature = "tcp")]
-            Client::Tcp(tcp) => tcp.write(slave, address, value).await,
-        };
+        let result = line
+            .client_for(Some(self.index), &self.settings)?
+            .write(slave, address, value)
+            .await;
         line.record(&self.settings, started, &result);
         self.count_error(&result);
         result

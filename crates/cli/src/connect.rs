@@ -4,11 +4,12 @@
 use clap::Args;
 use optobus_device::{DeviceInfo, RegisterInfo};
 use optobus_driver::identify::{identify, ConnectAs, Identification};
-use optobus_driver::{Core, Readings};
-use optobus_inspect::{decode_value, Value};
+use optobus_driver::transport::Client;
+use optobus_driver::{Core, PartialRead, Readings};
+use optobus_inspect::{decode_readings, Value};
 
 use crate::error::{driver_error, CliError};
-use crate::link::{self, Link, Target};
+use crate::link::{self, Target};
 use crate::{inputs, models};
 
 /// Options every command takes: which model, and how to print.
@@ -225,7 +226,7 @@ impl Global {
         &self,
         names: &Names,
         command: &str,
-    ) -> Result<(Vec<&'static RegisterInfo>, Core<Link>), CliError> {
+    ) -> Result<(Vec<&'static RegisterInfo>, Core<Client>), CliError> {
         let device = self.device()?;
         self.check_line(device)?;
         let registers = optobus_inspect::resolve_readable(device, &names.names, names.channel)?;
@@ -238,7 +239,7 @@ impl Global {
         &self,
         device: &'static DeviceInfo,
         slave: u8,
-    ) -> Result<Core<Link>, CliError> {
+    ) -> Result<Core<Client>, CliError> {
         let link = link::open(device, slave, &self.target).await?;
         Core::new(link, slave, device).map_err(CliError::from)
     }
@@ -248,10 +249,10 @@ impl Global {
 struct LinksAs<'a>(&'a Target);
 
 impl ConnectAs for LinksAs<'_> {
-    type Link = Link;
+    type Link = Client;
     type Error = CliError;
 
-    async fn connect_as(&mut self, model: &'static DeviceInfo) -> Result<Link, CliError> {
+    async fn connect_as(&mut self, model: &'static DeviceInfo) -> Result<Client, CliError> {
         link::open(model, model.default_slave, self.0).await
     }
 }
@@ -283,27 +284,25 @@ impl Global {
 /// Reads `registers` in the fewest requests and decodes them; a failure names the registers
 /// of the request that failed.
 pub(crate) async fn read_values(
-    core: &mut Core<Link>,
+    core: &mut Core<Client>,
     registers: &[&'static RegisterInfo],
 ) -> Result<Vec<(&'static RegisterInfo, Value)>, CliError> {
-    let readings = read_each_request(core, registers)
+    let readings = core
+        .read_group_partly(registers)
         .await
-        .map_err(FailedRead::explained)?;
+        .map_err(|partial| failed_read(*partial, registers))?;
     Ok(decode_values(registers, &readings))
 }
 
-/// A read that failed: the driver's error and the registers of the request that failed.
-pub(crate) struct FailedRead {
-    pub(crate) error: optobus_driver::Error,
-    registers: Vec<&'static RegisterInfo>,
-}
-
-impl FailedRead {
-    /// The error as the tool says it, with the failing request's registers.
-    pub(crate) fn explained(self) -> CliError {
-        let names: Vec<&str> = self.registers.iter().map(|r| r.name).collect();
-        driver_error(self.error, Some(&names.join(", ")))
-    }
+/// A read of `registers` that failed, as the tool says it: the driver's error and the
+/// registers of the request that failed.
+pub(crate) fn failed_read(partial: PartialRead, registers: &[&'static RegisterInfo]) -> CliError {
+    let names: Vec<&str> = partial
+        .failed_registers(registers)
+        .iter()
+        .map(|r| r.name)
+        .collect();
+    driver_error(partial.error, Some(&names.join(", ")))
 }
 
 /// When the next of a series of reads every `interval` may start, the last one having
@@ -312,7 +311,7 @@ impl FailedRead {
 /// timeout). Ticks missed meanwhile are skipped: two reads never go out closer than
 /// `interval`.
 pub(crate) fn next_read(
-    core: &mut Core<Link>,
+    core: &mut Core<Client>,
     started: tokio::time::Instant,
     interval: std::time::Duration,
 ) -> tokio::time::Instant {
@@ -320,64 +319,14 @@ pub(crate) fn next_read(
     optobus_driver::transport::timing::deadline_from(started.max(sent), interval)
 }
 
-/// Reads `registers` request by request, as [`optobus_driver::plan_reads`] plans them (the
-/// fewest requests), so that a failure names the registers of its request; gives each
-/// request's readings (the device's answers, around reserved rows where it refuses them).
-pub(crate) async fn read_each_request(
-    core: &mut Core<Link>,
-    registers: &[&'static RegisterInfo],
-) -> Result<Vec<Readings>, FailedRead> {
-    let device = core.device();
-    let spans = optobus_driver::plan_reads(device, registers);
-    let in_span = |span: &optobus_driver::ReadSpan, r: &RegisterInfo| {
-        span.offset_of(r, device.addressing).is_some()
-    };
-    let mut requests: Vec<Vec<&'static RegisterInfo>> = spans
-        .iter()
-        .map(|span| {
-            registers
-                .iter()
-                .copied()
-                .filter(|r| in_span(span, r))
-                .collect()
-        })
-        .collect();
-    // A register in no planned request (one no read may touch) alone: the driver says why.
-    requests.extend(
-        registers
-            .iter()
-            .filter(|r| !spans.iter().any(|span| in_span(span, r)))
-            .map(|r| vec![*r]),
-    );
-    let mut readings = Vec::with_capacity(requests.len());
-    for members in requests {
-        match core.read_group(&members).await {
-            Ok(answer) => readings.push(answer),
-            Err(error) => {
-                return Err(FailedRead {
-                    error,
-                    registers: members,
-                })
-            }
-        }
-    }
-    Ok(readings)
-}
-
 /// The values of `registers` in `readings`, in the order given.
 pub(crate) fn decode_values(
     registers: &[&'static RegisterInfo],
-    readings: &[Readings],
+    readings: &Readings,
 ) -> Vec<(&'static RegisterInfo, Value)> {
     registers
         .iter()
-        .map(|r| {
-            let words = readings
-                .iter()
-                .map(|answer| answer.words(r))
-                .find(|words| !words.is_empty())
-                .unwrap_or(&[]);
-            (*r, decode_value(r, words))
-        })
+        .copied()
+        .zip(decode_readings(registers, readings))
         .collect()
 }

@@ -1,5 +1,6 @@
-//! Connecting to a device: a serial port, a TCP address, or the built-in simulator. (With
-//! `--verbose` the transport's own frame events are shown: see `log::show_frames`.)
+//! Connecting to a device: a serial port, a TCP address (the transport's [`Port`], opened to
+//! its [`Client`] as the bus's lines are), or the built-in simulator. (With `--verbose` the
+//! transport's own frame events are shown: see `log::show_frames`.)
 
 use std::net::SocketAddr;
 use std::time::Duration;
@@ -7,55 +8,13 @@ use std::time::Duration;
 use clap::Args;
 use optobus_device::DeviceInfo;
 use optobus_driver::transport::{
-    self, Error as WireError, LineFormat, ReadRequest, RtuClient, SerialStream, TcpClient,
-    WriteValue,
+    self, Client, ClientConfig, Error as WireError, LineFormat, Port, SerialSettings,
 };
-use optobus_driver::{line_format, rtu_config, serial_settings, tcp_config, Transport};
+use optobus_driver::{line_format, rtu_config, tcp_config};
 use optobus_simulator::{Line, Simulator};
-use tokio::io::DuplexStream;
 
 use crate::error::CliError;
 use crate::inputs::{self, ParityArg, SimSpeed};
-
-/// Where requests go.
-#[derive(Debug)]
-pub(crate) enum Link {
-    Serial(RtuClient<SerialStream>),
-    Simulator(RtuClient<DuplexStream>),
-    Tcp(TcpClient<SocketAddr>),
-}
-
-/// `$call` on the client of whichever link `$link` is.
-macro_rules! each_client {
-    ($link:expr, $client:ident => $call:expr) => {
-        match $link {
-            Link::Serial($client) => $call.await,
-            Link::Simulator($client) => $call.await,
-            Link::Tcp($client) => $call.await,
-        }
-    };
-}
-
-impl Link {
-    /// When the last request began to leave, once the line was ready (recovered, silent).
-    pub(crate) fn last_request(&self) -> Option<tokio::time::Instant> {
-        match self {
-            Link::Serial(client) => client.last_request(),
-            Link::Simulator(client) => client.last_request(),
-            Link::Tcp(client) => client.last_request(),
-        }
-    }
-}
-
-impl Transport for Link {
-    async fn read_words(&mut self, slave: u8, read: ReadRequest) -> Result<Vec<u16>, WireError> {
-        each_client!(self, c => c.read_words(slave, read))
-    }
-
-    async fn write(&mut self, slave: u8, address: u16, value: WriteValue) -> Result<(), WireError> {
-        each_client!(self, c => c.write(slave, address, value))
-    }
-}
 
 /// How to reach the device, from the command line.
 #[derive(Clone, Debug, Args)]
@@ -136,36 +95,52 @@ pub(crate) async fn open(
     device: &'static DeviceInfo,
     slave: u8,
     target: &Target,
-) -> Result<Link, CliError> {
+) -> Result<Client, CliError> {
     if target.verbose {
         crate::log::show_frames();
     }
-    let mut config = rtu_config(device);
-    config.timeout = target.timeout;
+    let mut config = ClientConfig {
+        rtu: rtu_config(device),
+        tcp: tcp_config(device),
+    };
+    config.rtu.timeout = target.timeout;
+    config.tcp.timeout = target.timeout;
     if let Some(path) = &target.serial {
-        let mut settings = serial_settings(device, path.as_str());
-        settings.line = target.line_format(device);
-        config.line = Some(settings.line);
-        let port = settings.open().map_err(|e| {
-            CliError::failed(format!("cannot open {path}: {e}"))
-                .hint("check the path, that no other program holds the port, and your permissions")
-        })?;
-        return Ok(Link::Serial(RtuClient::with_config(port, config)));
+        let settings = SerialSettings {
+            path: path.clone(),
+            line: target.line_format(device),
+        };
+        config.rtu.line = Some(settings.line);
+        return Port::Serial(settings)
+            .open(config, |stream| stream)
+            .await
+            .map_err(|e| {
+                CliError::failed(format!("cannot open {path}: {e}")).hint(
+                    "check the path, that no other program holds the port, and your permissions",
+                )
+            });
     }
     if let Some(address) = &target.tcp {
-        let port = device.tcp.map_or(502, |t| t.port);
-        let address = resolve_tcp(address, port).await?;
-        let mut config = tcp_config(device);
-        config.timeout = target.timeout;
-        let mut client = TcpClient::new(address, config);
-        client.open().await.map_err(|e| {
+        let default_port = device.tcp.map_or(502, |t| t.port);
+        // Resolved here to say which of resolving and connecting failed.
+        let address = resolve_tcp(address, default_port).await?;
+        let cannot_connect = |e: WireError| {
             let why = match e {
                 WireError::Connect { source, .. } => source.to_string(),
                 other => other.to_string(),
             };
             CliError::failed(format!("cannot connect to {address}: {why}"))
-        })?;
-        return Ok(Link::Tcp(client));
+        };
+        let port = Port::Tcp {
+            address: address.to_string(),
+            default_port,
+        };
+        let mut client = port
+            .open(config, |stream| stream)
+            .await
+            .map_err(cannot_connect)?;
+        client.connect().await.map_err(cannot_connect)?;
+        return Ok(client);
     }
     // A broadcast reaches the simulator at its own address.
     let address = if slave == 0 {
@@ -192,14 +167,14 @@ pub(crate) async fn open(
                     .hint("give a rate the model's manual lists, or --sim-speed full")
             })?;
             // The client keeps the line's t3.5, as on a serial port.
-            config.line = Some(format);
+            config.rtu.line = Some(format);
             simulator.duplex_line(Line::new(format))
         }
         SimSpeed::Full => {
             // The line is memory: no serial timing.
-            config.line = None;
+            config.rtu.line = None;
             simulator.duplex()
         }
     };
-    Ok(Link::Simulator(RtuClient::with_config(stream, config)))
+    Ok(Client::rtu(stream, config.rtu))
 }

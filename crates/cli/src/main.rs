@@ -4,6 +4,7 @@
 //! of the chosen model, so the tool works on a laptop with nothing attached.
 #![forbid(unsafe_code)]
 
+mod bus_file;
 mod chart;
 mod commands;
 mod connect;

@@ -133,6 +133,16 @@ impl PartialRead {
         })
     }
 
+    /// Those of `registers` (the group asked for) that the failed request was to read; when
+    /// no request was made, those that cannot be read.
+    pub fn failed_registers<'r>(&self, registers: &[&'r RegisterInfo]) -> Vec<&'r RegisterInfo> {
+        let failed = |register: &RegisterInfo| match &self.failed {
+            Some(span) => span.offset_of(register, self.readings.addressing).is_some(),
+            None => !register.readable(),
+        };
+        registers.iter().copied().filter(|r| failed(r)).collect()
+    }
+
     /// Whether `register` was read.
     pub fn has(&self, register: &RegisterInfo) -> bool {
         self.readings
@@ -190,6 +200,27 @@ impl<T: Transport> Core<T> {
         }
         self.slave = slave;
         Ok(())
+    }
+
+    /// Whether anything answers at `slave` (a scan's probe, which then talks to it): a read
+    /// of the device's first readable register, where an exception is an answer too
+    /// (something lives at that address). A device with no readable register is
+    /// [`Error::NotAllowed`].
+    pub async fn answers_at(&mut self, slave: u8) -> Result<bool, Error> {
+        let probe =
+            self.device
+                .registers
+                .iter()
+                .find(|r| r.readable())
+                .ok_or(Error::NotAllowed {
+                    register: "any register",
+                    what: "read (the model has no readable register)",
+                })?;
+        self.set_slave(slave)?;
+        Ok(match self.read_words(probe).await {
+            Ok(_) => true,
+            Err(error) => error.exception().is_some(),
+        })
     }
 
     /// What the driver has learned about its device from the device's answers (for example

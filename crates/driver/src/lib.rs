@@ -25,6 +25,7 @@
 #![cfg_attr(docsrs, feature(doc_cfg))]
 
 #[cfg(feature = "serde")]
+mod address;
 pub mod array_serde;
 mod buffer;
 #[cfg(feature = "serde")]
@@ -36,10 +37,12 @@ mod error;
 pub mod identify;
 mod memory;
 mod plan;
+pub mod scan;
 #[cfg(feature = "serde")]
 pub mod shapes;
 pub mod units;
 
+pub use crate::address::{address_change, AddressChange};
 pub use crate::buffer::{BufferTiming, DownloadProgress};
 #[cfg(feature = "tcp")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tcp")))]

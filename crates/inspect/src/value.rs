@@ -7,7 +7,7 @@ use std::net::Ipv4Addr;
 use optobus_codec::value::{join_u32, Fixed, Scale};
 use optobus_device::{CodeInfo, FieldInfo, RegisterInfo, Scalar, ValueKind};
 use optobus_driver::shapes::{Code, Quantity};
-use optobus_driver::Decode;
+use optobus_driver::{Decode, Readings};
 use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
 
@@ -118,6 +118,15 @@ fn field_value(field: &FieldInfo, bits: u32) -> Value {
     } else {
         code(field.codes, raw)
     }
+}
+
+/// The values of `registers` in what a group read read ([`optobus_driver::Core::read_group`]
+/// and its partial form), in the order given: the one decoding of a read, for every tool.
+pub fn decode_readings(registers: &[&'static RegisterInfo], readings: &Readings) -> Vec<Value> {
+    registers
+        .iter()
+        .map(|register| decode_value(register, readings.words(register)))
+        .collect()
 }
 
 /// What `register` holds in `words` (its words in address order; missing words read as 0).

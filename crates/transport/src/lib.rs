@@ -10,6 +10,9 @@
 //!   and sends broadcasts without waiting.
 //! - [`TcpClient`]: our own Modbus TCP client: replies matched by transaction id (stale ones
 //!   skipped), broken connections re-established with a bounded backoff.
+//! - [`Client`]: either of the two above, opened on a [`Port`] (a serial port, RTU over a
+//!   TCP socket, a Modbus TCP server) or on any stream: the one client a bus's lines and a
+//!   command-line tool hold.
 //! - [`ModbusContext`]: a user's `tokio_modbus::client::Context` (TCP or standard RTU), so an
 //!   optobus driver can share a connection with other Modbus devices; see its docs for what it
 //!   cannot recover from.
@@ -32,6 +35,7 @@ pub use optobus_codec::{
     ReadFunction, WriteValue,
 };
 
+mod client;
 mod error;
 pub mod frames;
 #[cfg(feature = "tokio-modbus")]
@@ -46,6 +50,7 @@ pub mod timing;
 mod transact;
 mod transport;
 
+pub use client::{Client, ClientConfig, Port, Requests, Stream};
 pub use error::Error;
 #[cfg(feature = "tokio-modbus")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tokio-modbus")))]

@@ -7,11 +7,13 @@
 mod check;
 mod measurements;
 pub mod outputs;
+mod pick;
 mod read;
 mod reader;
 
 pub use measurements::Measurements;
 pub use outputs::{HttpConfig, MetricsConfig, MqttConfig, Outputs, SecretSource, StateEvery};
+pub use pick::LinePickError;
 pub use read::{resolve, writable};
 
 use std::net::SocketAddr;

@@ -8,6 +8,8 @@ use clap::Subcommand;
 use optobus_bus::{BusFile, LoadError, Rejected};
 use serde_json::{json, Value as Json};
 
+// Re-exported for `run` until it imports `crate::bus_file::load` itself.
+pub(crate) use crate::bus_file::load;
 use crate::error::CliError;
 use crate::models;
 use crate::render::{counted, pretty, print};
@@ -122,17 +124,4 @@ pub(crate) fn no_spec(options: &crate::connect::Options) -> Result<(), CliError>
         )),
         None => Ok(()),
     }
-}
-
-/// The checked bus file at `path`: a file that cannot be read is the system's failure, one
-/// that does not pass is refused with every problem.
-pub(crate) fn load(path: &Path) -> Result<BusFile, CliError> {
-    BusFile::load(path, &models::catalogue()).map_err(|error| match error {
-        LoadError::Read { .. } => CliError::failed(error.to_string()),
-        LoadError::Rejected(rejected) => CliError::new(format!(
-            "{} does not pass the bus file checks:\n{}",
-            path.display(),
-            rejected.render().trim_end()
-        )),
-    })
 }

@@ -5,9 +5,7 @@ use clap::Args;
 use optobus_device::RegisterInfo;
 use serde_json::json;
 
-use crate::connect::{
-    decode_values, read_each_request, read_values, DeviceArgs, FailedRead, Global, Names,
-};
+use crate::connect::{decode_values, failed_read, read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{counted, pretty, print, values_json, values_text};
@@ -37,11 +35,12 @@ pub(crate) async fn dump(global: &Global) -> Result<(), CliError> {
     let registers: Vec<&'static RegisterInfo> = device.dump_registers().collect();
     let slave = global.answering_slave(device, "dump")?;
     let mut core = global.connect(device, slave).await?;
-    let readings = read_each_request(&mut core, &registers)
+    let readings = core
+        .read_group_partly(&registers)
         .await
-        .map_err(FailedRead::explained)?;
+        .map_err(|partial| failed_read(*partial, &registers))?;
     // The requests answered: a device refusing a read over reserved rows is read around them.
-    let requests: usize = readings.iter().map(|r| r.requests().count()).sum();
+    let requests = readings.requests().count();
     let values = decode_values(&registers, &readings);
     let skipped = device.readable_registers().count() - registers.len();
     if skipped > 0 {

@@ -1,14 +1,18 @@
 //! `optobus scan`: which baud rate and slave address a device answers on, and which model
 //! answers there (as `identify` finds it); the first one found ends the scan unless `--all`.
+//! The scan itself is the driver's (`optobus_driver::scan`); this parses, shows and prints.
 
 use std::time::Duration;
 
 use clap::Args;
+use optobus_device::DeviceInfo;
 use optobus_driver::identify::Verdict;
-use optobus_driver::Core;
+use optobus_driver::scan::{scan, ConnectAt, ScanStep};
+use optobus_driver::transport::Client;
 
 use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
+use crate::link::Target;
 use crate::log::note;
 use crate::log::progress_bar;
 use crate::render::print;
@@ -53,74 +57,62 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
     let Some(path) = &global.target.serial else {
         return Err(CliError::new("scan needs a serial port").hint("give --serial PORT"));
     };
-    let probe = device
-        .registers
-        .iter()
-        .find(|r| r.readable())
-        .ok_or_else(|| CliError::new("the model has no readable register"))?;
+    if !device.registers.iter().any(|r| r.readable()) {
+        return Err(CliError::new("the model has no readable register"));
+    }
+    let candidates = global.candidates()?;
+    let mut target = global.target.clone();
+    // A silent address costs the whole timeout: keep it short unless asked otherwise.
+    target.timeout = global.target.timeout.min(Duration::from_millis(200));
     let progress = progress_bar(
         (bauds.len() * slaves.len()) as u64,
         "scanning {msg} ({pos}/{len})",
     );
-    let mut found = Vec::new();
-    'bauds: for &baud in &bauds {
-        let mut target = global.target.clone();
-        target.baud = Some(baud);
-        // A silent address costs the whole timeout: keep it short unless asked otherwise.
-        target.timeout = global.target.timeout.min(Duration::from_millis(200));
-        let mut core = None;
-        for &slave in &slaves {
+    let show = |step: ScanStep<'_>| match step {
+        ScanStep::Probing { baud, slave } => {
             progress.set_message(format!("{baud} baud: slave {slave}"));
             progress.inc(1);
-            let prober = match &mut core {
-                Some(core) => core,
-                None => core.insert(Core::with_default_slave(
-                    link::open(device, 0, &target).await?,
-                    device,
-                )),
-            };
-            prober.set_slave(slave)?;
-            let answered = match prober.read_words(probe).await {
-                Ok(_) => true,
-                // An exception is an answer too: something lives at this address.
-                Err(e) => e.exception().is_some(),
-            };
-            if answered {
-                // The port is opened anew for each model identify tries.
-                core = None;
-                let model = global.identify(&target, Some(slave)).await?.verdict();
-                let line = format!(
-                    "found: slave {slave} at {baud} baud: {}",
-                    models::verdict(&model)
-                );
-                // With --json, stdout carries the JSON only.
-                progress.suspend(|| {
-                    if global.json {
-                        note!("optobus: {line}");
-                        // Written before the bar is drawn again (notes have a thread of
-                        // their own).
-                        crate::log::flush(std::time::Duration::from_secs(1));
-                    } else {
-                        print(&line);
-                    }
-                });
-                found.push((baud, slave, model));
-                if !args.all {
-                    break 'bauds;
-                }
-            }
         }
-    }
+        ScanStep::Found(found) => {
+            let line = format!(
+                "found: slave {} at {} baud: {}",
+                found.slave,
+                found.baud,
+                models::verdict(&found.identification.verdict())
+            );
+            // With --json, stdout carries the JSON only.
+            progress.suspend(|| {
+                if global.json {
+                    note!("optobus: {line}");
+                    // Written before the bar is drawn again (notes have a thread of their
+                    // own).
+                    crate::log::flush(std::time::Duration::from_secs(1));
+                } else {
+                    print(&line);
+                }
+            });
+        }
+    };
+    let found = scan(
+        &mut LinksAt(&target),
+        device,
+        &bauds,
+        &slaves,
+        &candidates,
+        args.all,
+        show,
+    )
+    .await?;
     progress.finish_and_clear();
     if global.json {
         let list: Vec<serde_json::Value> = found
             .iter()
-            .map(|(baud, slave, model)| {
-                let model = match model {
+            .map(|found| {
+                let model = match found.identification.verdict() {
                     Verdict::One(model) => Some(models::name(model)),
                     _ => None,
                 };
-                serde_json::json!({"baud": baud, "slave": slave, "model": model})
+                serde_json::json!({"baud": found.baud, "slave": found.slave, "model": model})
             })
             .collect();
         print(&serde_json::Value::Array(list).to_string());
@@ -130,4 +122,22 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
             .hint("check wiring and parity, or widen --bauds and --slaves"));
     }
     Ok(())
+}
+
+/// Links to the line a [`Target`] addresses, at a baud rate, framed for each model.
+struct LinksAt<'a>(&'a Target);
+
+impl ConnectAt for LinksAt<'_> {
+    type Link = Client;
+    type Error = CliError;
+
+    async fn connect_at(
+        &mut self,
+        model: &'static DeviceInfo,
+        baud: u32,
+    ) -> Result<Client, CliError> {
+        let mut target = self.0.clone();
+        target.baud = Some(baud);
+        link::open(model, model.default_slave, &target).await
+    }
 }

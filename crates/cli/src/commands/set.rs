@@ -1,8 +1,8 @@
 //! `optobus set`: one register written from engineering units or code names, and read back.
 
 use clap::Args;
-use optobus_device::{DeviceInfo, Effect, RegisterInfo};
-use optobus_driver::{raw_bits, Encode};
+use optobus_device::RegisterInfo;
+use optobus_driver::{address_change, raw_bits, AddressChange, Encode};
 use optobus_inspect::{decode_value, parse_value};
 use serde_json::json;
 
@@ -29,7 +29,7 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
     global.check_line(device)?;
     let register = optobus_inspect::resolve_one(device, &args.name, args.write.channel)?;
     let words = parse_value(register, &args.value)?;
-    let new_address = new_slave_address(device, register, &words);
+    let new_address = address_change(device, register, &words);
     inputs::confirm(
         device,
         register,
@@ -55,11 +55,8 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
         return Ok(());
     }
     let afterwards = match new_address {
-        Some(address) if device.needs_save_and_power_cycle => {
-            let save = device
-                .commands
-                .iter()
-                .find(|c| c.effect == Effect::Save)
+        Some(AddressChange::AfterSaveAndPowerCycle { address, save }) => {
+            let save = save
                 .map(|c| format!(" (`optobus do {} --yes`)", c.name))
                 .unwrap_or_default();
             Some(format!(
@@ -67,8 +64,7 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
                  cycle; until then the device answers at slave {slave}"
             ))
         }
-        Some(address) => {
-            // The device answers at its new address from the next request on.
+        Some(AddressChange::Now(address)) => {
             core.set_slave(address)?;
             Some(format!(
                 "optobus: the device now answers at slave {address}"
@@ -94,19 +90,6 @@ pub(crate) async fn run(global: &Global, args: &SetArgs) -> Result<(), CliError>
         note!("{afterwards}");
     }
     Ok(())
-}
-
-/// For a write to the device's own slave-address register, the new address (the spec's range
-/// keeps it within 1 to 247, which the checker demands).
-fn new_slave_address(
-    device: &DeviceInfo,
-    register: &'static RegisterInfo,
-    words: &[u16],
-) -> Option<u8> {
-    let own = device.slave_address_register()?;
-    (own.name == register.name)
-        .then(|| u8::try_from(raw_bits(register, words)).ok())
-        .flatten()
 }
 
 /// Words [`parse_value`] already validated, written as they are.

@@ -7,9 +7,12 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
+use optobus_bus::LinePickError;
 use optobus_codec::LineFormat;
 use optobus_device::DeviceInfo;
-use optobus_simulator::{Bus, Faults, FaultsError, Line, Reply, Simulator};
+use optobus_simulator::{
+    Exchange, Faults, FaultsError, Line, Member, Protocol, ServedLine, Simulator,
+};
 
 use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
@@ -100,19 +103,9 @@ pub(crate) async fn run(global: &Global, args: &SimulateArgs) -> Result<(), CliE
     }
 }
 
-/// `sim` logging each exchange it sees on stderr, but a request it leaves unanswered only when
-/// `logs_silence_to` its slave address (on a line of several, each device logs what it was
-/// asked, not every other device's traffic).
-fn logged(
-    sim: Simulator,
-    logs_silence_to: impl Fn(u8) -> bool + Send + Sync + 'static,
-) -> Simulator {
-    sim.observe(move |exchange| {
-        let silent = matches!(exchange.reply, Reply::Silent);
-        if !silent || exchange.slave.is_none_or(&logs_silence_to) {
-            note!("{} {exchange}", crate::render::time_of_day());
-        }
-    })
+/// Logs an exchange on stderr.
+fn log_exchange(exchange: &Exchange<'_>) {
+    note!("{} {exchange}", crate::render::time_of_day());
 }
 
 /// Waits for `--duration` or Ctrl-C.
@@ -170,7 +163,7 @@ async fn serve_one(global: &Global, args: &SimulateArgs) -> Result<(), CliError>
     };
     let faulty = faults.as_ref().map(|f| format!(", faults {f}"));
     let extras = faulty.unwrap_or_default() + &timed_text(line.as_ref(), args);
-    let mut sim = logged(Simulator::new(device).slave(slave), |_| true);
+    let mut sim = Simulator::new(device).slave(slave);
     if let Some(faults) = &faults {
         sim = sim.faults(faults.clone());
     }
@@ -178,9 +171,17 @@ async fn serve_one(global: &Global, args: &SimulateArgs) -> Result<(), CliError>
     let (server, place) = if args.pty || global.target.serial.is_some() {
         let format = global.target.line_format(device);
         let serial = global.target.serial.as_deref();
-        serve_rtu(&Bus::new([sim.clone()]), serial, Some(format), line)?
+        let member = Member {
+            name: models::name(device),
+            simulator: sim.clone(),
+            faults: None,
+        };
+        let served = ServedLine::new(vec![member], Protocol::Rtu, None, log_exchange);
+        serve_rtu(&served, serial, Some(format), line)?
     } else {
-        serve_tcp(global, |address| sim.serve_tcp(address)).await?
+        // Over TCP one device answers every unit id.
+        let logged = sim.clone().observe(log_exchange);
+        serve_tcp(global, |address| logged.serve_tcp(address)).await?
     };
     note!(
         "optobus: simulating {} (slave {slave}) on {place}{extras}",
@@ -272,16 +273,13 @@ async fn serve_list(
     };
     let members = devices
         .iter()
-        .map(|&(device, slave)| {
-            (
-                models::name(device),
-                Simulator::new(device).slave(slave),
-                None,
-            )
+        .map(|&(device, slave)| Member {
+            name: models::name(device),
+            simulator: Simulator::new(device).slave(slave),
+            faults: None,
         })
         .collect();
-    let line = Several { members, format };
-    serve_line_of(global, args, line, faults(args)?).await
+    serve_line_of(global, args, members, format, faults(args)?).await
 }
 
 /// The devices of one line of the bus file at `path`, each with its own faults.
@@ -306,20 +304,18 @@ async fn serve_bus_line(
                 .hint("give each simulated device its `faults:` in the bus file"),
         );
     }
-    let file = crate::commands::bus::load(path)?;
+    let file = crate::bus_file::load(path)?;
     let index = bus_line(&file, args.line.as_deref(), path)?;
     let members = file
         .devices_on(index)
-        .map(|(_, config)| {
-            let who = format!("{} {}", models::name(config.device), config.name);
-            (who, config.simulator(), config.faults.clone())
+        .map(|(_, config)| Member {
+            name: format!("{} {}", models::name(config.device), config.name),
+            simulator: config.simulator(),
+            faults: config.faults.clone(),
         })
         .collect();
-    let line = Several {
-        members,
-        format: file.lines.get(index).and_then(|line| line.format),
-    };
-    serve_line_of(global, args, line, None).await
+    let format = file.lines.get(index).and_then(|line| line.format);
+    serve_line_of(global, args, members, format, None).await
 }
 
 /// The line of the bus file `--line` names, or its only line, or its only simulated line.
@@ -328,51 +324,27 @@ fn bus_line(
     named: Option<&str>,
     path: &std::path::Path,
 ) -> Result<usize, CliError> {
-    let names = || {
-        let names: Vec<&str> = file.lines.iter().map(|l| l.name.as_str()).collect();
-        names.join(", ")
-    };
-    if let Some(name) = named {
-        return file
-            .lines
-            .iter()
-            .position(|line| line.name == name)
-            .ok_or_else(|| {
-                CliError::new(format!("{} has no line `{name}`", path.display()))
-                    .hint(format!("its lines: {}", names()))
-            });
-    }
-    let simulated: Vec<usize> = (0..file.lines.len())
-        .filter(|&i| {
-            file.lines
-                .get(i)
-                .is_some_and(|l| l.port == optobus_bus::Port::Simulated)
-        })
-        .collect();
-    match (file.lines.len(), simulated.as_slice()) {
-        (1, _) => Ok(0),
-        (_, [only]) => Ok(*only),
-        _ => Err(
-            CliError::new(format!("{} has several lines", path.display()))
-                .hint(format!("name the one to serve with --line ({})", names())),
-        ),
-    }
+    file.pick_line(named).map_err(|error| match error {
+        LinePickError::NoSuchLine { name, lines } => {
+            CliError::new(format!("{} has no line `{name}`", path.display()))
+                .hint(format!("its lines: {}", lines.join(", ")))
+        }
+        LinePickError::Several { lines } => {
+            CliError::new(format!("{} has several lines", path.display())).hint(format!(
+                "name the one to serve with --line ({})",
+                lines.join(", ")
+            ))
+        }
+    })
 }
 
-/// Devices sharing one simulated RTU line.
-struct Several {
-    /// Each device as the log names it (`p-series`, or the model and the bus file's name),
-    /// its simulator and the faults in its own replies.
-    members: Vec<(String, Simulator, Option<Faults>)>,
-    /// The line's format, when the devices agree on one (or the bus file gives it).
-    format: Option<LineFormat>,
-}
-
-/// Serves `several` on one RTU line (a pty or `--serial`), `line_faults` in every reply.
+/// Serves `members` on one line (a pty or `--serial`, else Modbus TCP) in `format` (where
+/// they agree on one, or the bus file gives it), `line_faults` in every reply.
 async fn serve_line_of(
     global: &Global,
     args: &SimulateArgs,
-    several: Several,
+    members: Vec<Member>,
+    format: Option<LineFormat>,
     line_faults: Option<Faults>,
 ) -> Result<(), CliError> {
     if args.line_timing {
@@ -380,7 +352,7 @@ async fn serve_line_of(
     }
     let rtu = args.pty || global.target.serial.is_some();
     let needs_format = args.line_timing || global.target.serial.is_some();
-    let format = match several.format {
+    let format = match format {
         Some(format) => Some(format),
         None if needs_format => {
             return Err(CliError::new(
@@ -399,47 +371,21 @@ async fn serve_line_of(
         }
         None => None,
     };
-    // Each device logs the requests to itself; the first also those to no device.
-    let addresses: BTreeSet<u8> = several
-        .members
-        .iter()
-        .map(|(_, sim, _)| sim.address())
-        .collect();
-    // On RTU `--faults` go into every reply on the line; over TCP each device's replies.
-    let each_faults = line_faults.clone().filter(|_| !rtu);
-    let line_faults = line_faults.filter(|_| rtu);
-    let members: Vec<(String, Simulator, Option<Faults>)> = several
-        .members
-        .into_iter()
-        .enumerate()
-        .map(|(index, (name, sim, faults))| {
-            let own = sim.address();
-            let addresses = addresses.clone();
-            let logs = move |slave| slave == own || (index == 0 && !addresses.contains(&slave));
-            let sim = logged(sim, logs);
-            match &each_faults {
-                Some(each) => (name, sim.faults(each.clone()), Some(each.clone())),
-                None => (name, sim, faults),
-            }
-        })
-        .collect();
-    let mut bus = Bus::new(members.iter().map(|(_, sim, _)| sim.clone()));
-    if let Some(faults) = &line_faults {
-        bus = bus.faults(faults.clone());
-    }
-    let extras = line_faults.as_ref().or(each_faults.as_ref());
-    let extras = extras.map(|f| format!(", faults {f}"));
+    let protocol = if rtu { Protocol::Rtu } else { Protocol::Tcp };
+    let served = ServedLine::new(members, protocol, line_faults, log_exchange);
+    let extras = served.faults().map(|f| format!(", faults {f}"));
     let line_stats = line.as_ref().map(Line::stats);
     let extras = extras.unwrap_or_default() + &timed_text(line.as_ref(), args);
     let (server, place) = if rtu {
-        serve_rtu(&bus, global.target.serial.as_deref(), format, line)?
+        serve_rtu(&served, global.target.serial.as_deref(), format, line)?
     } else {
-        let (server, place) = serve_tcp(global, |address| bus.serve_tcp(address)).await?;
+        let (server, place) = serve_tcp(global, |address| served.serve_tcp(address)).await?;
         (server, place + " (the unit id picks the device)")
     };
-    let who: Vec<String> = members
+    let who: Vec<String> = served
+        .members()
         .iter()
-        .map(|(name, sim, _)| format!("slave {}: {name}", sim.address()))
+        .map(|member| format!("slave {}: {}", member.simulator.address(), member.name))
         .collect();
     print(&who.join("\n"));
     note!(
@@ -450,13 +396,8 @@ async fn serve_line_of(
     let _ = std::io::Write::flush(&mut std::io::stdout());
     until_stopped(args.duration).await;
     drop(server);
-    if let (Some(faults), Some(stats)) = (&line_faults, bus.fault_stats()) {
-        note!("optobus: {}", stats.summary(faults));
-    }
-    for (name, sim, faults) in &members {
-        if let (Some(faults), Some(stats)) = (faults, sim.fault_stats()) {
-            note!("optobus: {name}: {}", stats.summary(faults));
-        }
+    for summary in served.fault_summaries() {
+        note!("optobus: {summary}");
     }
     if let Some(stats) = line_stats {
         note!("optobus: {stats}");
@@ -467,20 +408,18 @@ async fn serve_line_of(
 /// What keeps a simulation served while it runs, and where it is served, for the log.
 type Served = (Box<dyn std::any::Any>, String);
 
-/// Serves `bus` as RTU on a new pty, or on the serial port `serial` in `format`, timed as
+/// Serves `served` as RTU on a new pty, or on the serial port `serial` in `format`, timed as
 /// `line` says; prints where on stdout.
 fn serve_rtu(
-    bus: &Bus,
+    served: &ServedLine,
     serial: Option<&str>,
     format: Option<LineFormat>,
     line: Option<Line>,
 ) -> Result<Served, CliError> {
     let (Some(path), Some(format)) = (serial, format) else {
-        let pty = match line {
-            Some(line) => bus.serve_pty_line(line),
-            None => bus.serve_pty(),
-        }
-        .map_err(|e| CliError::failed(format!("cannot open a pty: {e}")))?;
+        let pty = served
+            .serve_pty(line)
+            .map_err(|e| CliError::failed(format!("cannot open a pty: {e}")))?;
         let path = pty.path().display().to_string();
         print(&path);
         return Ok((Box::new(pty), format!("RTU at {path}")));
@@ -493,13 +432,7 @@ fn serve_rtu(
         .open()
         .map_err(|e| CliError::failed(format!("cannot open {path}: {e}")))?;
     print(path);
-    let bus = bus.clone();
-    let task = tokio::spawn(async move {
-        match line {
-            Some(line) => bus.serve_line(port, &line).await,
-            None => bus.serve(port).await,
-        }
-    });
+    let task = served.serve_stream(port, line);
     Ok((Box::new(task), format!("RTU at {path}")))
 }
 

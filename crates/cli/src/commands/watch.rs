@@ -9,7 +9,7 @@ use clap::Args;
 use crossterm::terminal;
 use serde_json::json;
 
-use crate::connect::{decode_values, next_read, read_each_request, DeviceArgs, Global, Names};
+use crate::connect::{decode_values, failed_read, next_read, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{redraw, screen, time_of_day, timestamp, values_json, values_text};
@@ -58,7 +58,7 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
     loop {
         let started = tokio::time::Instant::now();
         let outcome = tokio::select! {
-            outcome = read_each_request(&mut core, &registers) => outcome,
+            outcome = core.read_group_partly(&registers) => outcome,
             _ = &mut ctrl_c => break,
         };
         refresh += 1;
@@ -71,9 +71,9 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
                 }
                 Ok(decode_values(&registers, &readings))
             }
-            Err(failed) => {
-                let kind = failed.error.kind();
-                let error = failed.explained();
+            Err(partial) => {
+                let kind = partial.error.kind();
+                let error = failed_read(*partial, &registers);
                 let (known, failed) = failing.map_or((None, 0), |(k, n)| (Some(k), n));
                 if piped && known != Some(kind) {
                     note!("{}  ! {error} — retrying", time_of_day());
