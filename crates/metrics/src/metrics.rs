@@ -227,6 +227,8 @@ impl Metrics {
                 }
             }
             Event::Line(stats) => self.line(stats),
+            // Writes are in the audit trail; the register's next sample shows its value.
+            Event::Written(_) => {}
         }
     }
 

@@ -612,7 +612,8 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
                     shown.health = health.health;
                 }
             }
-            Event::Line(_) => {}
+            // Samples only on stdout: writes are in the audit trail (stderr).
+            Event::Line(_) | Event::Written(_) => {}
         }
         if terminal && tokio::time::Instant::now() >= redraw_at {
             stdout.push(board.text(&header));
