@@ -120,6 +120,9 @@ struct Shared {
     states: Option<Mutex<States>>,
     /// Set by [`Publisher::stop`]: the connection's end is ours, nothing to warn about.
     stopping: std::sync::atomic::AtomicBool,
+    /// Set when [`Publisher::stop`] begins: every device is announced `offline`, and no
+    /// later sample or health event announces one `online` again.
+    closing: std::sync::atomic::AtomicBool,
     /// The controls another path wrote, to be read again at once.
     rereads: Rereads,
 }
@@ -278,6 +281,9 @@ impl Shared {
 
     /// Records a device's health; publishes its availability when it changed.
     fn health(&self, device: &str, online: bool) {
+        if self.closing.load(std::sync::atomic::Ordering::Relaxed) {
+            return;
+        }
         let changed = {
             let mut devices = self.devices.lock().unwrap_or_else(|p| p.into_inner());
             match devices.iter_mut().find(|d| d.name == device) {
@@ -411,6 +417,7 @@ impl Publisher {
             discovery,
             states,
             stopping: Default::default(),
+            closing: Default::default(),
         });
         let (client, eventloop) = AsyncClient::new(options, CLIENT_CHANNEL);
         let mut tasks = Vec::new();
@@ -472,9 +479,26 @@ impl Publisher {
         }
     }
 
-    /// Says the process is going `offline`, waits up to `within` for what is queued to reach
-    /// the broker, and disconnects.
+    /// Says the process and every device are going `offline` (the devices' availability
+    /// follows: nobody will tell their health any more), waits up to `within` for what is
+    /// queued to reach the broker, and disconnects.
     pub async fn stop(self, within: Duration) {
+        self.shared
+            .closing
+            .store(true, std::sync::atomic::Ordering::Relaxed);
+        let devices: Vec<String> = {
+            let mut devices = lock(&self.shared.devices);
+            for device in devices.iter_mut() {
+                device.online = Some(false);
+            }
+            devices.iter().map(|device| device.name.clone()).collect()
+        };
+        for device in devices {
+            self.shared.push(announce(
+                self.shared.topics.availability(&device),
+                availability(false),
+            ));
+        }
         self.shared
             .push(announce(self.shared.topics.status(), "offline"));
         let deadline = tokio::time::Instant::now() + within;
@@ -927,6 +951,7 @@ mod tests {
             discovery: None,
             states: None,
             stopping: Default::default(),
+            closing: Default::default(),
             rereads: Rereads::default(),
         })
     }
