@@ -7,7 +7,7 @@ use std::time::{Duration, SystemTime};
 use optobus_codec::passthrough::{Access, PassPdu};
 use optobus_codec::LineFormat;
 use optobus_codec::{FrameShape, BROADCAST, EXCEPTION_BIT};
-use optobus_device::RegisterInfo;
+use optobus_device::{RegisterInfo, Table};
 use optobus_driver::{CommandWait, Core, Error as DriverError, Finish};
 use optobus_inspect::decode_value;
 use optobus_transport::{Error, RtuClient, RtuConfig};
@@ -529,7 +529,20 @@ impl LineTask {
                     core.write(register, &Checked(words)).await
                 };
                 if result.is_ok() {
-                    self.written(device, broadcast, |_| vec![register], by);
+                    // A broadcast wrote the same words at the same address of every other
+                    // device of the line, whatever register each of them has there.
+                    let addressed = Arc::clone(&self.devices[device].id);
+                    let registers = |run: &DeviceRun| {
+                        let words = usize::from(register.words);
+                        match register.table {
+                            _ if Arc::ptr_eq(&run.id, &addressed) => vec![register],
+                            Table::Holding => {
+                                policy::written(run.core.device(), register.address, words)
+                            }
+                            _ => Vec::new(),
+                        }
+                    };
+                    self.written(device, broadcast, registers, by);
                 }
                 let _ = done.send(result);
             }
