@@ -8,6 +8,7 @@ use optobus_inspect::Value;
 use serde::ser::{SerializeStruct, Serializer};
 use serde::Serialize;
 
+use crate::handle::Source;
 use crate::measuring::MeasurementEvent;
 use crate::schedule::Health;
 
@@ -22,6 +23,56 @@ pub enum Event {
     Line(Arc<LineStats>),
     /// A measurement of the bus file: its value, or why it has none.
     Measurement(Arc<MeasurementEvent>),
+    /// A write reached a device and it took it: whoever shows the register's value (MQTT's
+    /// Home Assistant states) may read it again now rather than at its next refresh.
+    Written(Arc<Written>),
+}
+
+/// Who had a register written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Writer {
+    /// A client of the line's Modbus TCP gateway.
+    Gateway,
+    /// A job of a [`Handle`](crate::Handle), of its [`Source`].
+    Job(Source),
+}
+
+impl Writer {
+    /// Its name in messages: `gateway`, or the source's (`api`, `console`, `mqtt`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Gateway => "gateway",
+            Self::Job(source) => source.name(),
+        }
+    }
+}
+
+/// A write a device took (its reply said so; a broadcast: once it was sent, for every device
+/// of the line).
+#[derive(Clone, Debug)]
+pub struct Written {
+    /// The device written.
+    pub source: Arc<DeviceId>,
+    /// The registers the write covered, in address order (a command's: its register).
+    pub registers: Vec<&'static RegisterInfo>,
+    /// Who asked for it.
+    pub by: Writer,
+}
+
+/// For scripts: `device`, `model`, `line`, `slave`, `registers` (their names) and `by`.
+impl Serialize for Written {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut fields = serializer.serialize_struct("Written", 6)?;
+        fields.serialize_field("device", &*self.source.device)?;
+        fields.serialize_field("model", &*self.source.model)?;
+        fields.serialize_field("line", &*self.source.line)?;
+        fields.serialize_field("slave", &self.source.slave)?;
+        let names: Vec<&str> = self.registers.iter().map(|r| r.name).collect();
+        fields.serialize_field("registers", &names)?;
+        fields.serialize_field("by", self.by.name())?;
+        fields.end()
+    }
 }
 
 /// Which device a sample or health event is about.

@@ -29,7 +29,9 @@ mod trace;
 
 pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
 pub use catalogue::Catalogue;
-pub use event::{rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
+pub use event::{
+    rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample, Writer, Written,
+};
 pub use file::{
     BusFile, DeviceConfig, HttpConfig, LineConfig, LinePickError, LoadError, MetricsConfig,
     MqttConfig, Outputs, PollConfig, Port, Rejected, SecretSource, StateEvery, Writable,

@@ -4,22 +4,22 @@
 use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
-use optobus_codec::passthrough::PassPdu;
+use optobus_codec::passthrough::{Access, PassPdu};
 use optobus_codec::LineFormat;
-use optobus_codec::{FrameShape, BROADCAST};
-use optobus_device::RegisterInfo;
+use optobus_codec::{FrameShape, BROADCAST, EXCEPTION_BIT};
+use optobus_device::{RegisterInfo, Table};
 use optobus_driver::{CommandWait, Core, Error as DriverError, Finish};
 use optobus_inspect::decode_value;
 use optobus_transport::{Client, ClientConfig, Error, RtuConfig, Stream};
 use tokio::sync::{broadcast, mpsc, Mutex};
 use tokio::time::Instant;
 
-use crate::event::{DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
+use crate::event::{DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample, Writer, Written};
 use crate::file::Writable;
 use crate::gateway::{self, GatewayRequest};
 use crate::handle::{self, Checked, Job, Source};
 use crate::link::{count, DeviceLink, DeviceSettings, LineState};
-use crate::policy::{Policy, Refusal};
+use crate::policy::{self, Policy, Refusal};
 use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
 use crate::trace::{LineFrames, TracedStream};
 
@@ -206,7 +206,8 @@ const QUEUES: usize = 1 + Source::ALL.len();
 /// Work asked of the line from outside its schedule.
 enum Work {
     Gateway(GatewayRequest),
-    Job(Job),
+    /// A job, and the source whose queue it came from.
+    Job(Job, Source),
 }
 
 /// The share of a line's time that work from outside its schedule may take on a line with
@@ -367,9 +368,9 @@ impl LineTask {
             let [api, console, mqtt] = &mut self.jobs;
             let work = tokio::select! {
                 () = tokio::time::sleep_until(until) => None,
-                Some(job) = api.recv(), if take => Some(Work::Job(job)),
-                Some(job) = console.recv(), if take => Some(Work::Job(job)),
-                Some(job) = mqtt.recv(), if take => Some(Work::Job(job)),
+                Some(job) = api.recv(), if take => Some(Work::Job(job, Source::Api)),
+                Some(job) = console.recv(), if take => Some(Work::Job(job, Source::Console)),
+                Some(job) = mqtt.recv(), if take => Some(Work::Job(job, Source::Mqtt)),
                 Some(request) = next_request(&mut self.gateway), if take => Some(Work::Gateway(request)),
             };
             if let Some(work) = work {
@@ -396,7 +397,10 @@ impl LineTask {
                     .as_mut()
                     .and_then(|g| g.requests.try_recv().ok())
                     .map(Work::Gateway),
-                Some(source) => self.jobs[source].try_recv().ok().map(Work::Job),
+                Some(source) => self.jobs[source]
+                    .try_recv()
+                    .ok()
+                    .map(|job| Work::Job(job, Source::ALL[source])),
             };
             if let Some(work) = work {
                 self.turns.allowance[queue] = self.turns.allowance[queue].saturating_sub(1);
@@ -411,7 +415,7 @@ impl LineTask {
         let started = Instant::now();
         match work {
             Work::Gateway(request) => self.serve(request).await,
-            Work::Job(job) => self.do_job(job).await,
+            Work::Job(job, source) => self.do_job(job, source).await,
         }
         self.settle().await;
         self.turns.spent(started.elapsed());
@@ -446,8 +450,38 @@ impl LineTask {
         }
     }
 
-    /// Carries out an API job; its caller gets the outcome (if it still waits).
-    async fn do_job(&mut self, job: Job) {
+    /// Tells the bus's consumers that device `device` (every device of the line, for a
+    /// broadcast) took a write of `registers`.
+    fn written(
+        &self,
+        device: usize,
+        broadcast: bool,
+        registers: impl Fn(&DeviceRun) -> Vec<&'static RegisterInfo>,
+        by: Writer,
+    ) {
+        let devices = if broadcast {
+            &self.devices[..]
+        } else {
+            std::slice::from_ref(&self.devices[device])
+        };
+        for device in devices {
+            let registers = registers(device);
+            if registers.is_empty() {
+                continue;
+            }
+            let written = Written {
+                source: Arc::clone(&device.id),
+                registers,
+                by,
+            };
+            // No receiver is no error, as for samples.
+            let _ = self.events.send(Event::Written(Arc::new(written)));
+        }
+    }
+
+    /// Carries out an API job, of `source`; its caller gets the outcome (if it still waits).
+    async fn do_job(&mut self, job: Job, source: Source) {
+        let by = Writer::Job(source);
         match job {
             Job::Write {
                 device,
@@ -469,6 +503,22 @@ impl LineTask {
                 } else {
                     core.write(register, &Checked(words)).await
                 };
+                if result.is_ok() {
+                    // A broadcast wrote the same words at the same address of every other
+                    // device of the line, whatever register each of them has there.
+                    let addressed = Arc::clone(&self.devices[device].id);
+                    let registers = |run: &DeviceRun| {
+                        let words = usize::from(register.words);
+                        match register.table {
+                            _ if Arc::ptr_eq(&run.id, &addressed) => vec![register],
+                            Table::Holding => {
+                                policy::written(run.core.device(), register.address, words)
+                            }
+                            _ => Vec::new(),
+                        }
+                    };
+                    self.written(device, broadcast, registers, by);
+                }
                 let _ = done.send(result);
             }
             Job::Run {
@@ -484,6 +534,9 @@ impl LineTask {
                         Ok(words) => core.write(register, &Checked(words)).await,
                         Err(error) => Err(error),
                     };
+                if result.is_ok() {
+                    self.written(device, false, |_| vec![register], by);
+                }
                 let busy = Duration::from_millis(u64::from(command.busy_ms));
                 if result.is_ok() && command.done_when.is_some() {
                     // Its register is read between other requests once the busy time is
@@ -558,7 +611,27 @@ impl LineTask {
     /// audit trail.
     async fn serve(&mut self, request: GatewayRequest) {
         let (reply, refusal) = self.pass(request.unit, &request.pdu).await;
-        if PassPdu::new(&request.pdu).is_ok_and(|pass| pass.writes()) {
+        let pass = PassPdu::new(&request.pdu);
+        if let (Ok(Access::WriteRegisters { address, data }), None) =
+            (pass.as_ref().map(PassPdu::access), &refusal)
+        {
+            let taken = match &reply {
+                // A broadcast went out: nobody answers one.
+                None => true,
+                Some(reply) => reply.first().is_some_and(|f| f & EXCEPTION_BIT == 0),
+            };
+            if taken {
+                let broadcast = request.unit == BROADCAST;
+                let index = self.devices.iter().position(|d| d.id.slave == request.unit);
+                if let Some(index) = index.or(broadcast.then_some(0)) {
+                    let words = data.len() / 2;
+                    let registers =
+                        |device: &DeviceRun| policy::written(device.core.device(), address, words);
+                    self.written(index, broadcast, registers, Writer::Gateway);
+                }
+            }
+        }
+        if pass.is_ok_and(|pass| pass.writes()) {
             let why = refusal.map(|refusal| refusal.to_string());
             gateway::audit_write(
                 request.client,

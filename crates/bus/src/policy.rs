@@ -418,3 +418,56 @@ impl<'a> Policy<'a> {
         }
     }
 }
+
+/// The holding registers of `info` that a write of `words` words from `address` covers, in
+/// address order (a register covered in part too; the policy lets only whole ones through).
+pub(crate) fn written(
+    info: &'static DeviceInfo,
+    address: u16,
+    words: usize,
+) -> Vec<&'static RegisterInfo> {
+    let mut registers = Vec::new();
+    let mut at = Some(address);
+    let mut offset = 0;
+    while offset < words {
+        let Some((register, inside)) = at.and_then(|at| info.register_at(Table::Holding, at))
+        else {
+            // No register there: the next word's address.
+            offset += 1;
+            at = at.and_then(|a| a.checked_add(1));
+            continue;
+        };
+        registers.push(register);
+        let span = register.span(info.addressing);
+        let left = usize::from(register.words.saturating_sub(inside.min(register.words)));
+        offset += left.max(1);
+        at = at.and_then(|a| a.checked_add(span.saturating_sub(inside).max(1)));
+    }
+    registers
+}
+
+#[cfg(test)]
+mod tests {
+    use super::written;
+
+    fn names(registers: Vec<&'static optobus_device::RegisterInfo>) -> Vec<&'static str> {
+        registers.into_iter().map(|r| r.name).collect()
+    }
+
+    #[test]
+    fn a_write_is_told_as_the_registers_it_covers() {
+        let p = &optobus_p_series::DEVICE;
+        // Word addressing: thickness_zero (26, one word), then the two words of the u32
+        // position_1_slope (27) and position_1_offset (29).
+        assert_eq!(
+            names(written(p, 26, 5)),
+            ["thickness_zero", "position_1_slope", "position_1_offset"]
+        );
+        // The second word of a u32 alone (the policy refuses it; told all the same).
+        assert_eq!(names(written(p, 28, 1)), ["position_1_slope"]);
+        // Field addressing: one address per field, a 4-byte field is two words at one address.
+        let ranger = &optobus_rangefinder::DEVICE;
+        let field = ranger.register("dac_range_min").unwrap();
+        assert_eq!(names(written(ranger, field.address, 2)), ["dac_range_min"]);
+    }
+}

@@ -4,7 +4,11 @@
 use std::path::Path;
 use std::time::Duration;
 
-use optobus_bus::{Bus, BusFile, Catalogue, Event, GatewayCounts, Running};
+use std::sync::Arc;
+
+use optobus_bus::{
+    Bus, BusFile, Catalogue, Event, GatewayCounts, Running, Source, Writer, Written,
+};
 use optobus_device::Table;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
@@ -705,4 +709,146 @@ async fn a_unit_id_no_device_has_is_answered_0b_without_the_line() {
         0,
         "nothing went onto the line"
     );
+}
+
+/// The next `Written` event, the others skipped.
+async fn next_written(events: &mut tokio::sync::broadcast::Receiver<Event>) -> Arc<Written> {
+    tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            match events.recv().await {
+                Ok(Event::Written(written)) => return written,
+                Ok(_) => {}
+                Err(error) => panic!("{error}"),
+            }
+        }
+    })
+    .await
+    .expect("a write told within 10 s")
+}
+
+#[tokio::test]
+async fn every_write_a_device_took_is_told_as_written_with_its_registers_and_who_wrote() {
+    let running = start(WRITABLE_GATEWAY);
+    let mut events = running.subscribe();
+    let head = running.simulator("head").unwrap();
+    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    let told = |written: &Written| {
+        let names: Vec<&str> = written.registers.iter().map(|r| r.name).collect();
+        (written.source.device.to_string(), names, written.by)
+    };
+    // A gateway write the device took: its register, by the gateway.
+    let reply = ask(&mut client, 1, 1, &write_p_series("light_power", 600)).await;
+    assert_eq!(&reply[7..], &write_p_series("light_power", 600)[..]);
+    let written = next_written(&mut events).await;
+    assert_eq!(
+        told(&written),
+        ("head".to_owned(), vec!["light_power"], Writer::Gateway)
+    );
+    // Refused (100.1 % is out of range, exception 03): nothing written, nothing told; the
+    // next write told is the console's.
+    let reply = ask(&mut client, 2, 1, &write_p_series("light_power", 1001)).await;
+    assert_eq!(&reply[7..], &[0x86, 0x03]);
+    let console = running.handle().for_source(Source::Console);
+    console
+        .set_listed("head", "light_power", "30")
+        .await
+        .unwrap();
+    assert_eq!(p_series_words(head, "light_power"), Some(vec![300]));
+    let written = next_written(&mut events).await;
+    assert_eq!(
+        told(&written),
+        (
+            "head".to_owned(),
+            vec!["light_power"],
+            Writer::Job(Source::Console)
+        )
+    );
+    // In the JSON a script reads.
+    let json = serde_json::to_value(&*written).unwrap();
+    assert_eq!(json["registers"], serde_json::json!(["light_power"]));
+    assert_eq!(json["by"], "console");
+}
+
+#[tokio::test]
+async fn a_broadcast_write_is_told_as_written_for_every_device_of_the_line() {
+    let running = start(
+        "
+lines:
+  - name: rs485
+    simulated: true
+    baud: 115200
+    any_format: true
+    gateway: { listen: 127.0.0.1:0, clients: 2, writes: true }
+devices:
+  - { name: top, model: p-series, slave: 1, timeout: 50ms, writable: [light_power] }
+  - { name: bottom, model: p-series, slave: 2, timeout: 50ms, writable: [light_power] }
+",
+    );
+    let mut events = running.subscribe();
+    let told = |written: &Written| {
+        let names: Vec<&str> = written.registers.iter().map(|r| r.name).collect();
+        (written.source.device.to_string(), names, written.by)
+    };
+    // Through the gateway, unit 0: nothing comes back, both devices are told.
+    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    send(&mut client, 1, 0, &write_p_series("light_power", 600)).await;
+    for device in ["top", "bottom"] {
+        let written = next_written(&mut events).await;
+        assert_eq!(
+            told(&written),
+            (device.to_owned(), vec!["light_power"], Writer::Gateway)
+        );
+    }
+    // The program's handle, broadcasting through `top`.
+    let power = optobus_p_series::DEVICE.register("light_power").unwrap();
+    running
+        .handle()
+        .write("top", power, vec![700], true)
+        .await
+        .unwrap();
+    for device in ["top", "bottom"] {
+        let written = next_written(&mut events).await;
+        assert_eq!(
+            told(&written),
+            (
+                device.to_owned(),
+                vec!["light_power"],
+                Writer::Job(Source::Api)
+            )
+        );
+    }
+    let bottom = running.simulator("bottom").unwrap();
+    assert!(eventually(|| p_series_words(bottom, "light_power") == Some(vec![700])).await);
+    drop(running);
+
+    // Devices of other models on the line are told the register they have at that address.
+    let running = start(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: top, model: p-series, slave: 1, timeout: 50ms }
+  - { name: confocal, model: ccs, slave: 2, timeout: 50ms }
+",
+    );
+    let mut events = running.subscribe();
+    let (theirs, _) = optobus_ccs::DEVICE
+        .register_at(Table::Holding, power.address)
+        .unwrap();
+    running
+        .handle()
+        .write("top", power, vec![600], true)
+        .await
+        .unwrap();
+    let expected = [("top", power.name), ("confocal", theirs.name)];
+    for (device, register) in expected {
+        let written = next_written(&mut events).await;
+        assert_eq!(
+            told(&written),
+            (device.to_owned(), vec![register], Writer::Job(Source::Api))
+        );
+    }
 }

@@ -235,7 +235,7 @@ devices:
                 samples += 1;
             }
             Event::Health(health) => panic!("{health:?}: every reply came within the timeout"),
-            Event::Line(_) | Event::Measurement(_) => {}
+            Event::Line(_) | Event::Measurement(_) | Event::Written(_) => {}
         }
     }
     running.stop();

@@ -129,6 +129,16 @@ fn readings(counts: &Counts) -> Vec<Reading> {
             "Reads for the state topics the device or the line failed.",
             counts.state_reads_failed,
         ),
+        Reading::counter(
+            "optobus_mqtt_state_reads_after_writes",
+            "Reads of controls another path (console, gateway, program) wrote, made at once.",
+            counts.state_reads_after_writes,
+        ),
+        Reading::counter(
+            "optobus_mqtt_state_rereads_coalesced",
+            "Writes of a control by another path that found its read already due.",
+            counts.state_rereads_coalesced,
+        ),
     ]
 }
 
@@ -341,6 +351,14 @@ outputs:
             (
                 "optobus_mqtt_state_reads_failed_total",
                 counts.state_reads_failed,
+            ),
+            (
+                "optobus_mqtt_state_reads_after_writes_total",
+                counts.state_reads_after_writes,
+            ),
+            (
+                "optobus_mqtt_state_rereads_coalesced_total",
+                counts.state_rereads_coalesced,
             ),
         ];
         for (name, value) in expected {

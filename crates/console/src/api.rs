@@ -10,7 +10,8 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{any, get, post};
 use axum::{Json, Router};
 use optobus_bus::{rfc3339, Direction, Source};
-use optobus_inspect::hex;
+use optobus_device::DeviceInfo;
+use optobus_inspect::{did_you_mean, hex};
 
 use crate::error::ApiError;
 use crate::reply::{
@@ -169,12 +170,9 @@ async fn read(
         .handle
         .device_info(&device)
         .ok_or_else(|| ApiError::unknown_device(&device))?;
-    let found = info.register(&register).ok_or_else(|| {
-        ApiError::not_found(format!(
-            "{} has no register `{register}`",
-            info.model_name()
-        ))
-    })?;
+    let found = info
+        .register(&register)
+        .ok_or_else(|| unknown_register(info, &register, ""))?;
     let value = shared
         .handle
         .read_checked(&device, found)
@@ -187,14 +185,40 @@ async fn read(
     }))
 }
 
-/// `/api/devices/{device}/read/{register}`, which a GET once read: refused, with where reads
-/// went.
-async fn read_moved() -> ApiError {
-    ApiError::new(
-        StatusCode::METHOD_NOT_ALLOWED,
-        "a register is read with POST /api/devices/{device}/read and a JSON body \
-         {\"register\": \"…\"}",
-    )
+/// Where reads went, for a request of `/api/devices/{device}/read/{register}`.
+const READ_WITH_POST: &str = "a register is read with POST /api/devices/{device}/read and a \
+                              JSON body {\"register\": \"…\"}";
+
+/// A `404` for a register `info` does not have, with the nearest names as the CLI gives
+/// them (`did you mean …?`), then `more` (where it is not empty).
+fn unknown_register(info: &DeviceInfo, name: &str, more: &str) -> ApiError {
+    let mut message = format!("{} has no register `{name}`", info.model_name());
+    let names = info.registers.iter().map(|register| register.name);
+    if let Some(hint) = did_you_mean(name, names) {
+        message.push_str("; ");
+        message.push_str(&hint);
+    }
+    if !more.is_empty() {
+        message.push_str(" (");
+        message.push_str(more);
+        message.push(')');
+    }
+    ApiError::not_found(message)
+}
+
+/// `/api/devices/{device}/read/{register}`, which a GET once read: refused with where reads
+/// went (`405`), or `404` with a "did you mean" where the device or register is not there.
+async fn read_moved(
+    State(shared): State<Arc<Shared>>,
+    Path((device, register)): Path<(String, String)>,
+) -> ApiError {
+    let Some(info) = shared.handle.device_info(&device) else {
+        return ApiError::unknown_device(&device);
+    };
+    if info.register(&register).is_none() {
+        return unknown_register(info, &register, READ_WITH_POST);
+    }
+    ApiError::new(StatusCode::METHOD_NOT_ALLOWED, READ_WITH_POST)
 }
 
 /// Any other path: a `404` in the API's own shape, saying where the routes are listed.

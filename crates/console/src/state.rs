@@ -221,6 +221,9 @@ impl Board {
                 }
                 Some(Entry::Line(json))
             }
+            // The device's next sample shows the new value; a write's own answer went to
+            // whoever asked.
+            Event::Written(_) => None,
         }
     }
 }

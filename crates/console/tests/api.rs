@@ -263,7 +263,10 @@ async fn a_register_is_read_on_demand_and_unknown_names_are_refused() {
     )
     .await;
     assert_eq!(status, StatusCode::NOT_FOUND);
-    assert_eq!(json["error"], "p-series has no register `lihgt_power`");
+    assert_eq!(
+        json["error"],
+        "p-series has no register `lihgt_power`; did you mean `light_power`?"
+    );
     // A route that is not there (the README walk guessed `/write`): a 404 in the API's shape.
     let (status, json) = call(&router, post("/api/devices/head/write", "{}")).await;
     assert_eq!(status, StatusCode::NOT_FOUND);
@@ -736,6 +739,49 @@ fn read_frames(running: &Running, register: &str) -> usize {
 /// Point 3 of issue 28: a line read is no simple cross-site request (an `<img>` of another
 /// site is a GET without `Origin`; a form of another site posts text, not JSON), and off the
 /// loopback it needs the token as writes do.
+#[tokio::test]
+async fn a_misspelt_register_in_a_read_gets_a_did_you_mean() {
+    let running = start(
+        "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: head, model: p-series, slave: 1, timeout: 50ms }
+",
+    );
+    let router = console(&running, &loopback()).router();
+    // The README walk's GET of a misspelt register: 404, the nearest name, and how to read.
+    let (status, json) = call(&router, get("/api/devices/head/read/lihgt_power")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND, "{json}");
+    assert_eq!(
+        json["error"],
+        "p-series has no register `lihgt_power`; did you mean `light_power`? (a register is \
+         read with POST /api/devices/{device}/read and a JSON body {\"register\": \"…\"})"
+    );
+    // The same in the read itself.
+    let (status, json) = call(
+        &router,
+        post("/api/devices/head/read", r#"{"register": "distanse_1"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::NOT_FOUND, "{json}");
+    assert_eq!(
+        json["error"],
+        "p-series has no register `distanse_1`; did you mean `distance_1`, `distance_2`?"
+    );
+    // Nothing near: the plain 404.
+    let (status, json) = call(
+        &router,
+        post("/api/devices/head/read", r#"{"register": "xyzzy"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::NOT_FOUND, "{json}");
+    assert_eq!(json["error"], "p-series has no register `xyzzy`");
+    // A device that is not there, on the GET too.
+    let (status, json) = call(&router, get("/api/devices/tail/read/light_power")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND, "{json}");
+    assert_eq!(json["error"], "the bus has no device `tail`");
+}
+
 #[tokio::test]
 async fn console_line_reads_need_post_and_the_token_off_loopback() {
     let running = start(

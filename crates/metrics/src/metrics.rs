@@ -302,6 +302,8 @@ impl Metrics {
             }
             Event::Line(stats) => self.line(stats),
             Event::Measurement(measurement) => self.measurement(measurement),
+            // Writes are in the audit trail; the register's next sample shows its value.
+            Event::Written(_) => {}
         }
     }
 

@@ -116,6 +116,12 @@ pub struct Counts {
     /// Of those, the ones the device or the line failed (the rest of that device's reads
     /// wait for the next refresh).
     pub state_reads_failed: u64,
+    /// Of the reads, the ones made at once because another path (the console, the gateway,
+    /// the program's handle) wrote the control.
+    pub state_reads_after_writes: u64,
+    /// Writes of a control by another path that found its read already due (one read
+    /// serves them all).
+    pub state_rereads_coalesced: u64,
 }
 
 #[derive(Debug)]

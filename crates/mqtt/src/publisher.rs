@@ -1,11 +1,11 @@
 //! The publisher: a task that turns bus events into messages, one that hands them to the MQTT
 //! client, and one that drives the connection (reconnecting with backoff).
 
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use optobus_bus::{BusFile, Event, Handle, Health, JobError, MqttConfig, Source};
+use optobus_bus::{BusFile, Event, Handle, Health, JobError, MqttConfig, Source, Writer, Written};
 use optobus_device::{RegisterInfo, Role};
 use optobus_inspect::Value;
 use rumqttc::{
@@ -120,6 +120,71 @@ struct Shared {
     states: Option<Mutex<States>>,
     /// Set by [`Publisher::stop`]: the connection's end is ours, nothing to warn about.
     stopping: std::sync::atomic::AtomicBool,
+    /// Set when [`Publisher::stop`] begins: every device is announced `offline`, and no
+    /// later sample or health event announces one `online` again.
+    closing: std::sync::atomic::AtomicBool,
+    /// The controls another path wrote, to be read again at once.
+    rereads: Rereads,
+}
+
+/// The controls whose state is read again as soon as another path (the console, the gateway,
+/// the program's handle) has written them: each at most once however often it was written
+/// meanwhile, by the one task that reads the states.
+#[derive(Debug, Default)]
+struct Rereads {
+    /// Each device's controls with a state read from the device.
+    controls: Vec<(String, Vec<&'static RegisterInfo>)>,
+    /// Which of them are due (device, control), each once.
+    due: Mutex<BTreeSet<(usize, usize)>>,
+    /// Wakes the reading task.
+    wake: Notify,
+}
+
+impl Rereads {
+    fn new(reads: &[Reads]) -> Self {
+        Self {
+            controls: reads
+                .iter()
+                .map(|reads| (reads.device.clone(), reads.controls.clone()))
+                .collect(),
+            ..Self::default()
+        }
+    }
+
+    /// Marks the controls `written` covers as due; how many were due already.
+    fn written(&self, written: &Written) -> u64 {
+        let Some(device) = self
+            .controls
+            .iter()
+            .position(|(name, _)| *name == *written.source.device)
+        else {
+            return 0;
+        };
+        let controls = &self.controls[device].1;
+        let mut due = lock(&self.due);
+        let mut coalesced = 0;
+        let mut added = false;
+        for register in &written.registers {
+            let Some(control) = controls.iter().position(|c| std::ptr::eq(*c, *register)) else {
+                continue;
+            };
+            if due.insert((device, control)) {
+                added = true;
+            } else {
+                coalesced += 1;
+            }
+        }
+        drop(due);
+        if added {
+            self.wake.notify_one();
+        }
+        coalesced
+    }
+
+    /// The controls due now, taken.
+    fn take(&self) -> BTreeSet<(usize, usize)> {
+        std::mem::take(&mut *lock(&self.due))
+    }
 }
 
 impl Shared {
@@ -216,6 +281,9 @@ impl Shared {
 
     /// Records a device's health; publishes its availability when it changed.
     fn health(&self, device: &str, online: bool) {
+        if self.closing.load(std::sync::atomic::Ordering::Relaxed) {
+            return;
+        }
         let changed = {
             let mut devices = self.devices.lock().unwrap_or_else(|p| p.into_inner());
             match devices.iter_mut().find(|d| d.name == device) {
@@ -330,7 +398,9 @@ impl Publisher {
                 .collect(),
             None => Vec::new(),
         };
+        let rereads = Rereads::new(&reads);
         let shared = Arc::new(Shared {
+            rereads,
             outbox: Mutex::new(Outbox::new(config.queue)),
             wake: Notify::new(),
             devices: Mutex::new(
@@ -347,6 +417,7 @@ impl Publisher {
             discovery,
             states,
             stopping: Default::default(),
+            closing: Default::default(),
         });
         let (client, eventloop) = AsyncClient::new(options, CLIENT_CHANNEL);
         let mut tasks = Vec::new();
@@ -408,9 +479,26 @@ impl Publisher {
         }
     }
 
-    /// Says the process is going `offline`, waits up to `within` for what is queued to reach
-    /// the broker, and disconnects.
+    /// Says the process and every device are going `offline` (the devices' availability
+    /// follows: nobody will tell their health any more), waits up to `within` for what is
+    /// queued to reach the broker, and disconnects.
     pub async fn stop(self, within: Duration) {
+        self.shared
+            .closing
+            .store(true, std::sync::atomic::Ordering::Relaxed);
+        let devices: Vec<String> = {
+            let mut devices = lock(&self.shared.devices);
+            for device in devices.iter_mut() {
+                device.online = Some(false);
+            }
+            devices.iter().map(|device| device.name.clone()).collect()
+        };
+        for device in devices {
+            self.shared.push(announce(
+                self.shared.topics.availability(&device),
+                availability(false),
+            ));
+        }
         self.shared
             .push(announce(self.shared.topics.status(), "offline"));
         let deadline = tokio::time::Instant::now() + within;
@@ -512,7 +600,12 @@ async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
             Ok(Event::Health(health)) => {
                 shared.health(&health.source.device, health.health == Health::Online);
             }
-            Ok(Event::Line(_)) => {}
+            // MQTT's own writes are read back by the write itself.
+            Ok(Event::Written(written)) if written.by != Writer::Job(Source::Mqtt) => {
+                let coalesced = shared.rereads.written(&written);
+                shared.outbox().counts.state_rereads_coalesced += coalesced;
+            }
+            Ok(Event::Written(_) | Event::Line(_)) => {}
             Ok(Event::Measurement(measurement)) => {
                 let Ok(payload) = serde_json::to_vec(&*measurement) else {
                     continue;
@@ -568,11 +661,21 @@ struct Reads {
 /// with its polls, in its bounded queue for MQTT). One read at a time; a device the bus has
 /// given up on is left for the next round, and so is the rest of a device after a failure or
 /// a busy refusal (counted).
+///
+/// Between rounds it reads at once the controls another path wrote (see [`Rereads`]); a
+/// write during a round waits for the round's end.
 async fn refresh(handle: Handle, shared: Arc<Shared>, mut reads: Vec<Reads>, every: Duration) {
     let mut rounds = tokio::time::interval(every);
     rounds.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
-        rounds.tick().await;
+        // Neither starves the other: select takes either when both are ready.
+        tokio::select! {
+            () = shared.rereads.wake.notified() => {
+                reread(&handle, &shared).await;
+                continue;
+            }
+            _ = rounds.tick() => {}
+        }
         for device in &mut reads {
             if shared.offline(&device.device) {
                 continue;
@@ -605,6 +708,22 @@ async fn refresh(handle: Handle, shared: Arc<Shared>, mut reads: Vec<Reads>, eve
                     read_json(&value),
                 );
             }
+        }
+    }
+}
+
+/// Reads the controls other paths wrote since the last time, once each, and publishes their
+/// states. One that fails waits for the next round (counted as any state read).
+async fn reread(handle: &Handle, shared: &Shared) {
+    for (device, control) in shared.rereads.take() {
+        let (name, controls) = &shared.rereads.controls[device];
+        let register = controls[control];
+        if shared.offline(name) {
+            continue;
+        }
+        shared.outbox().counts.state_reads_after_writes += 1;
+        if let Some(value) = read_for_state(handle, shared, name, register).await {
+            shared.state_now(&shared.topics.state(name, register.name), read_json(&value));
         }
     }
 }
@@ -844,6 +963,8 @@ mod tests {
             discovery: None,
             states: None,
             stopping: Default::default(),
+            closing: Default::default(),
+            rereads: Rereads::default(),
         })
     }
 

@@ -496,3 +496,136 @@ outputs:
     }
     running.stop();
 }
+
+/// The retained state a subscriber that comes now is handed on `topic`, and its `text`.
+async fn retained_text(port: u16, id: &str, topic: &str) -> (bool, String) {
+    let late = Watcher::start(port, id, topic).await;
+    assert!(
+        late.wait_for(Duration::from_secs(10), |heard| !heard.is_empty())
+            .await,
+        "nothing retained on {topic}"
+    );
+    let first = late.on(topic).remove(0);
+    let text = json(&first)["text"].as_str().unwrap_or_default().to_owned();
+    (first.retain, text)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
+async fn a_console_or_gateway_write_refreshes_the_home_assistant_state_at_once() {
+    use optobus_bus::Source;
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+    let broker = Broker::start("ha-written").await;
+    // The periodic refresh is an hour away: only the writes can bring the states below.
+    let file = parse(&format!(
+        "
+lines:
+  - name: rs485
+    simulated: true
+    baud: 115200
+    any_format: true
+    gateway: {{ listen: 127.0.0.1:0, writes: true }}
+devices:
+  - name: top
+    model: p-series
+    slave: 1
+    poll: [{{ read: distance_1, every: 50ms }}]
+    writable: [light_power]
+outputs:
+  mqtt: {{ broker: 127.0.0.1:{}, homeassistant: true, refresh_every: 1h }}
+",
+        broker.port
+    ));
+    let bus = Bus::new(file.clone());
+    let events = bus.subscribe();
+    let running = bus.start().unwrap();
+    let simulator = running.simulator("top").unwrap();
+    let power = P.register("light_power").unwrap();
+    simulator.poke(power.table, power.address, &[420]).unwrap();
+    let state = "optobus/top/light_power/state";
+    let watcher = Watcher::start(broker.port, "ha-watch", state).await;
+    let publisher = Publisher::start(
+        file.outputs.mqtt.as_ref().unwrap(),
+        &file,
+        events,
+        Some(running.handle()),
+    )
+    .unwrap();
+    // Read at start.
+    assert!(
+        wait_for_text(&watcher, state, "42.0").await,
+        "{:?}; {:?}",
+        watcher.on(state),
+        publisher.counts()
+    );
+
+    // A PLC sets 55.0 % through the gateway: FC06 to holding register `light_power`.
+    let mut plc = tokio::net::TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap();
+    let [high, low] = power.address.to_be_bytes();
+    let [value_high, value_low] = 550u16.to_be_bytes();
+    let pdu = [0x06, high, low, value_high, value_low];
+    let mut request = vec![0x00, 0x07, 0x00, 0x00, 0x00, 1 + pdu.len() as u8, 0x01];
+    request.extend_from_slice(&pdu);
+    plc.write_all(&request).await.unwrap();
+    let mut reply = [0u8; 12];
+    tokio::time::timeout(Duration::from_secs(10), plc.read_exact(&mut reply))
+        .await
+        .expect("the gateway answers")
+        .unwrap();
+    assert_eq!(reply, request.as_slice(), "FC06 is answered with its echo");
+    assert_eq!(simulator.peek(power.table, power.address).unwrap(), [550]);
+    assert!(
+        wait_for_text(&watcher, state, "55.0").await,
+        "the gateway's write did not reach the state: {:?}; {:?}",
+        watcher.on(state),
+        publisher.counts()
+    );
+    assert_eq!(
+        retained_text(broker.port, "ha-late-1", state).await,
+        (true, "55.0".to_owned())
+    );
+
+    // An operator sets 30 % on the console (its handle's path, as the console's write route).
+    let console = running
+        .handle()
+        .for_source(Source::Console)
+        .from_origin("127.0.0.1:50000");
+    let back = console
+        .set_listed("top", "light_power", "30")
+        .await
+        .unwrap();
+    assert_eq!(back.map(|v| v.to_string()).as_deref(), Some("30.0 %"));
+    assert!(
+        wait_for_text(&watcher, state, "30.0").await,
+        "the console's write did not reach the state: {:?}; {:?}",
+        watcher.on(state),
+        publisher.counts()
+    );
+    assert_eq!(
+        retained_text(broker.port, "ha-late-2", state).await,
+        (true, "30.0".to_owned())
+    );
+
+    // The program's own handle writes 25 %.
+    running
+        .handle()
+        .write("top", power, vec![250], false)
+        .await
+        .unwrap();
+    assert!(
+        wait_for_text(&watcher, state, "25.0").await,
+        "the program's write did not reach the state: {:?}; {:?}",
+        watcher.on(state),
+        publisher.counts()
+    );
+    let counts = publisher.counts();
+    assert_eq!(counts.state_reads_after_writes, 3, "{counts:?}");
+    assert_eq!(counts.state_reads_failed, 0, "{counts:?}");
+    running.stop();
+}

@@ -170,6 +170,54 @@ async fn availability_follows_health_and_the_last_will_says_offline() {
     running.stop();
 }
 
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
+async fn a_clean_stop_says_every_device_is_offline() {
+    let broker = Broker::start("clean-stop").await;
+    let file = file(&bus_text(broker.port));
+    let bus = Bus::new(file.clone());
+    let publisher = common::publish(&file, &bus);
+    let running = bus.start().expect("starts");
+    let watcher = Watcher::start(broker.port, "watcher-running", "plant/hall/+/availability").await;
+    assert!(
+        watcher
+            .wait_for(Duration::from_secs(10), |heard| heard
+                .iter()
+                .any(
+                    |h| h.topic == "plant/hall/top/availability" && h.payload == "online"
+                ))
+            .await,
+        "{:?}",
+        watcher.heard.lock().unwrap()
+    );
+    // The bus still polls while the publisher stops: no later sample says `online` again.
+    publisher.stop(Duration::from_secs(5)).await;
+    let after = Watcher::start(broker.port, "watcher-after", "plant/hall/#").await;
+    let retained = ["status", "top/availability", "dead/availability"]
+        .map(|topic| format!("plant/hall/{topic}"));
+    assert!(
+        after
+            .wait_for(Duration::from_secs(10), |heard| retained
+                .iter()
+                .all(|topic| heard.iter().any(|h| h.topic == *topic)))
+            .await,
+        "{:?}",
+        after.heard.lock().unwrap()
+    );
+    for topic in &retained {
+        let heard: Vec<(String, bool)> = after
+            .on(topic)
+            .into_iter()
+            .map(|h| (h.payload, h.retain))
+            .collect();
+        assert_eq!(heard, [("offline".to_owned(), true)], "{topic}");
+    }
+    running.stop();
+}
+
 #[tokio::test]
 async fn secrets_are_never_in_debug_output() {
     std::env::set_var("OPTOBUS_TEST_MQTT_PASSWORD", "hunter2");

@@ -359,4 +359,29 @@ mod tests {
         assert!(missing.is_empty(), "the schema lacks {missing:?}");
         assert_eq!(schema, SCHEMA, "the README shows the schema as printed");
     }
+
+    /// The README walk: `optobus bus schema`'s example failed its own `bus check` (`faults`
+    /// on a serial line). It is a bus file that passes, with every key in use.
+    #[test]
+    fn the_schemas_example_passes_its_own_check() {
+        let catalogue = crate::Catalogue::new([&optobus_p_series::DEVICE]);
+        let file = BusFile::parse("schema.yaml", SCHEMA, Path::new("."), &catalogue)
+            .unwrap_or_else(|e| panic!("{}", e.render()));
+        let names = |devices: &[DeviceConfig]| -> Vec<(String, String)> {
+            devices
+                .iter()
+                .map(|d| (d.name.clone(), file.lines[d.line].name.clone()))
+                .collect()
+        };
+        assert_eq!(
+            names(&file.devices),
+            [
+                ("left".to_owned(), "rs485".to_owned()),
+                ("trial".to_owned(), "bench".to_owned())
+            ]
+        );
+        assert!(file.devices[1].faults.is_some(), "the faults are read");
+        assert_eq!(file.lines[1].port, Port::Simulated);
+        assert!(file.outputs.mqtt.is_some() && file.outputs.http.is_some());
+    }
 }

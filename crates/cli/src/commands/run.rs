@@ -612,7 +612,8 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
                     shown.health = health.health;
                 }
             }
-            Event::Line(_) => {}
+            // Samples and measurements only on stdout: writes are in the audit trail (stderr).
+            Event::Line(_) | Event::Written(_) => {}
             Event::Measurement(measurement) => {
                 // A line per value, as JSON (its keys are the contract) or as text.
                 let line = if json {
