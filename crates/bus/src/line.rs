@@ -10,7 +10,7 @@ use optobus_codec::{FrameShape, BROADCAST, EXCEPTION_BIT};
 use optobus_device::{RegisterInfo, Table};
 use optobus_driver::{CommandWait, Core, Error as DriverError, Finish};
 use optobus_inspect::decode_value;
-use optobus_transport::{Client, ClientConfig, Error, RtuConfig, Stream};
+use optobus_transport::{Client, Error, RtuConfig, Stream};
 use tokio::sync::{broadcast, mpsc, Mutex};
 use tokio::time::Instant;
 
@@ -67,7 +67,9 @@ pub(crate) enum Opener {
     Stream(Option<Box<dyn Stream>>),
     /// Simulated devices behind an emulated line, a new connection each time.
     Simulated(optobus_simulator::Bus, Option<LineFormat>),
-    /// A serial port, RTU over TCP or Modbus TCP, opened by the transport.
+    /// A serial port, RTU over TCP or Modbus TCP, opened by the transport (none without the
+    /// `serial` and `tcp` features).
+    #[cfg(any(feature = "serial", feature = "tcp"))]
     Port(optobus_transport::Port),
 }
 
@@ -100,10 +102,11 @@ impl Opener {
                 };
                 Ok(Client::rtu(traced(Box::new(stream)), config))
             }
+            #[cfg(any(feature = "serial", feature = "tcp"))]
             Self::Port(port) => {
-                let config = ClientConfig {
+                let config = optobus_transport::ClientConfig {
                     rtu: config,
-                    ..ClientConfig::default()
+                    ..optobus_transport::ClientConfig::default()
                 };
                 port.open(config, traced).await
             }

@@ -112,6 +112,8 @@ impl LineState {
             retries: settings.retries,
             exception: settings.exception,
         });
+        // Without the `tcp` feature an RTU client is the only kind.
+        #[allow(irrefutable_let_patterns)]
         if let Client::Rtu(rtu) = client {
             rtu.config_mut().frame_gap = Some(gap);
         }
