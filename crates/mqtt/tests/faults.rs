@@ -27,7 +27,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use common::proxy::{Connection, Cut, Frames, Passed, Plan, Proxy};
-use common::{mosquitto_installed, Broker, Watcher};
+use common::{Broker, Watcher};
 use optobus_bus::{rfc3339, Bus, BusFile, Catalogue, Event};
 use optobus_mqtt::{Counts, Publisher};
 use tokio::sync::broadcast::{error::RecvError, Receiver};
@@ -241,10 +241,7 @@ impl Outcome {
 
 /// Runs the bus for [`RUN`] through a proxy cutting as `plan` says, then lets the publisher
 /// empty its queue and the subscriber hear what the broker has.
-async fn run(name: &str, qos: u8, queue: usize, plan: Plan) -> Option<Outcome> {
-    if !mosquitto_installed() {
-        return None;
-    }
+async fn run(name: &str, qos: u8, queue: usize, plan: Plan) -> Outcome {
     let context = format!(
         "{name}: QoS {qos}, queue {queue}, seed {} (rerun: {SEED_VARIABLE}={} cargo test -p optobus-mqtt --test faults {name})",
         plan.seed, plan.seed
@@ -306,7 +303,7 @@ async fn run(name: &str, qos: u8, queue: usize, plan: Plan) -> Option<Outcome> {
         "no connection was cut: the case tests nothing\n{}",
         outcome.summary()
     );
-    Some(outcome)
+    outcome
 }
 
 fn is_sample(topic: &str) -> bool {
@@ -351,9 +348,7 @@ fn many_cuts(seed: u64, qos: u8) -> Plan {
 /// dropped, each counted published once.
 async fn qos1_through_cuts(name: &str, case_seed: u64) {
     let plan = many_cuts(seed(case_seed), 1);
-    let Some(outcome) = run(name, 1, LARGE_QUEUE, plan).await else {
-        return;
-    };
+    let outcome = run(name, 1, LARGE_QUEUE, plan).await;
     outcome.assert_payloads_are_the_bus_own();
     let heard = outcome.heard_times();
     let lost: Vec<(String, String)> = outcome
@@ -383,9 +378,7 @@ async fn qos1_through_cuts(name: &str, case_seed: u64) {
 /// payload; what is lost was written into a connection just before its cut.
 async fn qos0_through_cuts(name: &str, case_seed: u64) {
     let plan = many_cuts(seed(case_seed), 0);
-    let Some(outcome) = run(name, 0, LARGE_QUEUE, plan).await else {
-        return;
-    };
+    let outcome = run(name, 0, LARGE_QUEUE, plan).await;
     outcome.assert_payloads_are_the_bus_own();
     assert_eq!(outcome.counts.dropped, 0, "{}", outcome.summary());
     assert_eq!(
@@ -430,9 +423,7 @@ async fn beyond_the_queue(name: &str, case_seed: u64, qos: u8) {
         hold_ms: 200..300,
         outage: Duration::from_secs(1),
     };
-    let Some(outcome) = run(name, qos, SMALL_QUEUE, plan).await else {
-        return;
-    };
+    let outcome = run(name, qos, SMALL_QUEUE, plan).await;
     outcome.assert_payloads_are_the_bus_own();
     let heard = outcome.heard_times();
     let emitted = outcome.emitted.len() as u64;

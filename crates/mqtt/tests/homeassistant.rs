@@ -11,7 +11,7 @@ mod common;
 use std::path::Path;
 use std::time::{Duration, SystemTime};
 
-use common::{mosquitto_installed, Broker, Heard, Watcher};
+use common::{Broker, Heard, Watcher};
 use optobus_bus::{Bus, BusFile, Catalogue};
 use optobus_device::DeviceInfo;
 use optobus_mqtt::Publisher;
@@ -58,10 +58,11 @@ async fn wait_for_text(watcher: &Watcher, topic: &str, text: &str) -> bool {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn controls_get_a_retained_state_read_at_start_after_each_write_and_periodically() {
-    if !mosquitto_installed() {
-        return;
-    }
     let broker = Broker::start("ha-controls").await;
     let file = parse(&format!(
         "
@@ -159,10 +160,11 @@ outputs:
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn a_register_a_command_writes_is_shown_as_its_command_buttons_only() {
-    if !mosquitto_installed() {
-        return;
-    }
     let broker = Broker::start("ha-buttons").await;
     let file = parse(&format!(
         "
@@ -222,10 +224,11 @@ outputs:
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn the_device_block_carries_the_firmware_version_and_serial_number_the_spec_marks() {
-    if !mosquitto_installed() {
-        return;
-    }
     let broker = Broker::start("ha-identity").await;
     let file = parse(&format!(
         "
@@ -312,10 +315,11 @@ outputs:
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn home_assistant_states_are_rate_limited_and_the_sample_topics_keep_every_sample() {
-    if !mosquitto_installed() {
-        return;
-    }
     let broker = Broker::start("ha-rate").await;
     // The confocal sensor as fast as its line allows (about 145 samples a second).
     let file = parse(&format!(
@@ -438,10 +442,11 @@ outputs:
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(
+    not(peer_mosquitto),
+    ignore = "mosquitto is not installed (Debian package mosquitto)"
+)]
 async fn units_are_the_specs_ascii_on_every_topic_and_home_assistants_symbols_in_discovery_only() {
-    if !mosquitto_installed() {
-        return;
-    }
     let broker = Broker::start("ha-units").await;
     let file = parse(&format!(
         "
