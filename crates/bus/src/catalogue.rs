@@ -54,9 +54,9 @@ impl Catalogue {
 fn describe(path: &Path) -> Result<&'static DeviceInfo, String> {
     let name = path.display().to_string();
     let text =
-        optobus_codegen::source::read_yaml(path).map_err(|e| format!("cannot read {name}: {e}"))?;
-    match optobus_codegen::check_source(&name, &text) {
-        Ok(model) => Ok(optobus_codegen::describe(&model)),
+        optobus_spec::source::read_yaml(path).map_err(|e| format!("cannot read {name}: {e}"))?;
+    match optobus_spec::check_source(&name, &text) {
+        Ok(model) => Ok(optobus_spec::describe(&model)),
         Err(rejected) => Err(format!(
             "it does not pass the spec checks:\n{}",
             rejected.render().trim_end()

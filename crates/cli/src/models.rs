@@ -14,8 +14,8 @@ include!(concat!(env!("OUT_DIR"), "/specs.rs"));
 /// The runtime description of a spec's text; a spec that does not pass gives the checker's
 /// located diagnostics, rendered like rustc.
 pub(crate) fn describe(name: &str, text: &str) -> Result<&'static DeviceInfo, CliError> {
-    match optobus_codegen::check_source(name, text) {
-        Ok(model) => Ok(optobus_codegen::describe(&model)),
+    match optobus_spec::check_source(name, text) {
+        Ok(model) => Ok(optobus_spec::describe(&model)),
         Err(rejected) => Err(CliError::new(format!(
             "{name} does not pass the spec checks:\n{}",
             rejected.render().trim_end()
@@ -30,10 +30,10 @@ pub(crate) fn load(path: &Path) -> Result<&'static DeviceInfo, CliError> {
         let name = path.display().to_string();
         // A file that cannot be read is the system's failure; one that is too large, no file or
         // no text, or fails the checks, input refused.
-        let text = optobus_codegen::source::read_yaml(path).map_err(|e| {
+        let text = optobus_spec::source::read_yaml(path).map_err(|e| {
             let message = format!("cannot read {name}: {e}");
             match e {
-                optobus_codegen::source::ReadError::Io(_) => CliError::failed(message),
+                optobus_spec::source::ReadError::Io(_) => CliError::failed(message),
                 _ => CliError::new(message),
             }
         })?;

@@ -4,10 +4,10 @@
 use std::collections::HashMap;
 
 use optobus_codec::LineFormat;
-use optobus_codegen::diagnostic::{Label, Location};
-use optobus_codegen::source::Span;
-use optobus_codegen::Diagnostic;
 use optobus_device::DeviceInfo;
+use optobus_spec::diagnostic::{Label, Location};
+use optobus_spec::source::Span;
+use optobus_spec::Diagnostic;
 
 use super::read::{Parsed, Seen};
 use super::Port;

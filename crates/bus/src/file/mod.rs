@@ -17,9 +17,9 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use optobus_codec::LineFormat;
-use optobus_codegen::source::{read_yaml, ReadError};
-use optobus_codegen::SourceFile;
 use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
+use optobus_spec::source::{read_yaml, ReadError};
+use optobus_spec::SourceFile;
 
 use crate::catalogue::Catalogue;
 
@@ -207,7 +207,7 @@ pub struct PollConfig {
 }
 
 /// A bus file that did not pass: its source and every problem found, rendered like rustc.
-pub use optobus_codegen::Rejected;
+pub use optobus_spec::Rejected;
 
 impl BusFile {
     /// Reads and checks a bus file's text. `name` is shown in diagnostics; spec files the
@@ -256,7 +256,7 @@ impl BusFile {
     }
 
     /// Reads and checks the bus file at `path`: a regular file (or a pipe) of at most
-    /// [`YAML_LIMIT`](optobus_codegen::source::YAML_LIMIT) bytes of UTF-8, read as specs are.
+    /// [`YAML_LIMIT`](optobus_spec::source::YAML_LIMIT) bytes of UTF-8, read as specs are.
     pub fn load(path: &Path, catalogue: &Catalogue) -> Result<Self, LoadError> {
         let text = read_yaml(path).map_err(|source| LoadError::Read {
             path: path.to_path_buf(),

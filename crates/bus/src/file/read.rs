@@ -3,8 +3,8 @@
 use std::time::Duration;
 
 use optobus_codec::{LineFormat, Parity};
-use optobus_codegen::source::{Node, Span, Value};
 use optobus_device::{DeviceInfo, RegisterInfo};
+use optobus_spec::source::{Node, Span, Value};
 
 use super::outputs::Outputs;
 use optobus_inspect::did_you_mean;

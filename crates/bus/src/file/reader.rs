@@ -6,10 +6,10 @@ use std::path::Path;
 use std::time::Duration;
 
 use jiff::SignedDuration;
-use optobus_codegen::diagnostic::{Label, Location};
-use optobus_codegen::source::{FileKind, Node, Span, SyntaxError, Value};
-use optobus_codegen::Diagnostic;
 use optobus_inspect::did_you_mean;
+use optobus_spec::diagnostic::{Label, Location};
+use optobus_spec::source::{FileKind, Node, Span, SyntaxError, Value};
+use optobus_spec::Diagnostic;
 
 use super::MAX_DURATION;
 use crate::catalogue::Catalogue;

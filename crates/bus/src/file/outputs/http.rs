@@ -4,7 +4,7 @@
 use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::path::PathBuf;
 
-use optobus_codegen::source::{Node, Value};
+use optobus_spec::source::{Node, Value};
 
 use crate::file::reader::{listen_address, scalar, Reader};
 

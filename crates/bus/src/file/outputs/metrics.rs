@@ -2,7 +2,7 @@
 
 use std::net::SocketAddr;
 
-use optobus_codegen::source::{Node, Value};
+use optobus_spec::source::{Node, Value};
 
 use super::super::reader::{listen_address, scalar, Reader};
 

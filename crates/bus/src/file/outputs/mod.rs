@@ -13,7 +13,7 @@ pub use mqtt::{
     DEFAULT_STATE_EVERY,
 };
 
-use optobus_codegen::source::{Node, Span};
+use optobus_spec::source::{Node, Span};
 
 use super::reader::{scalar, Reader};
 

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use optobus_codegen::source::{Node, Span};
+use optobus_spec::source::{Node, Span};
 
 use super::super::reader::{entries, has_port, scalar, Reader};
 
