@@ -18,6 +18,7 @@ pub mod describe;
 pub mod diagnostic;
 mod lower;
 pub mod model;
+pub mod reading;
 pub mod rules;
 pub mod source;
 mod syntax;
@@ -67,19 +68,7 @@ fn check_text(name: &str, text: String) -> Result<Model, Box<Rejected>> {
         }))
     };
     if let Some(error) = &source.syntax_error {
-        let diagnostic = Diagnostic {
-            rule: error.rule,
-            message: error.message.clone(),
-            primary: diagnostic::Label {
-                location: diagnostic::Location::Position {
-                    line: error.line,
-                    column: error.column,
-                },
-                text: String::new(),
-            },
-            secondary: Vec::new(),
-            help: Some(error.help.into()),
-        };
+        let diagnostic = Diagnostic::from(error);
         return reject(source, vec![diagnostic]);
     }
     let mut diagnostics = rules::text::check(&source);

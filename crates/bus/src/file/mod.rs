@@ -19,7 +19,7 @@ use std::time::Duration;
 use optobus_codec::LineFormat;
 use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
 use optobus_spec::source::{read_yaml, ReadError};
-use optobus_spec::SourceFile;
+use optobus_spec::{Diagnostic, SourceFile};
 
 use crate::catalogue::Catalogue;
 
@@ -222,7 +222,7 @@ impl BusFile {
         let mut diagnostics = Vec::new();
         let bus = match (&source.syntax_error, &source.root) {
             (Some(error), _) => {
-                diagnostics.push(reader::syntax(error));
+                diagnostics.push(Diagnostic::from(error));
                 None
             }
             (None, Some(root)) => {
