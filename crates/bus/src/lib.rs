@@ -15,7 +15,6 @@
 #![forbid(unsafe_code)]
 
 mod bus;
-mod catalogue;
 mod event;
 pub mod file;
 mod gateway;
@@ -27,7 +26,6 @@ pub mod schedule;
 mod trace;
 
 pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
-pub use catalogue::Catalogue;
 pub use event::{rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample};
 pub use file::{
     BusFile, DeviceConfig, HttpConfig, LineConfig, LoadError, MetricsConfig, MqttConfig, Outputs,
@@ -37,6 +35,8 @@ pub use gateway::GatewayCounts;
 pub use handle::{Buffered, Handle, JobError, Source, AUDIT_TARGET, NETWORK_QUEUE};
 pub use line::NETWORK_SHARE;
 pub use link::Stream;
+/// The models a bus file may name: one catalogue, shared with the `optobus` tool.
+pub use optobus_spec::Catalogue;
 pub use policy::{Policy, Refusal, RefusalKind};
 pub use schedule::Health;
 pub use trace::{Direction, Frame, FRAMES_KEPT};

@@ -14,6 +14,7 @@
 //! `proc-macro2` or `syn`.
 #![forbid(unsafe_code)]
 
+pub mod catalogue;
 pub mod describe;
 pub mod diagnostic;
 mod lower;
@@ -23,6 +24,7 @@ pub mod rules;
 pub mod source;
 mod syntax;
 
+pub use catalogue::{Catalogue, SpecError};
 pub use describe::describe;
 pub use diagnostic::{render_all, Diagnostic};
 pub use model::Model;

@@ -21,7 +21,7 @@ use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
 use optobus_spec::source::{read_yaml, ReadError};
 use optobus_spec::{Diagnostic, SourceFile};
 
-use crate::catalogue::Catalogue;
+use optobus_spec::Catalogue;
 
 /// The bus file's schema: every key a bus file takes, with its default or an example value
 /// and what it means, as YAML comments (the crate's README shows the same text;

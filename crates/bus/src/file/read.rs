@@ -10,7 +10,7 @@ use super::outputs::Outputs;
 use optobus_inspect::did_you_mean;
 
 use super::reader::{
-    has_port, listen_address, parse_duration, quoted, Reader, HELP, NOT_A_DURATION,
+    has_port, listen_address, parse_duration, quoted, spec_refusal, Reader, HELP, NOT_A_DURATION,
 };
 use super::{
     BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, Writable,
@@ -579,7 +579,8 @@ impl Reader<'_> {
         let path = self.text(node, "`spec`")?;
         match self.catalogue.load(&self.base.join(path)) {
             Ok(device) => Some((device, path.to_owned())),
-            Err(why) => {
+            Err(error) => {
+                let why = spec_refusal(&error);
                 self.error(node.span, format!("spec `{path}` cannot be used"), why);
                 None
             }

@@ -9,10 +9,10 @@ use jiff::SignedDuration;
 use optobus_inspect::did_you_mean;
 use optobus_spec::reading::{check_keys, KeyProblem};
 use optobus_spec::source::{FileKind, Node, Span};
-use optobus_spec::Diagnostic;
+use optobus_spec::{Diagnostic, SpecError};
 
 use super::MAX_DURATION;
-use crate::catalogue::Catalogue;
+use optobus_spec::Catalogue;
 
 /// Rule name of reading errors.
 pub(super) const RULE: &str = "bus-file";
@@ -202,6 +202,17 @@ impl<'a> Reader<'a> {
                 None
             }
         }
+    }
+}
+
+/// Why a spec file a device names cannot be used, as the bus file's diagnostics say it.
+pub(super) fn spec_refusal(error: &SpecError) -> String {
+    match error {
+        SpecError::Rejected(rejected) => format!(
+            "it does not pass the spec checks:\n{}",
+            rejected.render().trim_end()
+        ),
+        SpecError::Read { .. } => error.to_string(),
     }
 }
 

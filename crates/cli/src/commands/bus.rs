@@ -54,7 +54,7 @@ fn summary(bus: &BusFile) -> String {
 /// does not pass is then refused (exit 3) with a line on stderr.
 fn check_json(path: &Path) -> Result<(), CliError> {
     let shown = path.display().to_string();
-    match BusFile::load(path, &models::catalogue()) {
+    match BusFile::load(path, models::catalogue()) {
         Ok(bus) => {
             let polls: usize = bus.devices.iter().map(|d| d.polls.len()).sum();
             print(&pretty(&json!({
@@ -127,7 +127,7 @@ pub(crate) fn no_spec(options: &crate::connect::Options) -> Result<(), CliError>
 /// The checked bus file at `path`: a file that cannot be read is the system's failure, one
 /// that does not pass is refused with every problem.
 pub(crate) fn load(path: &Path) -> Result<BusFile, CliError> {
-    BusFile::load(path, &models::catalogue()).map_err(|error| match error {
+    BusFile::load(path, models::catalogue()).map_err(|error| match error {
         LoadError::Read { .. } => CliError::failed(error.to_string()),
         LoadError::Rejected(rejected) => CliError::new(format!(
             "{} does not pass the bus file checks:\n{}",
