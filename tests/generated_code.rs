@@ -76,8 +76,8 @@ fn family_crates_carry_the_runtime_description() {
 fn mini_runtime_description_matches_its_generated_code() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../codegen/tests/fixtures/mini.yaml");
-    let model = optobus_codegen::check_file(&path).unwrap_or_else(|r| panic!("{}", r.render()));
-    assert_eq!(&mini::DEVICE, optobus_codegen::describe(&model));
+    let model = optobus_spec::check_file(&path).unwrap_or_else(|r| panic!("{}", r.render()));
+    assert_eq!(&mini::DEVICE, optobus_spec::describe(&model));
 }
 
 #[test]

@@ -7,7 +7,7 @@
 
 use serde_json::{json, Map, Value};
 
-use crate::model::{Addressing, Apply, ExceptionStyle, Kind, LongWrites, Model, Register};
+use optobus_spec::model::{Addressing, Apply, ExceptionStyle, Kind, LongWrites, Model, Register};
 
 /// The wire type: `u16`, `i16`, `u32`, `i32`, or `ipv4` / `version` / `record` for values
 /// spread over several words.
@@ -51,7 +51,7 @@ fn register_json(model: &Model, register: &Register) -> Value {
         "range": register.range.map(|(min, max)| vec![min, max]),
         "allowed_values": register.allowed_values.as_ref().map(|(values, _)| values),
         "action": register.action,
-        "role": register.role.map(crate::model::Role::name),
+        "role": register.role.map(optobus_spec::model::Role::name),
         "sentinel": register.sentinel,
         "section": register.section,
         "doc": register.doc,

@@ -47,7 +47,7 @@ fn usage() -> ExitCode {
 fn check(paths: &[String]) -> ExitCode {
     let mut failed = false;
     for (i, path) in paths.iter().enumerate() {
-        match optobus_codegen::check_file(path.as_ref()) {
+        match optobus_spec::check_file(path.as_ref()) {
             Ok(model) => {
                 eprintln!(
                     "ok: {path}: {} registers, {} enums, {} commands, {} groups",
@@ -76,7 +76,7 @@ fn check(paths: &[String]) -> ExitCode {
 }
 
 fn dump(path: &str) -> ExitCode {
-    match optobus_codegen::check_file(path.as_ref()) {
+    match optobus_spec::check_file(path.as_ref()) {
         Ok(model) => {
             let text = serde_json::to_string_pretty(&optobus_codegen::json::dump(&model))
                 .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
@@ -91,7 +91,7 @@ fn dump(path: &str) -> ExitCode {
 }
 
 fn generate(path: &str, out: Option<PathBuf>) -> ExitCode {
-    let model = match optobus_codegen::check_file(path.as_ref()) {
+    let model = match optobus_spec::check_file(path.as_ref()) {
         Ok(model) => model,
         Err(rejected) => {
             eprint!("{}", rejected.render());
@@ -120,7 +120,7 @@ fn generate(path: &str, out: Option<PathBuf>) -> ExitCode {
 /// Checks the spec and writes its driver crate next to `specs/`: `<root>/crates/<family>/`.
 fn new(path: &str) -> ExitCode {
     let spec = std::path::Path::new(path);
-    let model = match optobus_codegen::check_file(spec) {
+    let model = match optobus_spec::check_file(spec) {
         Ok(model) => model,
         Err(rejected) => {
             eprint!("{}", rejected.render());

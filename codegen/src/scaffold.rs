@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::emit::camel;
-use crate::model::{Kind, Model};
+use optobus_spec::model::{Kind, Model};
 
 /// The templates, as `(file in the crate, text)`; `{family}`, `{crate}`, `{lib}`, `{driver}`,
 /// `{title}` and `{example}` are filled in.

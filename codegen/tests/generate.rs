@@ -7,7 +7,7 @@ use std::path::Path;
 
 fn generate_mini() -> String {
     let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mini.yaml");
-    let model = optobus_codegen::check_file(&spec).unwrap_or_else(|r| panic!("{}", r.render()));
+    let model = optobus_spec::check_file(&spec).unwrap_or_else(|r| panic!("{}", r.render()));
     optobus_codegen::emit::generate(&model, "mini.yaml")
 }
 

@@ -293,7 +293,7 @@ fn mutated_specs_are_refused_with_a_place_or_compile() {
         let original = std::fs::read_to_string(root.join(format!("specs/{family}.yaml")))
             .expect("spec readable");
         outputs.insert(optobus_codegen::emit::generate(
-            &optobus_codegen::check_source(family, &original).expect("the spec passes"),
+            &optobus_spec::check_source(family, &original).expect("the spec passes"),
             "spec.yaml",
         ));
         for n in 0..per_spec {
@@ -304,7 +304,7 @@ fn mutated_specs_are_refused_with_a_place_or_compile() {
             let name = format!("{family}-{n}.yaml");
             tried += 1;
             let checked = std::panic::catch_unwind(|| {
-                let checked = optobus_codegen::check_source(&name, &text);
+                let checked = optobus_spec::check_source(&name, &text);
                 let code = checked
                     .as_ref()
                     .ok()

@@ -17,8 +17,8 @@ fn specs() -> Vec<PathBuf> {
     specs
 }
 
-fn model(spec: &Path) -> optobus_codegen::Model {
-    optobus_codegen::check_file(spec).unwrap_or_else(|r| panic!("{}", r.render()))
+fn model(spec: &Path) -> optobus_spec::Model {
+    optobus_spec::check_file(spec).unwrap_or_else(|r| panic!("{}", r.render()))
 }
 
 #[test]

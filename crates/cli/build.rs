@@ -27,7 +27,7 @@ fn main() {
     for path in paths {
         println!("cargo::rerun-if-changed={}", path.display());
         // A built-in spec passes the checks, or the tool does not build.
-        if let Err(rejected) = optobus_codegen::check_file(&path) {
+        if let Err(rejected) = optobus_spec::check_file(&path) {
             eprint!("{}", rejected.render());
             println!(
                 "cargo::error={} does not pass the spec checks",

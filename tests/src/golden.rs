@@ -4,7 +4,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use optobus_codec::{ExceptionShape, ReadFunction, Request, WriteValue};
-use optobus_codegen::source::{Node, SourceFile, Value};
+use optobus_spec::source::{Node, SourceFile, Value};
 use serde::{Deserialize, Deserializer};
 
 /// The directory holding the golden YAML files.

@@ -32,12 +32,12 @@ pub mod specs {
 
     /// The checked model of `specs/<family>.yaml`; a spec that does not pass fails the test
     /// with its diagnostics.
-    pub fn model(family: &str) -> optobus_codegen::Model {
-        optobus_codegen::check_file(&path(family)).unwrap_or_else(|r| panic!("{}", r.render()))
+    pub fn model(family: &str) -> optobus_spec::Model {
+        optobus_spec::check_file(&path(family)).unwrap_or_else(|r| panic!("{}", r.render()))
     }
 
     /// The runtime description of `specs/<family>.yaml`, as a tool loading the file builds it.
     pub fn describe(family: &str) -> &'static DeviceInfo {
-        optobus_codegen::describe(&model(family))
+        optobus_spec::describe(&model(family))
     }
 }

@@ -12,7 +12,7 @@ use quote::quote;
 
 use super::names::{Imports, TypeNames};
 use super::{const_ident, doc_alias, doc_text, exact, hex, ident, lit};
-use crate::model::{
+use optobus_spec::model::{
     Apply, ExceptionStyle, Field, Kind, LongWrites, Model, Register, Scalar, ScaleSpec, Table,
 };
 

@@ -15,7 +15,7 @@ use quote::{format_ident, quote};
 use super::device::{address_text, command_path, copies_path, group_path, register_path};
 use super::names::{Imports, TypeNames};
 use super::{camel, doc_alias, doc_text, ident, type_ident};
-use crate::model::{Kind, Model, Register, Scalar};
+use optobus_spec::model::{Kind, Model, Register, Scalar};
 
 /// The driver runtime's unit type for a spec unit; other units read as plain `Fixed`.
 fn unit_type(unit: &str) -> Option<&'static str> {

@@ -9,7 +9,7 @@ use quote::quote;
 
 use super::names::Imports;
 use super::{camel, doc_text, exact, lit};
-use crate::model::{Code, EnumDef};
+use optobus_spec::model::{Code, EnumDef};
 
 /// The variant of each code, in order.
 pub(super) fn variant_idents(def: &EnumDef) -> Vec<Ident> {

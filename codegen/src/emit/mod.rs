@@ -22,8 +22,8 @@ mod values;
 use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{quote, ToTokens};
 
-use crate::model::Model;
 use names::{Imports, TypeNames};
+use optobus_spec::model::Model;
 
 /// Generates the Rust source for `model`; `spec_name` is named in the header.
 pub fn generate(model: &Model, spec_name: &str) -> String {

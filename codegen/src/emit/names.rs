@@ -13,7 +13,7 @@ use proc_macro2::{Ident, Span, TokenStream};
 use quote::quote;
 
 use super::{camel, type_ident};
-use crate::model::{Kind, Model, Register};
+use optobus_spec::model::{Kind, Model, Register};
 
 /// Rust type names for enums, value structs, repeat indexes, group structs and the driver,
 /// made unique.

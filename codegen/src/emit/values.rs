@@ -8,7 +8,7 @@ use quote::{format_ident, quote};
 
 use super::names::{Imports, TypeNames};
 use super::{doc_text, exact, hex, lit, type_ident};
-use crate::model::{Field, Kind, Model, Register, Scalar};
+use optobus_spec::model::{Field, Kind, Model, Register, Scalar};
 
 /// The value structs of every register (once for all copies of a repeat member), then the
 /// repeat index types.

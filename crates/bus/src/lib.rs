@@ -15,7 +15,6 @@
 #![forbid(unsafe_code)]
 
 mod bus;
-mod catalogue;
 mod event;
 pub mod file;
 mod gateway;
@@ -28,7 +27,6 @@ pub mod schedule;
 mod trace;
 
 pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
-pub use catalogue::Catalogue;
 pub use event::{
     rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample, Writer, Written,
 };
@@ -40,6 +38,8 @@ pub use gateway::GatewayCounts;
 pub use handle::{Buffered, Handle, JobError, Source, AUDIT_TARGET, NETWORK_QUEUE};
 pub use line::NETWORK_SHARE;
 pub use measuring::{InputValue, MeasurementEvent};
+/// The models a bus file may name: one catalogue, shared with the `optobus` tool.
+pub use optobus_spec::Catalogue;
 pub use optobus_transport::Stream;
 pub use policy::{Policy, Refusal, RefusalKind};
 pub use schedule::Health;

@@ -10,7 +10,7 @@ use crate::models;
 /// The checked bus file at `path`: a file that cannot be read is the system's failure, one
 /// that does not pass is refused with every problem.
 pub(crate) fn load(path: &Path) -> Result<BusFile, CliError> {
-    BusFile::load(path, &models::catalogue()).map_err(|error| match error {
+    BusFile::load(path, models::catalogue()).map_err(|error| match error {
         LoadError::Read { .. } => CliError::failed(error.to_string()),
         LoadError::Rejected(rejected) => CliError::new(format!(
             "{} does not pass the bus file checks:\n{}",

@@ -1,59 +1,46 @@
 //! The sensor models the tool knows: every spec of `specs/` at build time (embedded by
-//! `build.rs`), described at startup through the same checks as a `--spec` file, and found by
-//! family id or an alias the spec declares.
+//! `build.rs`), described through the same checks as a `--spec` file into the one catalogue
+//! the bus files are read with, and found by family id or an alias the spec declares.
 
 use std::path::Path;
 use std::sync::OnceLock;
 
 use optobus_device::DeviceInfo;
+use optobus_spec::source::ReadError;
+use optobus_spec::{Catalogue, SpecError};
 
 use crate::error::CliError;
 
 include!(concat!(env!("OUT_DIR"), "/specs.rs"));
 
-/// The runtime description of a spec's text; a spec that does not pass gives the checker's
-/// located diagnostics, rendered like rustc.
-pub(crate) fn describe(name: &str, text: &str) -> Result<&'static DeviceInfo, CliError> {
-    match optobus_codegen::check_source(name, text) {
-        Ok(model) => Ok(optobus_codegen::describe(&model)),
-        Err(rejected) => Err(CliError::new(format!(
-            "{name} does not pass the spec checks:\n{}",
-            rejected.render().trim_end()
-        ))),
-    }
+/// The tool's catalogue, shared with the bus files it reads: the built-in models (checked when
+/// first needed), and each spec file given (`--spec`, or named by a bus file) read and
+/// described once.
+pub(crate) fn catalogue() -> &'static Catalogue {
+    static CATALOGUE: OnceLock<Catalogue> = OnceLock::new();
+    CATALOGUE.get_or_init(|| Catalogue::of_specs(SPECS))
 }
 
-/// The model a spec file describes (read and described once per run).
+/// The model a spec file describes; a spec that does not pass gives the checker's located
+/// diagnostics, rendered like rustc.
 pub(crate) fn load(path: &Path) -> Result<&'static DeviceInfo, CliError> {
-    static LOADED: OnceLock<Result<&'static DeviceInfo, CliError>> = OnceLock::new();
-    let loaded = LOADED.get_or_init(|| {
-        let name = path.display().to_string();
-        // A file that cannot be read is the system's failure; one that is too large, no file or
-        // no text, or fails the checks, input refused.
-        let text = optobus_codegen::source::read_yaml(path).map_err(|e| {
-            let message = format!("cannot read {name}: {e}");
-            match e {
-                optobus_codegen::source::ReadError::Io(_) => CliError::failed(message),
-                _ => CliError::new(message),
-            }
-        })?;
-        describe(&name, &text)
-    });
-    loaded.clone()
+    catalogue().load(path).map_err(|error| {
+        // A file that cannot be read is the system's failure; one that is too large, no file
+        // or no text, or fails the checks, input refused.
+        let message = error.to_string();
+        match &*error {
+            SpecError::Read {
+                source: ReadError::Io(_),
+                ..
+            } => CliError::failed(message),
+            _ => CliError::new(message),
+        }
+    })
 }
 
 /// Every built-in model, in the order of their manuals.
 pub(crate) fn all() -> &'static [&'static DeviceInfo] {
-    static MODELS: OnceLock<Vec<&'static DeviceInfo>> = OnceLock::new();
-    MODELS.get_or_init(|| {
-        let mut models: Vec<&'static DeviceInfo> = SPECS
-            .iter()
-            // build.rs refuses to build with a spec that fails its checks.
-            .filter_map(|(name, text)| describe(name, text).ok())
-            .collect();
-        models.sort_by_key(|d| d.manual);
-        models
-    })
+    catalogue().built_in()
 }
 
 /// The family called `name` (its id or one of its aliases).
@@ -68,11 +55,6 @@ pub(crate) fn find(name: &str) -> Result<&'static DeviceInfo, CliError> {
                 names().join(", ")
             ))
         })
-}
-
-/// The built-in models as a bus file names them.
-pub(crate) fn catalogue() -> optobus_bus::Catalogue {
-    optobus_bus::Catalogue::new(all().iter().copied())
 }
 
 /// The model's name as users type it (`p-series`).
@@ -96,5 +78,47 @@ pub(crate) fn verdict(verdict: &optobus_driver::identify::Verdict) -> String {
             let names: Vec<String> = models.iter().map(|m| name(m)).collect();
             format!("several models fit: {}", names.join(", "))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Issue 31, one catalogue: the spec files the tool is given (`--spec`) and those its bus
+    /// files name are read once each, each path is its own model, and a bus file gets the
+    /// very model `--spec` got (the tool and the bus kept a catalogue each, and the tool's
+    /// kept the first path's model for any other).
+    #[test]
+    fn one_catalogue_reads_each_spec_file_once_for_the_tool_and_its_bus_files() {
+        let dir = std::env::temp_dir().join(format!("optobus-catalogue-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("scratch directory");
+        let [(first_name, first), (second_name, second), ..] = SPECS else {
+            panic!("two specs at least");
+        };
+        let (first_path, second_path) = (dir.join(first_name), dir.join(second_name));
+        std::fs::write(&first_path, first).expect("written");
+        std::fs::write(&second_path, second).expect("written");
+
+        let from_first = load(&first_path).expect("the spec passes");
+        let from_second = load(&second_path).expect("the spec passes");
+        assert_ne!(
+            from_first.family, from_second.family,
+            "each path is its own model"
+        );
+        let again = load(&first_path).expect("the spec passes");
+        assert!(std::ptr::eq(from_first, again), "a path is read once");
+
+        let text = format!(
+            "lines:\n  - {{ name: sim, simulated: true }}\n\
+             devices:\n  - {{ name: d, spec: {first_name}, slave: 1 }}\n"
+        );
+        let file = optobus_bus::BusFile::parse("bus.yaml", &text, &dir, catalogue())
+            .unwrap_or_else(|rejected| panic!("{rejected}"));
+        assert!(
+            std::ptr::eq(file.devices[0].device, from_first),
+            "the bus file's model is the one the tool read"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -261,7 +261,7 @@ outputs:
 ",
             broker.port
         );
-        let file = BusFile::parse("bus.yaml", &text, ".".as_ref(), &crate::models::catalogue())
+        let file = BusFile::parse("bus.yaml", &text, ".".as_ref(), crate::models::catalogue())
             .unwrap_or_else(|e| panic!("{}", e.render()));
         let bus = Bus::new(file.clone());
         let metrics_config = file.outputs.metrics.clone().expect("metrics");

@@ -44,7 +44,7 @@ fn a_new_spec_is_read_from_its_own_simulator() {
 
 #[test]
 fn a_broken_spec_prints_the_checkers_diagnostics() {
-    let spec = repo_file("codegen/tests/fixtures/errors/range.yaml");
+    let spec = repo_file("crates/spec/tests/fixtures/errors/range.yaml");
     for command in [&["registers"][..], &["simulate", "--duration", "1s"]] {
         let (code, stdout, stderr) = outcome(&[&["--spec", spec.as_str()], command].concat());
         assert_eq!(code, Some(REFUSED), "{stderr}");

@@ -4,10 +4,9 @@
 use std::collections::HashMap;
 
 use optobus_codec::LineFormat;
-use optobus_codegen::diagnostic::{Label, Location};
-use optobus_codegen::source::Span;
-use optobus_codegen::Diagnostic;
 use optobus_device::DeviceInfo;
+use optobus_spec::source::Span;
+use optobus_spec::Diagnostic;
 
 use super::read::{Parsed, Seen};
 use super::Port;
@@ -80,15 +79,17 @@ pub(super) fn check(parsed: &mut Parsed) -> Vec<Diagnostic> {
         };
         if let (Some(span), Some(port)) = (device.faults, &line.port) {
             if *port != Port::Simulated {
-                problems.push(Diagnostic::at_span(
-                    "faults-off-simulation",
-                    span,
-                    format!(
-                        "`faults` are injected by a simulator: line `{}` is real",
-                        line.name.as_deref().unwrap_or("?")
-                    ),
-                    "give `faults` to devices on a `simulated: true` line",
-                ));
+                problems.push(
+                    Diagnostic::at_span(
+                        "faults-off-simulation",
+                        span,
+                        format!(
+                            "`faults` are injected by a simulator: line `{}` is real",
+                            line.name.as_deref().unwrap_or("?")
+                        ),
+                    )
+                    .help("give `faults` to devices on a `simulated: true` line"),
+                );
             }
         }
     }
@@ -106,19 +107,12 @@ fn unique<'a>(
     let mut first: HashMap<&str, Span> = HashMap::new();
     for (key, span) in keys {
         match first.get(key) {
-            Some(&earlier) => problems.push(Diagnostic {
-                rule,
-                message: message(key),
-                primary: Label {
-                    location: Location::Span(span),
-                    text: "again here".into(),
-                },
-                secondary: vec![Label {
-                    location: Location::Span(earlier),
-                    text: "first here".into(),
-                }],
-                help: Some("each must be unique".into()),
-            }),
+            Some(&earlier) => problems.push(
+                Diagnostic::at_span(rule, span, message(key))
+                    .label("again here")
+                    .also_at(earlier, "first here")
+                    .help("each must be unique"),
+            ),
             None => {
                 first.insert(key, span);
             }
@@ -159,16 +153,18 @@ fn formats(parsed: &mut Parsed, problems: &mut Vec<Diagnostic>) {
             .filter_map(|d| d.model)
             .collect();
         if let Some(device) = devices.iter().find(|d| d.rtu.is_none()) {
-            problems.push(Diagnostic::at_span(
-                "line-format",
-                place.port_span,
-                format!(
-                    "line `{}` carries RTU frames, which {} does not speak",
-                    line.name,
-                    name(device)
-                ),
-                "put it on a `tcp` line",
-            ));
+            problems.push(
+                Diagnostic::at_span(
+                    "line-format",
+                    place.port_span,
+                    format!(
+                        "line `{}` carries RTU frames, which {} does not speak",
+                        line.name,
+                        name(device)
+                    ),
+                )
+                .help("put it on a `tcp` line"),
+            );
             continue;
         }
         if !place.format_given {
@@ -180,10 +176,7 @@ fn formats(parsed: &mut Parsed, problems: &mut Vec<Diagnostic>) {
             match factories.as_slice() {
                 [] => {}
                 [(format, _)] => line.format = Some(*format),
-                several => problems.push(Diagnostic::at_span(
-                    "line-format",
-                    place.name_span,
-                    format!(
+                several => problems.push(Diagnostic::at_span("line-format", place.name_span, format!(
                         "the devices on line `{}` have different factory formats: {}",
                         line.name,
                         several
@@ -191,9 +184,7 @@ fn formats(parsed: &mut Parsed, problems: &mut Vec<Diagnostic>) {
                             .map(|(f, d)| format!("{} {f}", name(d)))
                             .collect::<Vec<_>>()
                             .join(", ")
-                    ),
-                    "give the line's `baud`, `parity`, `data_bits` and `stop_bits` as the devices are set",
-                )),
+                    )).help("give the line's `baud`, `parity`, `data_bits` and `stop_bits` as the devices are set")),
             }
             continue;
         }
@@ -202,15 +193,17 @@ fn formats(parsed: &mut Parsed, problems: &mut Vec<Diagnostic>) {
         }
         for device in devices.iter().filter(|d| !lists(d, format)) {
             let rtu = device.rtu.expect("devices without RTU were reported above");
-            problems.push(Diagnostic::at_span(
-                "line-format",
-                place.format,
-                format!(
-                    "line `{}` runs {format}, which the {} manual does not list",
-                    line.name,
-                    name(device)
-                ),
-                format!(
+            problems.push(
+                Diagnostic::at_span(
+                    "line-format",
+                    place.format,
+                    format!(
+                        "line `{}` runs {format}, which the {} manual does not list",
+                        line.name,
+                        name(device)
+                    ),
+                )
+                .help(format!(
                     "{} takes {} baud, {}; `any_format: true` allows others",
                     name(device),
                     rtu.bauds
@@ -219,8 +212,8 @@ fn formats(parsed: &mut Parsed, problems: &mut Vec<Diagnostic>) {
                         .collect::<Vec<_>>()
                         .join(", "),
                     factory(device).map_or(String::new(), character_format)
-                ),
-            ));
+                )),
+            );
         }
     }
 }
@@ -234,24 +227,4 @@ fn character_format(format: LineFormat) -> String {
 /// The model's name as users type it.
 fn name(device: &DeviceInfo) -> String {
     device.model_name().to_string()
-}
-
-/// A diagnostic at a span, for the checks here.
-trait AtSpan {
-    fn at_span(rule: &'static str, span: Span, message: String, help: impl Into<String>) -> Self;
-}
-
-impl AtSpan for Diagnostic {
-    fn at_span(rule: &'static str, span: Span, message: String, help: impl Into<String>) -> Self {
-        Diagnostic {
-            rule,
-            message,
-            primary: Label {
-                location: Location::Span(span),
-                text: String::new(),
-            },
-            secondary: Vec::new(),
-            help: Some(help.into()),
-        }
-    }
 }

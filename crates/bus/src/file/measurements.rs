@@ -4,14 +4,14 @@
 
 use std::time::Duration;
 
-use optobus_codegen::source::{Node, Span, Value};
 use optobus_device::DeviceInfo;
 use optobus_inspect::did_you_mean;
 use optobus_measure::{
     check, quantity, Definition, InputInfo, Limits, Plan, Problem, Settings, Unit, Window,
 };
+use optobus_spec::source::{Node, Span, Value};
 
-use super::reader::{parse_duration, scalar, Reader};
+use super::reader::{parse_duration, Reader};
 use super::DeviceConfig;
 
 pub(super) const MEASUREMENT_KEYS: &[&str] =
@@ -136,7 +136,7 @@ impl Reader<'_> {
         let get = |key: &str| {
             pairs
                 .iter()
-                .find(|(k, _)| scalar(k) == Some(key))
+                .find(|(k, _)| k.scalar() == Some(key))
                 .map(|(_, v)| v)
         };
         let name = match get("name") {
@@ -214,7 +214,7 @@ impl Reader<'_> {
         let mut limits = Limits::default();
         let mut ok = true;
         for (key, value) in pairs {
-            let Some(name) = scalar(key) else { continue };
+            let Some(name) = key.scalar() else { continue };
             let Some(text) = self.text(value, "a limit") else {
                 ok = false;
                 continue;

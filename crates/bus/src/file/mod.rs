@@ -21,11 +21,11 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use optobus_codec::LineFormat;
-use optobus_codegen::source::{read_yaml, ReadError};
-use optobus_codegen::SourceFile;
 use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
+use optobus_spec::source::{read_yaml, ReadError};
+use optobus_spec::{Diagnostic, SourceFile};
 
-use crate::catalogue::Catalogue;
+use optobus_spec::Catalogue;
 
 /// The bus file's schema: every key a bus file takes, with its default or an example value
 /// and what it means, as YAML comments (the crate's README shows the same text;
@@ -213,7 +213,7 @@ pub struct PollConfig {
 }
 
 /// A bus file that did not pass: its source and every problem found, rendered like rustc.
-pub use optobus_codegen::Rejected;
+pub use optobus_spec::Rejected;
 
 impl BusFile {
     /// Reads and checks a bus file's text. `name` is shown in diagnostics; spec files the
@@ -228,7 +228,7 @@ impl BusFile {
         let mut diagnostics = Vec::new();
         let bus = match (&source.syntax_error, &source.root) {
             (Some(error), _) => {
-                diagnostics.push(reader::syntax(error));
+                diagnostics.push(Diagnostic::from(error));
                 None
             }
             (None, Some(root)) => {
@@ -262,7 +262,7 @@ impl BusFile {
     }
 
     /// Reads and checks the bus file at `path`: a regular file (or a pipe) of at most
-    /// [`YAML_LIMIT`](optobus_codegen::source::YAML_LIMIT) bytes of UTF-8, read as specs are.
+    /// [`YAML_LIMIT`](optobus_spec::source::YAML_LIMIT) bytes of UTF-8, read as specs are.
     pub fn load(path: &Path, catalogue: &Catalogue) -> Result<Self, LoadError> {
         let text = read_yaml(path).map_err(|source| LoadError::Read {
             path: path.to_path_buf(),

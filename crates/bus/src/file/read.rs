@@ -3,15 +3,15 @@
 use std::time::Duration;
 
 use optobus_codec::{LineFormat, Parity};
-use optobus_codegen::source::{Node, Span, Value};
 use optobus_device::{DeviceInfo, RegisterInfo};
+use optobus_spec::source::{Node, Span, Value};
 
 use super::measurements::Measurements;
 use super::outputs::Outputs;
 use optobus_inspect::did_you_mean;
 
 use super::reader::{
-    has_port, listen_address, parse_duration, quoted, scalar, Reader, HELP, NOT_A_DURATION,
+    has_port, listen_address, parse_duration, quoted, spec_refusal, Reader, HELP, NOT_A_DURATION,
 };
 use super::{
     BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, Writable,
@@ -128,7 +128,7 @@ impl Reader<'_> {
         let mut lines = Vec::new();
         let mut devices = Vec::new();
         let mut seen = Seen::default();
-        let lines_node = top.iter().find(|(k, _)| scalar(k) == Some("lines"));
+        let lines_node = top.iter().find(|(k, _)| k.scalar() == Some("lines"));
         match lines_node {
             Some((_, node)) => {
                 for item in self.list(node, "`lines`").unwrap_or_default() {
@@ -140,7 +140,7 @@ impl Reader<'_> {
             }
             None => self.error(root.span, "the bus file has no `lines`", HELP),
         }
-        let devices_node = top.iter().find(|(k, _)| scalar(k) == Some("devices"));
+        let devices_node = top.iter().find(|(k, _)| k.scalar() == Some("devices"));
         match devices_node {
             Some((_, node)) => {
                 for item in self.list(node, "`devices`").unwrap_or_default() {
@@ -152,7 +152,7 @@ impl Reader<'_> {
             }
             None => self.error(root.span, "the bus file has no `devices`", HELP),
         }
-        let measurements = match top.iter().find(|(k, _)| scalar(k) == Some("measurements")) {
+        let measurements = match top.iter().find(|(k, _)| k.scalar() == Some("measurements")) {
             Some((_, node)) if !node.is_null() => {
                 let known: Vec<_> = seen
                     .devices
@@ -164,7 +164,7 @@ impl Reader<'_> {
             }
             _ => Some(Measurements::default()),
         };
-        let outputs = match top.iter().find(|(k, _)| scalar(k) == Some("outputs")) {
+        let outputs = match top.iter().find(|(k, _)| k.scalar() == Some("outputs")) {
             Some((_, outputs)) if !outputs.is_null() => {
                 let names: Vec<(&str, Span)> = seen
                     .devices
@@ -186,7 +186,7 @@ impl Reader<'_> {
 
     fn line(&mut self, node: &Node) -> Option<(Option<LineConfig>, LineSeen)> {
         let pairs = self.mapping(node, "a line", LINE_KEYS)?;
-        let get = |key: &str| pairs.iter().find(|(k, _)| scalar(k) == Some(key));
+        let get = |key: &str| pairs.iter().find(|(k, _)| k.scalar() == Some(key));
         let name_node = get("name").map(|(_, v)| v);
         let name = match name_node {
             Some(v) => self.text(v, "a line's `name`").map(str::to_owned),
@@ -201,7 +201,7 @@ impl Reader<'_> {
         };
         let ports: Vec<&(Node, Node)> = pairs
             .iter()
-            .filter(|(k, _)| scalar(k).is_some_and(|k| PORT_KEYS.contains(&k)))
+            .filter(|(k, _)| k.scalar().is_some_and(|k| PORT_KEYS.contains(&k)))
             .collect();
         let port = match ports.as_slice() {
             [(key, value)] => self.port(key, value),
@@ -335,7 +335,7 @@ impl Reader<'_> {
                 let pairs = self.mapping(node, "`gateway`", GATEWAY_KEYS)?;
                 let listen = pairs
                     .iter()
-                    .find(|(k, _)| scalar(k) == Some("listen"))
+                    .find(|(k, _)| k.scalar() == Some("listen"))
                     .map(|(_, v)| v);
                 let Some(listen) = listen else {
                     self.error(
@@ -361,7 +361,7 @@ impl Reader<'_> {
         let get = |key: &str| {
             pairs
                 .iter()
-                .find(|(k, _)| scalar(k) == Some(key))
+                .find(|(k, _)| k.scalar() == Some(key))
                 .map(|(_, v)| v)
         };
         let clients = match get("clients") {
@@ -393,7 +393,7 @@ impl Reader<'_> {
     }
 
     fn port(&mut self, key: &Node, value: &Node) -> Option<(Port, Span)> {
-        let kind = scalar(key)?;
+        let kind = key.scalar()?;
         let port = match kind {
             "simulated" => {
                 if !self.boolean(value, "`simulated`")? {
@@ -444,7 +444,7 @@ impl Reader<'_> {
         let get = |key: &str| {
             pairs
                 .iter()
-                .find(|(k, _)| scalar(k) == Some(key))
+                .find(|(k, _)| k.scalar() == Some(key))
                 .map(|(_, v)| v)
         };
         let name_node = get("name");
@@ -596,7 +596,8 @@ impl Reader<'_> {
         let path = self.text(node, "`spec`")?;
         match self.catalogue.load(&self.base.join(path)) {
             Ok(device) => Some((device, path.to_owned())),
-            Err(why) => {
+            Err(error) => {
+                let why = spec_refusal(&error);
                 self.error(node.span, format!("spec `{path}` cannot be used"), why);
                 None
             }
@@ -644,7 +645,7 @@ impl Reader<'_> {
         let get = |key: &str| {
             pairs
                 .iter()
-                .find(|(k, _)| scalar(k) == Some(key))
+                .find(|(k, _)| k.scalar() == Some(key))
                 .map(|(_, v)| v)
         };
         let names: Vec<&Node> = match get("read") {
@@ -688,7 +689,7 @@ impl Reader<'_> {
             }
         }
         let every = match get("every") {
-            Some(v) if scalar(v) == Some("fastest") => Some(None),
+            Some(v) if v.scalar() == Some("fastest") => Some(None),
             Some(v) => self.every(v).map(Some),
             None => Some(None),
         };
@@ -733,7 +734,7 @@ impl Reader<'_> {
 
     /// `writable: all`, or a list of register, group and command names.
     fn writable(&mut self, node: &Node, device: &'static DeviceInfo) -> Option<Writable> {
-        if scalar(node) == Some("all") {
+        if node.scalar() == Some("all") {
             return Some(Writable::all(device));
         }
         let items = self.list(node, "`writable`")?;

@@ -6,13 +6,13 @@ use std::path::Path;
 use std::time::Duration;
 
 use jiff::SignedDuration;
-use optobus_codegen::diagnostic::{Label, Location};
-use optobus_codegen::source::{FileKind, Node, Span, SyntaxError, Value};
-use optobus_codegen::Diagnostic;
 use optobus_inspect::did_you_mean;
+use optobus_spec::reading::{check_keys, KeyProblem};
+use optobus_spec::source::{FileKind, Node, Span};
+use optobus_spec::{Diagnostic, SpecError};
 
 use super::MAX_DURATION;
-use crate::catalogue::Catalogue;
+use optobus_spec::Catalogue;
 
 /// Rule name of reading errors.
 pub(super) const RULE: &str = "bus-file";
@@ -36,69 +36,17 @@ pub(super) struct Reader<'a> {
     pub(super) diagnostics: Vec<Diagnostic>,
 }
 
-/// The diagnostic for text that is not YAML.
-pub(super) fn syntax(error: &SyntaxError) -> Diagnostic {
-    Diagnostic {
-        rule: error.rule,
-        message: error.message.clone(),
-        primary: Label {
-            location: Location::Position {
-                line: error.line,
-                column: error.column,
-            },
-            text: String::new(),
-        },
-        secondary: Vec::new(),
-        help: Some(error.help.into()),
-    }
-}
-
 /// The diagnostic for an empty file.
 pub(super) fn empty() -> Diagnostic {
-    Diagnostic {
-        rule: RULE,
-        message: "the bus file is empty".into(),
-        primary: Label {
-            location: Location::Position { line: 1, column: 1 },
-            text: String::new(),
-        },
-        secondary: Vec::new(),
-        help: Some(
-            "a bus file has `lines` and `devices`; the bus file schema lists its keys \
-             (`optobus bus schema` prints it)"
-                .into(),
-        ),
-    }
+    Diagnostic::at_start(RULE, "the bus file is empty").help(
+        "a bus file has `lines` and `devices`; the bus file schema lists its keys \
+         (`optobus bus schema` prints it)",
+    )
 }
 
 /// The diagnostic for a file some item of which did not read, without a word why.
 pub(super) fn incomplete() -> Diagnostic {
-    Diagnostic {
-        rule: RULE,
-        message: "the bus file did not read whole".into(),
-        primary: Label {
-            location: Location::Position { line: 1, column: 1 },
-            text: String::new(),
-        },
-        secondary: Vec::new(),
-        help: Some(HELP.into()),
-    }
-}
-
-/// The entries of a mapping.
-pub(super) fn entries(node: &Node) -> Option<&[(Node, Node)]> {
-    match &node.value {
-        Value::Mapping(entries) => Some(entries),
-        _ => None,
-    }
-}
-
-/// A plain or quoted scalar's text.
-pub(super) fn scalar(node: &Node) -> Option<&str> {
-    match &node.value {
-        Value::Scalar { text, .. } if !node.is_null() => Some(text),
-        _ => None,
-    }
+    Diagnostic::at_start(RULE, "the bus file did not read whole").help(HELP)
 }
 
 impl<'a> Reader<'a> {
@@ -116,16 +64,8 @@ impl<'a> Reader<'a> {
         message: impl Into<String>,
         help: impl Into<String>,
     ) {
-        self.diagnostics.push(Diagnostic {
-            rule: RULE,
-            message: message.into(),
-            primary: Label {
-                location: Location::Span(span),
-                text: String::new(),
-            },
-            secondary: Vec::new(),
-            help: Some(help.into()),
-        });
+        self.diagnostics
+            .push(Diagnostic::at_span(RULE, span, message).help(help));
     }
 
     /// The entries of `node`, checked against `allowed` keys (each unknown or repeated key
@@ -136,7 +76,7 @@ impl<'a> Reader<'a> {
         what: &str,
         allowed: &[&str],
     ) -> Option<&'n [(Node, Node)]> {
-        let Some(pairs) = entries(node) else {
+        let Some(pairs) = node.entries() else {
             self.error(
                 node.span,
                 format!("{what} must be a mapping, not {}", node.kind()),
@@ -144,28 +84,20 @@ impl<'a> Reader<'a> {
             );
             return None;
         };
-        let mut seen: Vec<(&str, Span)> = Vec::new();
-        for (key, _) in pairs {
-            let Some(name) = scalar(key) else {
+        check_keys(pairs, allowed, |problem| match problem {
+            KeyProblem::NotText { key } => {
                 self.error(key.span, format!("{what} has a key that is not text"), HELP);
-                continue;
-            };
-            if let Some((_, first)) = seen.iter().find(|(seen, _)| *seen == name) {
-                let first = *first;
-                self.diagnostics.push(Diagnostic {
-                    rule: RULE,
-                    message: format!("{what} has `{name}` twice"),
-                    primary: Label {
-                        location: Location::Span(key.span),
-                        text: "repeated key".into(),
-                    },
-                    secondary: vec![Label {
-                        location: Location::Span(first),
-                        text: "first given here".into(),
-                    }],
-                    help: Some("give each key once".into()),
-                });
-            } else if !allowed.contains(&name) {
+            }
+            // A key given twice is repeated, whether it is known or not.
+            KeyProblem::Repeated {
+                name, key, first, ..
+            } => self.diagnostics.push(
+                Diagnostic::at_span(RULE, key.span, format!("{what} has `{name}` twice"))
+                    .label("repeated key")
+                    .also_at(first, "first given here")
+                    .help("give each key once"),
+            ),
+            KeyProblem::Unknown { name, key } => {
                 let keys = format!("its keys are {}", quoted(allowed));
                 let help = match did_you_mean(name, allowed.iter().copied()) {
                     Some(near) => format!("{near} {keys}"),
@@ -173,28 +105,25 @@ impl<'a> Reader<'a> {
                 };
                 self.error(key.span, format!("{what} has no key `{name}`"), help);
             }
-            seen.push((name, key.span));
-        }
+        });
         Some(pairs)
     }
 
     /// The items of a list, or an error.
     pub(super) fn list<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n [Node]> {
-        match &node.value {
-            Value::Sequence(items) => Some(items),
-            _ => {
-                self.error(
-                    node.span,
-                    format!("{what} must be a list, not {}", node.kind()),
-                    HELP,
-                );
-                None
-            }
+        let items = node.items();
+        if items.is_none() {
+            self.error(
+                node.span,
+                format!("{what} must be a list, not {}", node.kind()),
+                HELP,
+            );
         }
+        items
     }
 
     pub(super) fn text<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n str> {
-        let text = scalar(node);
+        let text = node.scalar();
         if text.is_none() {
             self.error(
                 node.span,
@@ -230,7 +159,7 @@ impl<'a> Reader<'a> {
     }
 
     pub(super) fn boolean(&mut self, node: &Node, what: &str) -> Option<bool> {
-        match scalar(node) {
+        match node.scalar() {
             Some("true") => Some(true),
             Some("false") => Some(false),
             _ => {
@@ -273,6 +202,17 @@ impl<'a> Reader<'a> {
                 None
             }
         }
+    }
+}
+
+/// Why a spec file a device names cannot be used, as the bus file's diagnostics say it.
+pub(super) fn spec_refusal(error: &SpecError) -> String {
+    match error {
+        SpecError::Rejected(rejected) => format!(
+            "it does not pass the spec checks:\n{}",
+            rejected.render().trim_end()
+        ),
+        SpecError::Read { .. } => error.to_string(),
     }
 }
 

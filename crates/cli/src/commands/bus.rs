@@ -56,7 +56,7 @@ fn summary(bus: &BusFile) -> String {
 /// does not pass is then refused (exit 3) with a line on stderr.
 fn check_json(path: &Path) -> Result<(), CliError> {
     let shown = path.display().to_string();
-    match BusFile::load(path, &models::catalogue()) {
+    match BusFile::load(path, models::catalogue()) {
         Ok(bus) => {
             let polls: usize = bus.devices.iter().map(|d| d.polls.len()).sum();
             print(&pretty(&json!({

@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use optobus_codegen::source::{open_limited, size_text, ReadError};
+use optobus_spec::source::{open_limited, size_text, ReadError};
 
 use crate::chart::{check_out, draw, Series};
 use crate::error::CliError;

@@ -116,7 +116,7 @@ fn command_line_outputs(bus: &mut BusFile, args: &RunArgs) -> Result<(), CliErro
 
 /// The demo's bus file, its gateway moved to `gateway` if given.
 pub(crate) fn demo(gateway: Option<SocketAddr>) -> Result<BusFile, CliError> {
-    let mut bus = BusFile::parse("demo.yaml", DEMO, ".".as_ref(), &models::catalogue())
+    let mut bus = BusFile::parse("demo.yaml", DEMO, ".".as_ref(), models::catalogue())
         .map_err(|rejected| CliError::new(rejected.render()))?;
     if let Some(address) = gateway {
         move_gateway(&mut bus, address)?;

@@ -83,13 +83,8 @@ fn one_device(global: &Global, every: Duration) -> Result<BusFile, CliError> {
         name = quoted(&device.model_name().to_string()),
         timeout = target.timeout.as_millis(),
     );
-    BusFile::parse(
-        "the device given",
-        &text,
-        ".".as_ref(),
-        &models::catalogue(),
-    )
-    .map_err(|rejected| CliError::new(rejected.render()))
+    BusFile::parse("the device given", &text, ".".as_ref(), models::catalogue())
+        .map_err(|rejected| CliError::new(rejected.render()))
 }
 
 pub(crate) async fn run(global: &Global, args: &UiArgs) -> Result<(), CliError> {

@@ -4,9 +4,9 @@
 use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::path::PathBuf;
 
-use optobus_codegen::source::{Node, Value};
+use optobus_spec::source::{Node, Value};
 
-use crate::file::reader::{listen_address, scalar, Reader};
+use crate::file::reader::{listen_address, Reader};
 
 /// Where the console listens when the file gives `http: true`.
 pub const DEFAULT_HTTP_PORT: u16 = 8080;
@@ -98,7 +98,7 @@ impl Reader<'_> {
                 let pairs = self.mapping(node, "`http`", HTTP_KEYS)?;
                 let listen = pairs
                     .iter()
-                    .find(|(k, _)| scalar(k) == Some("listen"))
+                    .find(|(k, _)| k.scalar() == Some("listen"))
                     .map(|(_, v)| v);
                 (listen, pairs)
             }
@@ -106,7 +106,7 @@ impl Reader<'_> {
         };
         let listen = match listen_node {
             None => Some(SocketAddr::from(([127, 0, 0, 1], DEFAULT_HTTP_PORT))),
-            Some(node) if scalar(node) == Some("true") => {
+            Some(node) if node.scalar() == Some("true") => {
                 Some(SocketAddr::from(([127, 0, 0, 1], DEFAULT_HTTP_PORT)))
             }
             Some(node) => {
@@ -125,7 +125,7 @@ impl Reader<'_> {
         let get = |key: &str| {
             pairs
                 .iter()
-                .find(|(k, _)| scalar(k) == Some(key))
+                .find(|(k, _)| k.scalar() == Some(key))
                 .map(|(_, v)| v)
         };
         let token_file = get("token_file")

@@ -2,9 +2,9 @@
 
 use std::net::SocketAddr;
 
-use optobus_codegen::source::{Node, Value};
+use optobus_spec::source::{Node, Value};
 
-use super::super::reader::{listen_address, scalar, Reader};
+use super::super::reader::{listen_address, Reader};
 
 /// Where `/metrics` is served.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -32,7 +32,7 @@ impl Reader<'_> {
         let listen = match &node.value {
             Value::Mapping(_) => {
                 let pairs = self.mapping(node, "`metrics`", &["listen"])?;
-                let Some((_, listen)) = pairs.iter().find(|(k, _)| scalar(k) == Some("listen"))
+                let Some((_, listen)) = pairs.iter().find(|(k, _)| k.scalar() == Some("listen"))
                 else {
                     self.error(
                         node.span,

@@ -13,9 +13,9 @@ pub use mqtt::{
     DEFAULT_STATE_EVERY,
 };
 
-use optobus_codegen::source::{Node, Span};
+use optobus_spec::source::{Node, Span};
 
-use super::reader::{scalar, Reader};
+use super::reader::Reader;
 
 /// Where a running bus sends what it reads; nothing unless the file says so.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -41,7 +41,7 @@ impl Reader<'_> {
         let Some(pairs) = self.mapping(node, "`outputs`", OUTPUT_KEYS) else {
             return Outputs::default();
         };
-        let get = |key: &str| pairs.iter().find(|(k, _)| scalar(k) == Some(key));
+        let get = |key: &str| pairs.iter().find(|(k, _)| k.scalar() == Some(key));
         Outputs {
             mqtt: get("mqtt").and_then(|(k, v)| self.mqtt(v, k.span, devices)),
             metrics: get("metrics").and_then(|(_, v)| self.metrics(v)),

@@ -3,9 +3,9 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use optobus_codegen::source::{Node, Span};
+use optobus_spec::source::{Node, Span};
 
-use super::super::reader::{entries, has_port, scalar, Reader};
+use super::super::reader::{has_port, Reader};
 
 /// Samples kept for the broker while it cannot be reached, unless the file says otherwise.
 pub const DEFAULT_MQTT_QUEUE: usize = 10_000;
@@ -174,7 +174,7 @@ impl Reader<'_> {
         let get = |key: &str| {
             pairs
                 .iter()
-                .find(|(k, _)| scalar(k) == Some(key))
+                .find(|(k, _)| k.scalar() == Some(key))
                 .map(|(_, v)| v)
         };
         let mut ok = true;
@@ -223,7 +223,7 @@ impl Reader<'_> {
             None => Some(Duration::from_secs(30)),
         };
         let homeassistant = match get("homeassistant") {
-            Some(v) => match scalar(v) {
+            Some(v) => match v.scalar() {
                 Some("true") => Some(Some("homeassistant".to_owned())),
                 Some("false") => Some(None),
                 // YAML 1.1's booleans: a prefix `yes` would hide every entity from Home
@@ -296,7 +296,7 @@ impl Reader<'_> {
     /// `state_every: DURATION`, or a mapping of `default` and device names to durations.
     fn state_every(&mut self, node: &Node, devices: &[(&str, Span)]) -> Option<StateEvery> {
         const WHAT: &str = "`state_every`";
-        if entries(node).is_none() {
+        if node.entries().is_none() {
             let every = self.duration(node, WHAT, Duration::ZERO)?;
             return Some(StateEvery {
                 default: every,
@@ -310,7 +310,7 @@ impl Reader<'_> {
         let mut ok = true;
         for (key, value) in pairs {
             let (Some(name), Some(duration)) =
-                (scalar(key), self.duration(value, WHAT, Duration::ZERO))
+                (key.scalar(), self.duration(value, WHAT, Duration::ZERO))
             else {
                 ok = false;
                 continue;
@@ -375,10 +375,10 @@ impl Reader<'_> {
         what: &str,
         text_allowed: bool,
     ) -> Option<SecretSource> {
-        if let Some(pairs) = entries(node) {
+        if let Some(pairs) = node.entries() {
             self.mapping(node, what, &["env", "file"])?;
             return match pairs {
-                [(key, value)] if scalar(key) == Some("env") => {
+                [(key, value)] if key.scalar() == Some("env") => {
                     let name = self.text(value, "`env`")?;
                     if name.is_empty() || name.contains(['=', '\0']) {
                         self.error(
@@ -390,7 +390,7 @@ impl Reader<'_> {
                     }
                     Some(SecretSource::Env(name.to_owned()))
                 }
-                [(key, value)] if scalar(key) == Some("file") => {
+                [(key, value)] if key.scalar() == Some("file") => {
                     let path = self.text(value, "`file`")?;
                     Some(SecretSource::File(self.base.join(path)))
                 }

@@ -1,8 +1,9 @@
-//! Diagnostics that point into a spec, rendered in the style of rustc.
+//! Diagnostics that point into a spec or another YAML file of the project (a bus file),
+//! rendered in the style of rustc.
 
 use std::fmt::Write as _;
 
-use crate::source::{Path, SourceFile, Span};
+use crate::source::{Path, SourceFile, Span, SyntaxError};
 
 /// Where a label points.
 #[derive(Clone, Debug)]
@@ -54,6 +55,25 @@ pub struct Diagnostic {
     pub help: Option<String>,
 }
 
+/// Text that is not YAML, at the place the parser stopped, whatever the file is.
+impl From<&SyntaxError> for Diagnostic {
+    fn from(error: &SyntaxError) -> Self {
+        Self {
+            rule: error.rule,
+            message: error.message.clone(),
+            primary: Label {
+                location: Location::Position {
+                    line: error.line,
+                    column: error.column,
+                },
+                text: String::new(),
+            },
+            secondary: Vec::new(),
+            help: Some(error.help.into()),
+        }
+    }
+}
+
 impl Diagnostic {
     /// A diagnostic at the value of `path`.
     pub fn at(rule: &'static str, path: &Path, message: impl Into<String>) -> Self {
@@ -62,6 +82,35 @@ impl Diagnostic {
             message: message.into(),
             primary: Label {
                 location: Location::Value(path.clone()),
+                text: String::new(),
+            },
+            secondary: Vec::new(),
+            help: None,
+        }
+    }
+
+    /// A diagnostic at a place of the tree a reader was looking at.
+    pub fn at_span(rule: &'static str, span: Span, message: impl Into<String>) -> Self {
+        Self {
+            rule,
+            message: message.into(),
+            primary: Label {
+                location: Location::Span(span),
+                text: String::new(),
+            },
+            secondary: Vec::new(),
+            help: None,
+        }
+    }
+
+    /// A diagnostic about a whole file, at its first line and column (an empty file, one
+    /// that did not read whole).
+    pub fn at_start(rule: &'static str, message: impl Into<String>) -> Self {
+        Self {
+            rule,
+            message: message.into(),
+            primary: Label {
+                location: Location::Position { line: 1, column: 1 },
                 text: String::new(),
             },
             secondary: Vec::new(),
@@ -79,6 +128,15 @@ impl Diagnostic {
     pub fn also(mut self, path: &Path, text: impl Into<String>) -> Self {
         self.secondary.push(Label {
             location: Location::Value(path.clone()),
+            text: text.into(),
+        });
+        self
+    }
+
+    /// Adds a secondary label at a place of the tree.
+    pub fn also_at(mut self, span: Span, text: impl Into<String>) -> Self {
+        self.secondary.push(Label {
+            location: Location::Span(span),
             text: text.into(),
         });
         self

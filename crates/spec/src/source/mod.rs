@@ -192,6 +192,30 @@ impl Node {
         }
     }
 
+    /// The text of a scalar that is not null: what a key, or a value read as text, must be.
+    pub fn scalar(&self) -> Option<&str> {
+        match &self.value {
+            Value::Scalar { text, .. } if !self.is_null() => Some(text),
+            _ => None,
+        }
+    }
+
+    /// The entries of a mapping, in source order.
+    pub fn entries(&self) -> Option<&[(Node, Node)]> {
+        match &self.value {
+            Value::Mapping(entries) => Some(entries),
+            _ => None,
+        }
+    }
+
+    /// The items of a sequence.
+    pub fn items(&self) -> Option<&[Node]> {
+        match &self.value {
+            Value::Sequence(items) => Some(items),
+            _ => None,
+        }
+    }
+
     /// What kind of node this is, for messages.
     pub fn kind(&self) -> &'static str {
         match &self.value {

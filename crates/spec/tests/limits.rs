@@ -6,7 +6,7 @@ mod large_spec;
 
 use std::path::PathBuf;
 
-use optobus_codegen::source::{read_limited, ReadError, ALIAS_RULE, YAML_LIMIT};
+use optobus_spec::source::{read_limited, ReadError, ALIAS_RULE, YAML_LIMIT};
 
 /// A file in the temporary directory, unique to this test process.
 fn scratch(name: &str) -> PathBuf {
@@ -29,7 +29,7 @@ fn alias_bomb() -> String {
 fn an_alias_bomb_is_refused_at_its_first_anchor() {
     let bomb = alias_bomb();
     assert!(bomb.len() < 500, "{}", bomb.len());
-    let rejected = optobus_codegen::check_source("bomb.yaml", &bomb).expect_err("refused");
+    let rejected = optobus_spec::check_source("bomb.yaml", &bomb).expect_err("refused");
     let rules: Vec<&str> = rejected.diagnostics.iter().map(|d| d.rule).collect();
     assert_eq!(rules, [ALIAS_RULE]);
     let rendered = rejected.render();
@@ -47,7 +47,7 @@ fn an_alias_bomb_is_refused_at_its_first_anchor() {
 #[test]
 fn an_alias_is_refused_where_it_is_written() {
     let text = "family: x\ntitle: [1, 2]\nmanual: *unknown\n";
-    let rejected = optobus_codegen::check_source("alias.yaml", text).expect_err("refused");
+    let rejected = optobus_spec::check_source("alias.yaml", text).expect_err("refused");
     assert!(
         rejected.render().contains("--> alias.yaml:3:9"),
         "{}",
@@ -58,7 +58,7 @@ fn an_alias_is_refused_where_it_is_written() {
 #[cfg(unix)]
 #[test]
 fn dev_zero_is_refused_as_no_file() {
-    let rejected = optobus_codegen::check_file("/dev/zero".as_ref()).expect_err("refused");
+    let rejected = optobus_spec::check_file("/dev/zero".as_ref()).expect_err("refused");
     assert_eq!(
         rejected.diagnostics[0].message,
         "cannot read /dev/zero: not a regular file (a device, directory or socket)"
@@ -71,7 +71,7 @@ fn an_oversized_spec_is_refused_with_the_limit() {
     // Sparse: one byte over the limit costs no disk.
     let file = std::fs::File::create(&path).expect("create");
     file.set_len(YAML_LIMIT + 1).expect("grow");
-    let rejected = optobus_codegen::check_file(&path);
+    let rejected = optobus_spec::check_file(&path);
     let _ = std::fs::remove_file(&path);
     let rejected = rejected.expect_err("refused");
     assert_eq!(
@@ -116,7 +116,7 @@ fn a_pipe_is_read_up_to_its_limit_and_no_further() {
 #[test]
 fn a_spec_of_100000_registers_checks() {
     let spec = large_spec::large_spec(100_000);
-    let model = optobus_codegen::check_source("large.yaml", &spec)
+    let model = optobus_spec::check_source("large.yaml", &spec)
         .unwrap_or_else(|rejected| panic!("{}", rejected.render()));
     assert_eq!(model.registers.len(), 100_000);
     assert_eq!(model.groups.len(), 2 * 500);
@@ -128,7 +128,7 @@ fn a_spec_of_100000_registers_checks() {
 fn nesting_deeper_than_the_parser_allows_is_refused_where_it_goes_too_deep() {
     let text = format!("family: {}", "[".repeat(100_000));
     // The parser allows 511 levels: the 512th bracket, after `family: `, is refused.
-    let rejected = optobus_codegen::check_source("deep.yaml", &text).expect_err("refused");
+    let rejected = optobus_spec::check_source("deep.yaml", &text).expect_err("refused");
     let rendered = rejected.render();
     assert!(
         rendered.starts_with(
@@ -168,7 +168,7 @@ fn a_large_spec_is_parsed_alongside_and_places_what_it_refuses_as_a_small_one() 
     let (alias, line) = large_spec_changed_at(registers, 9_000, |line| {
         line.replace("doc: Register 9000.", "doc: *register")
     });
-    let rejected = optobus_codegen::check_source("alias.yaml", &alias).expect_err("refused");
+    let rejected = optobus_spec::check_source("alias.yaml", &alias).expect_err("refused");
     let column = alias
         .lines()
         .nth(line - 1)
@@ -192,7 +192,7 @@ fn a_large_spec_is_parsed_alongside_and_places_what_it_refuses_as_a_small_one() 
     let (broken, line) = large_spec_changed_at(registers, 9_000, |line| {
         line.replace("section: \"1\"}", "section: \"1\"} }")
     });
-    let rejected = optobus_codegen::check_source("broken.yaml", &broken).expect_err("refused");
+    let rejected = optobus_spec::check_source("broken.yaml", &broken).expect_err("refused");
     let rendered = rejected.render();
     let text = broken.lines().nth(line - 1).expect("the line");
     let column = text[..text.rfind(" }").expect("written") + 1]

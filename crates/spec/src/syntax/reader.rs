@@ -5,9 +5,10 @@
 
 use std::collections::BTreeMap;
 
-use crate::diagnostic::{Diagnostic, Label, Location};
 use std::fmt;
 
+use crate::diagnostic::Diagnostic;
+use crate::reading::{check_keys, KeyProblem, Slots};
 use crate::source::{Node, Span, Value};
 
 /// Rule name of every reading error.
@@ -24,32 +25,21 @@ pub(crate) struct Reader {
 impl Reader {
     /// A key given twice in one mapping: at `again`, first at `first`.
     fn repeated(&mut self, path: &At<'_>, name: &str, again: Span, first: Span, help: &str) {
-        self.diagnostics.push(Diagnostic {
-            rule: RULE,
-            message: format!("{} has `{name}` twice", what(path)),
-            primary: Label {
-                location: Location::Span(again),
-                text: "repeated key".into(),
-            },
-            secondary: vec![Label {
-                location: Location::Span(first),
-                text: "first given here".into(),
-            }],
-            help: Some(help.into()),
-        });
+        let message = format!("{} has `{name}` twice", what(path));
+        self.diagnostics.push(
+            Diagnostic::at_span(RULE, again, message)
+                .label("repeated key")
+                .also_at(first, "first given here")
+                .help(help),
+        );
     }
 
     pub(super) fn error(&mut self, span: Span, message: String, label: impl Into<String>) {
-        self.diagnostics.push(Diagnostic {
-            rule: RULE,
-            message,
-            primary: Label {
-                location: Location::Span(span),
-                text: label.into(),
-            },
-            secondary: Vec::new(),
-            help: Some(HELP.into()),
-        });
+        self.diagnostics.push(
+            Diagnostic::at_span(RULE, span, message)
+                .label(label)
+                .help(HELP),
+        );
     }
 
     /// The key-value pairs of `node`, or an error saying a mapping was `expected`.
@@ -59,7 +49,7 @@ impl Reader {
         path: &At<'_>,
         expected: &str,
     ) -> Option<&'n [(Node, Node)]> {
-        if let Value::Mapping(pairs) = &node.value {
+        if let Some(pairs) = node.entries() {
             return Some(pairs);
         }
         let message = format!("{} must be a mapping, not {}", what(path), node.kind());
@@ -80,38 +70,32 @@ impl Reader {
             path,
             "expected `key: value` lines or `{key: value, …}`",
         )?;
-        let mut found: Vec<Option<(&Node, &Node)>> = vec![None; keys.len()];
-        for (key, value) in entries {
-            let Some(name) = key.text().filter(|_| !key.is_null()) else {
-                self.error(
+        let found = check_keys(entries, keys, |problem| match problem {
+            KeyProblem::NotText { key } => self.error(
+                key.span,
+                format!("{} has a key that is not a name", what(path)),
+                "expected a name",
+            ),
+            // An unknown key given twice is unknown twice.
+            KeyProblem::Unknown { name, key }
+            | KeyProblem::Repeated {
+                name,
+                key,
+                known: false,
+                ..
+            } => self.diagnostics.push(
+                Diagnostic::at_span(
+                    RULE,
                     key.span,
-                    format!("{} has a key that is not a name", what(path)),
-                    "expected a name",
-                );
-                continue;
-            };
-            let Some(slot) = keys.iter().position(|known| *known == name) else {
-                let mut diagnostic = Diagnostic {
-                    rule: RULE,
-                    message: format!("{} has an unknown key `{name}`", what(path)),
-                    primary: Label {
-                        location: Location::Span(key.span),
-                        text: "unknown key".into(),
-                    },
-                    secondary: Vec::new(),
-                    help: None,
-                };
-                diagnostic.help = Some(format!("expected one of: {}", keys.join(", ")));
-                self.diagnostics.push(diagnostic);
-                continue;
-            };
-            if let Some((first, _)) = found[slot] {
-                let first = first.span;
-                self.repeated(path, name, key.span, first, "keep one of them");
-                continue;
-            }
-            found[slot] = Some((key, value));
-        }
+                    format!("{} has an unknown key `{name}`", what(path)),
+                )
+                .label("unknown key")
+                .help(format!("expected one of: {}", keys.join(", "))),
+            ),
+            KeyProblem::Repeated {
+                name, key, first, ..
+            } => self.repeated(path, name, key.span, first, "keep one of them"),
+        });
         Some(Mapping {
             node,
             keys,
@@ -168,17 +152,15 @@ impl Reader {
         path: &At<'_>,
         expected: &str,
     ) -> Option<&'n str> {
-        match &node.value {
-            Value::Scalar { text, .. } if !node.is_null() => Some(text),
-            _ => {
-                self.error(
-                    node.span,
-                    format!("{} must be {expected}, not {}", what(path), node.kind()),
-                    format!("expected {expected}"),
-                );
-                None
-            }
+        let text = node.scalar();
+        if text.is_none() {
+            self.error(
+                node.span,
+                format!("{} must be {expected}, not {}", what(path), node.kind()),
+                format!("expected {expected}"),
+            );
         }
+        text
     }
 }
 
@@ -219,7 +201,7 @@ pub(super) fn what(path: &At<'_>) -> String {
 pub(crate) struct Mapping<'n> {
     node: &'n Node,
     keys: &'static [&'static str],
-    entries: Vec<Option<(&'n Node, &'n Node)>>,
+    entries: Slots<'n>,
 }
 
 /// A value read from a node of the tree.
@@ -341,17 +323,15 @@ impl<T: FromNode> FromNode for Vec<T> {
 }
 
 fn sequence<'n>(node: &'n Node, path: &At<'_>, reader: &mut Reader) -> Option<&'n [Node]> {
-    match &node.value {
-        Value::Sequence(items) => Some(items),
-        _ => {
-            reader.error(
-                node.span,
-                format!("{} must be a list, not {}", what(path), node.kind()),
-                "expected `[…]` or `- ` lines",
-            );
-            None
-        }
+    let items = node.items();
+    if items.is_none() {
+        reader.error(
+            node.span,
+            format!("{} must be a list, not {}", what(path), node.kind()),
+            "expected `[…]` or `- ` lines",
+        );
     }
+    items
 }
 
 impl FromNode for (i64, i64) {

@@ -3,7 +3,7 @@
 //! second takes about a hundred times the first, well under a second (from 1 MiB on the parse
 //! runs on a second thread, so on two cores the large spec gains a little more than the small).
 //!
-//!     cargo bench -p optobus-codegen --bench check
+//!     cargo bench -p optobus-spec --bench check
 
 use std::hint::black_box;
 
@@ -18,7 +18,7 @@ fn check(c: &mut Criterion) {
     for registers in [1_000, 100_000] {
         let spec = large_spec::large_spec(registers);
         group.bench_with_input(BenchmarkId::from_parameter(registers), &spec, |b, spec| {
-            b.iter(|| optobus_codegen::check_source("large.yaml", black_box(spec)).is_ok());
+            b.iter(|| optobus_spec::check_source("large.yaml", black_box(spec)).is_ok());
         });
     }
     group.finish();

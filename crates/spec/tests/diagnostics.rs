@@ -2,7 +2,7 @@
 //! diagnostics are snapshot-tested against the `.stderr` file next to it.
 //!
 //! After an intended change to a message, refresh the snapshots with
-//! `UPDATE_SNAPSHOTS=1 cargo test -p optobus-codegen --test diagnostics` and review the diff.
+//! `UPDATE_SNAPSHOTS=1 cargo test -p optobus-spec --test diagnostics` and review the diff.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -25,7 +25,7 @@ fn render(path: &Path) -> (String, Vec<&'static str>) {
         path.file_name().expect("file name").to_string_lossy()
     );
     let text = std::fs::read_to_string(path).expect("fixture readable");
-    match optobus_codegen::check_source(&name, &text) {
+    match optobus_spec::check_source(&name, &text) {
         Ok(_) => panic!("{name} should fail but passes every rule"),
         Err(rejected) => (
             rejected.render(),
@@ -67,7 +67,7 @@ fn every_rule_has_a_failing_fixture() {
         let (_, rules) = render(&path);
         fired.extend(rules);
     }
-    let missing: Vec<&str> = optobus_codegen::rules::RULES
+    let missing: Vec<&str> = optobus_spec::rules::RULES
         .iter()
         .map(|rule| rule.name)
         .filter(|name| !fired.contains(name))
@@ -78,8 +78,8 @@ fn every_rule_has_a_failing_fixture() {
     );
     for rule in [
         "yaml",
-        optobus_codegen::source::ALIAS_RULE,
-        optobus_codegen::rules::text::RULE,
+        optobus_spec::source::ALIAS_RULE,
+        optobus_spec::rules::text::RULE,
     ] {
         assert!(fired.contains(rule), "no fixture exercises `{rule}`");
     }
