@@ -18,6 +18,7 @@ mod bus;
 mod catalogue;
 mod event;
 pub mod file;
+mod follow;
 mod gateway;
 mod handle;
 mod line;
@@ -33,6 +34,7 @@ pub use file::{
     BusFile, DeviceConfig, HttpConfig, LineConfig, LoadError, MetricsConfig, MqttConfig, Outputs,
     PollConfig, Port, Rejected, SecretSource, StateEvery, Writable,
 };
+pub use follow::Follower;
 pub use gateway::GatewayCounts;
 pub use handle::{Buffered, Handle, JobError, Source, AUDIT_TARGET, NETWORK_QUEUE};
 pub use line::NETWORK_SHARE;

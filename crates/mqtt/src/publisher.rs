@@ -5,14 +5,14 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use optobus_bus::{BusFile, Event, Handle, Health, JobError, MqttConfig, Source};
+use optobus_bus::{BusFile, Event, Follower, Handle, Health, JobError, MqttConfig, Source};
 use optobus_device::{RegisterInfo, Role};
 use optobus_inspect::Value;
 use rumqttc::{
     AsyncClient, ConnectionError, Event as MqttEvent, EventLoop, LastWill, MqttOptions, Outgoing,
     Packet, QoS, StateError, TlsConfiguration, Transport,
 };
-use tokio::sync::broadcast::{self, error::RecvError};
+use tokio::sync::broadcast;
 use tokio::sync::{mpsc, Notify};
 use tokio::task::JoinHandle;
 
@@ -492,10 +492,13 @@ fn options(config: &MqttConfig) -> Result<MqttOptions, StartError> {
 }
 
 /// Bus events into messages.
-async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
-    loop {
-        match events.recv().await {
-            Ok(Event::Sample(sample)) => {
+async fn follow(events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
+    let mut events = Follower::new(events, |missed| {
+        shared.outbox().counts.missed_events += missed;
+    });
+    while let Some(event) = events.next().await {
+        match event {
+            Event::Sample(sample) => {
                 shared.health(&sample.source.device, true);
                 let payload = sample_json(&sample).to_string().into_bytes();
                 shared.state_sample(&sample.source.device, sample.register.name, &payload);
@@ -509,12 +512,10 @@ async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
                     kind: Kind::Sample,
                 });
             }
-            Ok(Event::Health(health)) => {
+            Event::Health(health) => {
                 shared.health(&health.source.device, health.health == Health::Online);
             }
-            Ok(Event::Line(_)) => {}
-            Err(RecvError::Lagged(missed)) => shared.outbox().counts.missed_events += missed,
-            Err(RecvError::Closed) => return,
+            Event::Line(_) => {}
         }
     }
 }
