@@ -648,18 +648,37 @@ devices: [{ name: head, model: p-series, slave: 7, poll: [{ read: measurements, 
         (&read.name, &read.model, read.line, read.slave, read.timeout)
     );
     assert_eq!(
-        (head.retries, head.silence_before, head.silence_after, head.power_up),
-        (read.retries, read.silence_before, read.silence_after, read.power_up)
+        (
+            head.retries,
+            head.silence_before,
+            head.silence_after,
+            head.power_up
+        ),
+        (
+            read.retries,
+            read.silence_before,
+            read.silence_after,
+            read.power_up
+        )
     );
     assert!(head.faults.is_none() && read.faults.is_none());
     assert_eq!(head.writable.is_empty(), read.writable.is_empty());
-    let names = |poll: &PollConfig| -> Vec<&str> { poll.registers.iter().map(|r| r.name).collect() };
+    let names =
+        |poll: &PollConfig| -> Vec<&str> { poll.registers.iter().map(|r| r.name).collect() };
     assert_eq!(head.polls.len(), read.polls.len());
     assert_eq!(names(&head.polls[0]), names(&read.polls[0]));
     assert!(!head.polls[0].registers.is_empty());
     assert_eq!(
-        (&head.polls[0].names, head.polls[0].every, head.polls[0].priority),
-        (&read.polls[0].names, read.polls[0].every, read.polls[0].priority)
+        (
+            &head.polls[0].names,
+            head.polls[0].every,
+            head.polls[0].priority
+        ),
+        (
+            &read.polls[0].names,
+            read.polls[0].every,
+            read.polls[0].priority
+        )
     );
     // A Modbus TCP line has no serial format, and its address needs a port, as in a file.
     format.baud = 19200;
