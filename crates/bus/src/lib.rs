@@ -17,6 +17,7 @@
 mod bus;
 mod event;
 pub mod file;
+mod follow;
 mod gateway;
 mod handle;
 mod line;
@@ -34,6 +35,7 @@ pub use file::{
     BusFile, DeviceConfig, HttpConfig, LineConfig, LinePickError, LoadError, MetricsConfig,
     MqttConfig, Outputs, PollConfig, Port, Rejected, SecretSource, StateEvery, Writable,
 };
+pub use follow::Follower;
 pub use gateway::GatewayCounts;
 pub use handle::{Buffered, Handle, JobError, Source, AUDIT_TARGET, NETWORK_QUEUE};
 pub use line::NETWORK_SHARE;

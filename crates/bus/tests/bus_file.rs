@@ -625,3 +625,68 @@ fn yaml_errors_in_a_bus_file_say_the_bus_file_is_not_valid_yaml() {
         .unwrap_err()
         .contains("help: the bus file is not valid YAML"));
 }
+
+#[test]
+fn typed_constructors_give_what_the_file_they_stand_for_reads_into() {
+    use optobus_bus::{DeviceConfig, LineConfig, PollConfig};
+    let file = parse(
+        "lines: [{ name: line, simulated: true, baud: 9600, parity: none, data_bits: 8, stop_bits: 1 }]
+devices: [{ name: head, model: p-series, slave: 7, poll: [{ read: measurements, every: 100ms }] }]
+",
+    )
+    .unwrap();
+    let device = &optobus_p_series::DEVICE;
+    let mut format = file.lines[0].format.expect("a serial format");
+    let line = LineConfig::new("line", Port::Simulated, format);
+    assert_eq!(line, file.lines[0]);
+    let mut head = DeviceConfig::new("head", device, 0, 7);
+    head.polls
+        .push(PollConfig::new(device, "measurements", Some(Duration::from_millis(100))).unwrap());
+    let read = &file.devices[0];
+    assert_eq!(
+        (&head.name, &head.model, head.line, head.slave, head.timeout),
+        (&read.name, &read.model, read.line, read.slave, read.timeout)
+    );
+    assert_eq!(
+        (
+            head.retries,
+            head.silence_before,
+            head.silence_after,
+            head.power_up
+        ),
+        (
+            read.retries,
+            read.silence_before,
+            read.silence_after,
+            read.power_up
+        )
+    );
+    assert!(head.faults.is_none() && read.faults.is_none());
+    assert_eq!(head.writable.is_empty(), read.writable.is_empty());
+    let names =
+        |poll: &PollConfig| -> Vec<&str> { poll.registers.iter().map(|r| r.name).collect() };
+    assert_eq!(head.polls.len(), read.polls.len());
+    assert_eq!(names(&head.polls[0]), names(&read.polls[0]));
+    assert!(!head.polls[0].registers.is_empty());
+    assert_eq!(
+        (
+            &head.polls[0].names,
+            head.polls[0].every,
+            head.polls[0].priority
+        ),
+        (
+            &read.polls[0].names,
+            read.polls[0].every,
+            read.polls[0].priority
+        )
+    );
+    // A Modbus TCP line has no serial format, and its address needs a port, as in a file.
+    format.baud = 19200;
+    let tcp = LineConfig::new("plc", Port::tcp("10.0.0.5:502").unwrap(), format);
+    assert_eq!(tcp.format, None);
+    assert_eq!(
+        Port::tcp("10.0.0.5").unwrap_err(),
+        "`tcp` needs host:port, not `10.0.0.5`"
+    );
+    assert!(PollConfig::new(device, "no_such_register", None).is_err());
+}

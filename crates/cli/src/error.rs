@@ -64,6 +64,19 @@ impl CliError {
         }
     }
 
+    /// A bus file at `path` that could not be used: one that cannot be read is the system's
+    /// failure, one that does not pass is refused with every problem.
+    pub(crate) fn bus_file(path: &std::path::Path, error: optobus_bus::LoadError) -> Self {
+        match error {
+            optobus_bus::LoadError::Read { .. } => Self::failed(error.to_string()),
+            optobus_bus::LoadError::Rejected(rejected) => Self::new(format!(
+                "{} does not pass the bus file checks:\n{}",
+                path.display(),
+                rejected.render().trim_end()
+            )),
+        }
+    }
+
     /// The error with what to try instead.
     pub(crate) fn hint(mut self, hint: impl Into<String>) -> Self {
         self.error = self.error.hint(hint);

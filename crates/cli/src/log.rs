@@ -19,7 +19,7 @@ use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::outlet::{Outlet, Sink};
+use optobus_service::outlet::{Outlet, Sink};
 
 /// Lines stderr's writer may hold back; beyond, the oldest are dropped.
 const CAPACITY: usize = 1024;

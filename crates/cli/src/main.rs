@@ -13,8 +13,6 @@ mod inputs;
 mod link;
 mod log;
 mod models;
-mod mqtt_metrics;
-mod outlet;
 mod render;
 
 use std::process::ExitCode;

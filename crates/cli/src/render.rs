@@ -1,10 +1,10 @@
 //! Output on stdout: text that ignores a closed pipe, pretty JSON, register values as aligned
-//! lines, a JSON object or CSV cells, and blocks redrawn in place on a terminal.
+//! lines or a JSON object, and blocks redrawn in place on a terminal.
 
 use std::io::Write;
 
 use crossterm::{cursor, terminal, QueueableCommand};
-use optobus_device::{FieldInfo, RegisterInfo, ValueKind};
+use optobus_device::RegisterInfo;
 use serde_json::{Map, Value as Json};
 
 use optobus_inspect::Value;
@@ -118,70 +118,4 @@ pub(crate) fn redraw(
         let _ = out.queue(terminal::Clear(terminal::ClearType::FromCursorDown));
     }
     u16::try_from(lines.len()).unwrap_or(u16::MAX)
-}
-
-/// The cell of a reading the device marked invalid: `NaN`, which pandas, numpy, R and gnuplot
-/// read as not-a-number in a numeric column; an empty cell is a column the row did not read
-/// (another poll's, or a read that failed).
-pub(crate) const INVALID_CELL: &str = "NaN";
-
-/// The fields the spec splits a packed or record register into; none for other registers.
-fn fields_of(register: &RegisterInfo) -> &'static [FieldInfo] {
-    match register.kind {
-        ValueKind::Packed(fields) | ValueKind::Record(fields) => fields,
-        _ => &[],
-    }
-}
-
-/// One column's header: a name and, in brackets, its unit (`distance_1 [mm]`).
-fn header(name: &str, unit: Option<&str>) -> String {
-    match unit {
-        Some(unit) => format!("{name} [{unit}]"),
-        None => name.to_owned(),
-    }
-}
-
-/// A register's columns: its name and unit (`distance_1 [mm]`), or for a packed or record
-/// register one column per field of its spec, named `register.field`
-/// (`measurement_results.distance [mm]`).
-pub(crate) fn csv_headers(register: &RegisterInfo) -> Vec<String> {
-    match fields_of(register) {
-        [] => vec![header(register.name, register.unit)],
-        fields => fields
-            .iter()
-            .map(|field| header(&format!("{}.{}", register.name, field.name), field.unit))
-            .collect(),
-    }
-}
-
-/// A register's cells, one per column of [`csv_headers`]: a quantity's exact number in the
-/// header's unit, a code's number, a flag as 0 or 1, [`INVALID_CELL`] for an invalid reading,
-/// text (quoted) for anything else (an address, a version).
-pub(crate) fn csv_cells(register: &RegisterInfo, value: &Value) -> Vec<String> {
-    match (fields_of(register), value) {
-        ([], value) => vec![csv_cell(value)],
-        (fields, Value::Fields(values)) => fields
-            .iter()
-            .map(|field| {
-                values
-                    .iter()
-                    .find(|(name, _)| *name == field.name)
-                    .map_or_else(String::new, |(_, value)| csv_cell(value))
-            })
-            .collect(),
-        // The whole register invalid (or, never from the decoder, not split): each field is.
-        (fields, _) => vec![INVALID_CELL.to_owned(); fields.len()],
-    }
-}
-
-/// One cell of a value that is not split.
-fn csv_cell(value: &Value) -> String {
-    match value {
-        Value::Invalid => INVALID_CELL.to_owned(),
-        Value::Bool(flag) => u8::from(*flag).to_string(),
-        Value::Integer(number) => number.to_string(),
-        Value::Quantity(number, _) => number.to_string(),
-        Value::Code(code, _) => code.to_string(),
-        other => format!("\"{}\"", other.to_string().replace('"', "\"\"")),
-    }
 }

@@ -8,9 +8,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, Weak};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use optobus_bus::{DeviceId, ErrorCounts, Event, Handle, Health, HealthEvent};
+use optobus_bus::{DeviceId, ErrorCounts, Event, Follower, Handle, Health, HealthEvent};
 use optobus_device::DeviceInfo;
-use tokio::sync::broadcast::error::RecvError;
 use tokio::sync::{broadcast, watch, Notify};
 
 use crate::batch::{Batch, Entry, BATCH_EVERY, BATCH_QUEUE};
@@ -231,30 +230,31 @@ impl Board {
 /// Follows the bus's events until the bus stops or nothing serves the console any more: the
 /// board kept up to date, a batch sent to the stream's clients every [`BATCH_EVERY`] when
 /// anything happened.
-pub(crate) async fn collect(shared: Weak<Shared>, mut events: broadcast::Receiver<Event>) {
+pub(crate) async fn collect(shared: Weak<Shared>, events: broadcast::Receiver<Event>) {
+    let counted = Weak::clone(&shared);
+    let mut events = Follower::new(events, |missed| {
+        if let Some(shared) = counted.upgrade() {
+            shared.missed.fetch_add(missed, Ordering::Relaxed);
+        }
+    });
     let mut batch = Batch::default();
     let mut tick = tokio::time::interval(BATCH_EVERY);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
         let event = tokio::select! {
-            event = events.recv() => Some(event),
+            event = events.next() => Some(event),
             _ = tick.tick() => None,
         };
         let Some(shared) = shared.upgrade() else {
             break;
         };
         match event {
-            Some(event) => match event {
-                Ok(event) => {
-                    if let Some(entry) = shared.board().apply(&event) {
-                        batch.add(entry);
-                    }
+            Some(Some(event)) => {
+                if let Some(entry) = shared.board().apply(&event) {
+                    batch.add(entry);
                 }
-                Err(RecvError::Lagged(missed)) => {
-                    shared.missed.fetch_add(missed, Ordering::Relaxed);
-                }
-                Err(RecvError::Closed) => break,
-            },
+            }
+            Some(None) => break,
             None => {
                 if let Some(text) = batch.take() {
                     shared.publish(text);

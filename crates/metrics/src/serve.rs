@@ -8,10 +8,10 @@ use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::IntoResponse;
 use axum::routing::get;
 use axum::Router;
-use optobus_bus::{BusFile, Event, MetricsConfig};
+use optobus_bus::{BusFile, Event, Follower, MetricsConfig};
 use optobus_http::Limits;
 use tokio::net::TcpListener;
-use tokio::sync::broadcast::{self, error::RecvError};
+use tokio::sync::broadcast;
 use tokio::task::JoinHandle;
 
 use crate::exposition::{OPENMETRICS_TYPE, PROMETHEUS_TEXT_TYPE};
@@ -164,12 +164,9 @@ impl Drop for Exporter {
     }
 }
 
-async fn follow(mut events: broadcast::Receiver<Event>, metrics: Arc<Metrics>) {
-    loop {
-        match events.recv().await {
-            Ok(event) => metrics.observe(&event),
-            Err(RecvError::Lagged(missed)) => metrics.missed(missed),
-            Err(RecvError::Closed) => return,
-        }
+async fn follow(events: broadcast::Receiver<Event>, metrics: Arc<Metrics>) {
+    let mut events = Follower::new(events, |missed| metrics.missed(missed));
+    while let Some(event) = events.next().await {
+        metrics.observe(&event);
     }
 }

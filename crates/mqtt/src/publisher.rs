@@ -5,14 +5,16 @@ use std::collections::{BTreeSet, HashMap};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use optobus_bus::{BusFile, Event, Handle, Health, JobError, MqttConfig, Source, Writer, Written};
+use optobus_bus::{
+    BusFile, Event, Follower, Handle, Health, JobError, MqttConfig, Source, Writer, Written,
+};
 use optobus_device::{RegisterInfo, Role};
 use optobus_inspect::Value;
 use rumqttc::{
     AsyncClient, ConnectionError, Event as MqttEvent, EventLoop, LastWill, MqttOptions, Outgoing,
     Packet, QoS, StateError, TlsConfiguration, Transport,
 };
-use tokio::sync::broadcast::{self, error::RecvError};
+use tokio::sync::broadcast;
 use tokio::sync::{mpsc, Notify};
 use tokio::task::JoinHandle;
 
@@ -580,10 +582,13 @@ fn options(config: &MqttConfig) -> Result<MqttOptions, StartError> {
 }
 
 /// Bus events into messages.
-async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
-    loop {
-        match events.recv().await {
-            Ok(Event::Sample(sample)) => {
+async fn follow(events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
+    let mut events = Follower::new(events, |missed| {
+        shared.outbox().counts.missed_events += missed;
+    });
+    while let Some(event) = events.next().await {
+        match event {
+            Event::Sample(sample) => {
                 shared.health(&sample.source.device, true);
                 let payload = sample_json(&sample).to_string().into_bytes();
                 shared.state_sample(&sample.source.device, sample.register.name, &payload);
@@ -597,16 +602,16 @@ async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
                     kind: Kind::Sample,
                 });
             }
-            Ok(Event::Health(health)) => {
+            Event::Health(health) => {
                 shared.health(&health.source.device, health.health == Health::Online);
             }
             // MQTT's own writes are read back by the write itself.
-            Ok(Event::Written(written)) if written.by != Writer::Job(Source::Mqtt) => {
+            Event::Written(written) if written.by != Writer::Job(Source::Mqtt) => {
                 let coalesced = shared.rereads.written(&written);
                 shared.outbox().counts.state_rereads_coalesced += coalesced;
             }
-            Ok(Event::Written(_) | Event::Line(_)) => {}
-            Ok(Event::Measurement(measurement)) => {
+            Event::Written(_) | Event::Line(_) => {}
+            Event::Measurement(measurement) => {
                 let Ok(payload) = serde_json::to_vec(&*measurement) else {
                     continue;
                 };
@@ -618,8 +623,6 @@ async fn follow(mut events: broadcast::Receiver<Event>, shared: Arc<Shared>) {
                     kind: Kind::Sample,
                 });
             }
-            Err(RecvError::Lagged(missed)) => shared.outbox().counts.missed_events += missed,
-            Err(RecvError::Closed) => return,
         }
     }
 }

@@ -282,7 +282,81 @@ impl BusFile {
     }
 }
 
+impl LineConfig {
+    /// A line called `name` on `port` with what a bus file's line gets by default: `format`
+    /// on a serial line (none on Modbus TCP), the default broadcast turnaround, no gateway.
+    /// Nothing is checked against the devices' manuals: check the format before.
+    pub fn new(name: impl Into<String>, port: Port, format: LineFormat) -> Self {
+        Self {
+            name: name.into(),
+            format: port.is_rtu().then_some(format),
+            port,
+            broadcast_turnaround: read::DEFAULT_BROADCAST_TURNAROUND,
+            gateway: None,
+        }
+    }
+}
+
+impl Port {
+    /// A Modbus TCP server at `address`, which must be `host:port` (as a bus file's `tcp`).
+    pub fn tcp(address: &str) -> Result<Self, String> {
+        if reader::has_port(address) {
+            Ok(Self::Tcp(address.to_owned()))
+        } else {
+            Err(format!("`tcp` needs host:port, not `{address}`"))
+        }
+    }
+}
+
+impl PollConfig {
+    /// A poll of `name` (a register, a field's register or a group of `device`) every
+    /// `every` (`None`: as fast as the line allows), at priority 0, as a bus file's
+    /// `{ read: name, every: … }`.
+    pub fn new(
+        device: &'static DeviceInfo,
+        name: &str,
+        every: Option<Duration>,
+    ) -> Result<Self, String> {
+        let mut registers = resolve(device, name)?;
+        registers.sort_by_key(|r| (r.table, r.address));
+        registers.dedup_by_key(|r| (r.table, r.address, r.name));
+        Ok(Self {
+            names: vec![name.to_owned()],
+            registers,
+            every,
+            priority: 0,
+        })
+    }
+}
+
 impl DeviceConfig {
+    /// Device `name`, of the model `device` describes, at `slave` on the line of index `line`,
+    /// with what a bus file's device gets by default: the transport's default timeout, no
+    /// retries, silences or power-up wait, no polls, no faults, nothing writable. `model` is
+    /// the model's name; set it to a spec file's path for a device described by one.
+    pub fn new(
+        name: impl Into<String>,
+        device: &'static DeviceInfo,
+        line: usize,
+        slave: u8,
+    ) -> Self {
+        Self {
+            name: name.into(),
+            device,
+            model: device.model_name().to_string(),
+            line,
+            slave,
+            timeout: optobus_transport::DEFAULT_TIMEOUT,
+            retries: 0,
+            silence_before: Duration::ZERO,
+            silence_after: Duration::ZERO,
+            power_up: Duration::ZERO,
+            polls: Vec::new(),
+            faults: None,
+            writable: Writable::default(),
+        }
+    }
+
     /// The simulated device a `simulated: true` line puts in this device's place: its model
     /// at its slave address, with its `faults` (a late reply lands after its `timeout`, unless
     /// the faults say how late with `late=` or `timeout=`).

@@ -1,13 +1,12 @@
 //! `optobus record`: registers or groups sampled into a CSV file, as fast as the line allows
 //! or every `--interval`, for `--duration` or `--count` samples; Ctrl-C ends it cleanly.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::PathBuf;
-use std::time::Duration;
+use std::time::{Duration, SystemTime};
 
 use clap::Args;
 use optobus_driver::transport::timing::deadline_from;
+use optobus_service::recording::{csv_cells, csv_headers, RecordingFile};
 use tokio::time::Instant;
 
 use crate::connect::{next_read, read_values, DeviceArgs, Global, Names};
@@ -15,7 +14,6 @@ use crate::error::CliError;
 use crate::inputs;
 use crate::log::note;
 use crate::log::progress_bar;
-use crate::render::{csv_cells, csv_headers, timestamp};
 
 #[derive(Debug, Args)]
 #[command(group = clap::ArgGroup::new("until").args(["duration", "count"]).required(true))]
@@ -42,13 +40,9 @@ pub(crate) struct RecordArgs {
 /// read leaves its row's cells empty (nothing read) and is counted.
 pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliError> {
     let (registers, mut core) = global.connect_to_read(&args.names, "record").await?;
-    let file = File::create(&args.out)
-        .map_err(|e| CliError::failed(format!("cannot write {}: {e}", args.out.display())))?;
-    let mut csv = BufWriter::new(file);
     let columns: Vec<String> = registers.iter().flat_map(|r| csv_headers(r)).collect();
-    let write_failed =
-        |e: std::io::Error| CliError::failed(format!("cannot write {}: {e}", args.out.display()));
-    writeln!(csv, "time,elapsed [s],{}", columns.join(",")).map_err(write_failed)?;
+    let write_failed = |e: optobus_service::ServiceError| CliError::failed(e.to_string());
+    let mut csv = RecordingFile::create(&args.out, &columns).map_err(write_failed)?;
     let length = match (args.count, args.duration) {
         (Some(count), _) => count,
         (None, Some(duration)) => u64::try_from(duration.as_millis()).unwrap_or(u64::MAX),
@@ -69,7 +63,7 @@ pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliErr
             outcome = read_values(&mut core, &registers) => outcome,
             _ = &mut ctrl_c => break,
         };
-        let time = timestamp();
+        let time = SystemTime::now();
         let elapsed = sample_started.duration_since(started).as_secs_f64();
         let cells: Vec<String> = match &outcome {
             Ok(values) => values
@@ -79,7 +73,7 @@ pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliErr
             Err(_) => vec![String::new(); columns.len()],
         };
         failed += u64::from(outcome.is_err());
-        writeln!(csv, "{time},{elapsed:.6},{}", cells.join(",")).map_err(write_failed)?;
+        csv.row(time, elapsed, &cells).map_err(write_failed)?;
         samples += 1;
         match args.count {
             Some(_) => progress.set_position(samples),

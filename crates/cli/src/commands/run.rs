@@ -2,47 +2,35 @@
 //! device), as JSON lines (`--json`), and recorded to a CSV per device (`--record DIR`).
 //! `--demo` runs a built-in bus of simulated sensors with a gateway for other tools.
 
-use std::collections::{BTreeMap, HashMap};
-use std::fs::File;
-use std::future::Future;
-use std::io::{BufWriter, IsTerminal, Write};
+use std::collections::BTreeMap;
+use std::io::{IsTerminal, Write};
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::time::{Duration, SystemTime};
+use std::time::Duration;
 
 use clap::Args;
 use optobus_bus::file::GatewayConfig;
 use optobus_bus::{
-    Bus, BusFile, Event, Health, HttpConfig, LineConfig, MetricsConfig, MqttConfig, Sample,
+    BusFile, Event, Follower, Health, HttpConfig, LineConfig, MetricsConfig, MqttConfig, Sample,
 };
 use optobus_device::RegisterInfo;
 use optobus_inspect::Value;
-use tokio::sync::broadcast::{self, error::RecvError, error::TryRecvError};
+use optobus_service::outlet::{Outlet, Sink};
+use optobus_service::recording::local_time;
+use optobus_service::{Options, Service, DRAIN_AT_END};
 
-use crate::commands::bus::load;
 use crate::error::CliError;
 use crate::inputs;
 use crate::log::note;
 use crate::models;
-use crate::outlet::{Outlet, Sink};
-use crate::render::{counted, csv_cells, csv_headers, redraw, screen, time_of_day, values_text};
-
-/// The demo bus: a sensor of every built-in model on one simulated line, with a gateway.
-const DEMO: &str = include_str!("../demo.yaml");
+use crate::render::{counted, redraw, screen, time_of_day, values_text};
 
 /// How often the terminal view is redrawn.
 const REDRAW_EVERY: Duration = Duration::from_millis(250);
 
 /// Lines stdout may fall behind by (seconds of a busy bus) before its oldest are dropped.
 const STDOUT_LINES: usize = 4096;
-
-/// Samples the CSVs of `--record` may fall behind by before their oldest are dropped.
-const RECORD_SAMPLES: usize = 4096;
-
-/// How long the end of a run waits for stdout and the CSVs to take what is still queued: a
-/// reader that stalled for good must not hold the exit forever.
-const DRAIN_AT_END: Duration = Duration::from_secs(2);
 
 #[derive(Debug, Args)]
 pub(crate) struct RunArgs {
@@ -114,16 +102,6 @@ fn command_line_outputs(bus: &mut BusFile, args: &RunArgs) -> Result<(), CliErro
     Ok(())
 }
 
-/// The demo's bus file, its gateway moved to `gateway` if given.
-pub(crate) fn demo(gateway: Option<SocketAddr>) -> Result<BusFile, CliError> {
-    let mut bus = BusFile::parse("demo.yaml", DEMO, ".".as_ref(), models::catalogue())
-        .map_err(|rejected| CliError::new(rejected.render()))?;
-    if let Some(address) = gateway {
-        move_gateway(&mut bus, address)?;
-    }
-    Ok(bus)
-}
-
 /// `--gateway ADDRESS`: the bus file's one gateway listens there instead; a file without one
 /// gets a read-only gateway there on its one RTU line (a Modbus TCP line needs none). Which
 /// gateway is meant must be plain: several are refused.
@@ -171,26 +149,27 @@ fn move_gateway(bus: &mut BusFile, address: SocketAddr) -> Result<(), CliError> 
     Ok(())
 }
 
-/// The latest of everything, for the terminal view.
-#[derive(Default)]
-struct Board {
-    /// Per device, in file order: its header facts, health and latest values.
-    devices: Vec<Shown>,
+/// The latest values and health of each device as text blocks, for the terminal (the
+/// console's `Board` keeps the same facts as JSON for the browser, with errors and lines).
+struct TerminalView {
+    /// Per device, in file order.
+    devices: Vec<DeviceBlock>,
 }
 
-struct Shown {
+/// One device's block: its header facts, health and latest values.
+struct DeviceBlock {
     name: String,
     facts: String,
     health: Health,
     values: BTreeMap<(u8, u16, &'static str), (&'static RegisterInfo, Value)>,
 }
 
-impl Board {
+impl TerminalView {
     fn new(bus: &BusFile) -> Self {
         let devices = bus
             .devices
             .iter()
-            .map(|device| Shown {
+            .map(|device| DeviceBlock {
                 name: device.name.clone(),
                 facts: format!(
                     "{} · line {} · slave {}",
@@ -205,8 +184,27 @@ impl Board {
         Self { devices }
     }
 
-    fn device(&mut self, name: &str) -> Option<&mut Shown> {
+    fn device(&mut self, name: &str) -> Option<&mut DeviceBlock> {
         self.devices.iter_mut().find(|d| d.name == name)
+    }
+
+    fn sample(&mut self, sample: &Sample) {
+        if let Some(block) = self.device(&sample.source.device) {
+            let key = (
+                sample.register.table as u8,
+                sample.register.address,
+                sample.register.name,
+            );
+            block
+                .values
+                .insert(key, (sample.register, sample.value.clone()));
+        }
+    }
+
+    fn health(&mut self, device: &str, health: Health) {
+        if let Some(block) = self.device(device) {
+            block.health = health;
+        }
     }
 
     fn text(&self, header: &str) -> String {
@@ -225,130 +223,7 @@ impl Board {
     }
 }
 
-/// A CSV per device: a row per poll, columns for every register the device's polls read (a
-/// column per field of packed and record registers); a row leaves empty the columns its poll
-/// does not read, and marks an invalid reading `NaN`.
-/// It writes on a thread of its own (an [`Outlet`]): a slow disk costs its own oldest samples,
-/// never the runtime's time.
-struct Recorder {
-    started: SystemTime,
-    files: HashMap<String, DeviceCsv>,
-    /// The first write that failed: the recording stopped there.
-    failed: Option<CliError>,
-}
-
-struct DeviceCsv {
-    out: BufWriter<File>,
-    path: PathBuf,
-    /// Each register's first column and its count (one per field of a packed or record
-    /// register).
-    columns: HashMap<&'static str, (usize, usize)>,
-    /// Columns in all.
-    width: usize,
-    /// The poll being gathered: its request time and cells (empty until read).
-    row: Option<(SystemTime, Vec<String>)>,
-}
-
-impl Recorder {
-    fn create(dir: &std::path::Path, bus: &BusFile) -> Result<Self, CliError> {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| CliError::failed(format!("cannot create {}: {e}", dir.display())))?;
-        let mut files = HashMap::new();
-        for device in &bus.devices {
-            let mut registers: Vec<&'static RegisterInfo> = device
-                .polls
-                .iter()
-                .flat_map(|p| p.registers.iter().copied())
-                .collect();
-            registers.sort_by_key(|r| (r.table, r.address));
-            registers.dedup_by_key(|r| r.name);
-            let path = dir.join(format!("{}.csv", device.name));
-            let file = File::create(&path)
-                .map_err(|e| CliError::failed(format!("cannot write {}: {e}", path.display())))?;
-            let mut out = BufWriter::new(file);
-            let mut header = Vec::new();
-            let mut columns = HashMap::new();
-            for register in registers {
-                let split = csv_headers(register);
-                columns.insert(register.name, (header.len(), split.len()));
-                header.extend(split);
-            }
-            writeln!(out, "time,elapsed [s],{}", header.join(","))
-                .map_err(|e| CliError::failed(format!("cannot write {}: {e}", path.display())))?;
-            files.insert(
-                device.name.clone(),
-                DeviceCsv {
-                    out,
-                    path,
-                    columns,
-                    width: header.len(),
-                    row: None,
-                },
-            );
-        }
-        Ok(Self {
-            started: SystemTime::now(),
-            files,
-            failed: None,
-        })
-    }
-
-    fn add(&mut self, sample: &Sample) -> Result<(), CliError> {
-        let Some(csv) = self.files.get_mut(&*sample.source.device) else {
-            return Ok(());
-        };
-        if csv
-            .row
-            .as_ref()
-            .is_some_and(|(at, _)| *at != sample.requested)
-        {
-            csv.flush_row(self.started)?;
-        }
-        let width = csv.width;
-        let (_, cells) = csv
-            .row
-            .get_or_insert_with(|| (sample.requested, vec![String::new(); width]));
-        if let Some(&(first, count)) = csv.columns.get(sample.register.name) {
-            let split = csv_cells(sample.register, &sample.value);
-            for (cell, value) in cells.iter_mut().skip(first).take(count).zip(split) {
-                *cell = value;
-            }
-        }
-        Ok(())
-    }
-
-    /// Writes the last rows; gives the first failure of the whole recording.
-    fn finish(mut self) -> Result<(), CliError> {
-        if let Some(failed) = self.failed {
-            return Err(failed);
-        }
-        for csv in self.files.values_mut() {
-            csv.flush_row(self.started)?;
-            csv.out.flush().map_err(|e| {
-                CliError::failed(format!("cannot write {}: {e}", csv.path.display()))
-            })?;
-        }
-        Ok(())
-    }
-}
-
-impl Sink<Arc<Sample>> for Recorder {
-    fn write(&mut self, samples: Vec<Arc<Sample>>, _: u64) {
-        if self.failed.is_some() {
-            return;
-        }
-        for sample in samples {
-            if let Err(error) = self.add(&sample) {
-                // Said now (the run goes on for its other outputs), and again at the end.
-                note!("optobus: --record stopped: {error}");
-                self.failed = Some(error);
-                return;
-            }
-        }
-    }
-}
-
-/// Stdout: a line per item, or on a terminal the newest board drawn over the last one.
+/// Stdout: a line per item, or on a terminal the newest view drawn over the last one.
 enum Stdout {
     Lines,
     Screen { drawn: u16 },
@@ -368,72 +243,15 @@ impl Sink<String> for Stdout {
                 let _ = out.write_all(text.as_bytes());
             }
             Self::Screen { drawn } => {
-                // Only the newest board matters.
-                if let Some(board) = items.last() {
+                // Only the newest drawing matters.
+                if let Some(view) = items.last() {
                     let size = screen(crossterm::terminal::size().ok());
-                    *drawn = redraw(&mut out, *drawn, board, size);
+                    *drawn = redraw(&mut out, *drawn, view, size);
                 }
             }
         }
         let _ = out.flush();
     }
-}
-
-/// Takes `events` as they come until `stop` ends, then what the receiver already holds (the
-/// samples of the last poll before the stop, which a stop that won the race would leave
-/// behind); gives how many events it fell too far behind to see.
-async fn follow<E: Clone>(
-    events: &mut broadcast::Receiver<E>,
-    stop: impl Future<Output = ()>,
-    mut take: impl FnMut(E),
-) -> u64 {
-    let mut missed = 0;
-    tokio::pin!(stop);
-    loop {
-        let event = tokio::select! {
-            event = events.recv() => event,
-            () = &mut stop => break,
-        };
-        match event {
-            Ok(event) => take(event),
-            Err(RecvError::Lagged(count)) => missed += count,
-            Err(RecvError::Closed) => return missed,
-        }
-    }
-    loop {
-        match events.try_recv() {
-            Ok(event) => take(event),
-            Err(TryRecvError::Lagged(count)) => missed += count,
-            Err(TryRecvError::Empty | TryRecvError::Closed) => return missed,
-        }
-    }
-}
-
-impl DeviceCsv {
-    fn flush_row(&mut self, started: SystemTime) -> Result<(), CliError> {
-        let Some((at, cells)) = self.row.take() else {
-            return Ok(());
-        };
-        let elapsed = at.duration_since(started).unwrap_or_default().as_secs_f64();
-        writeln!(
-            self.out,
-            "{},{elapsed:.6},{}",
-            local_time(at),
-            cells.join(",")
-        )
-        .map_err(|e| CliError::failed(format!("cannot write {}: {e}", self.path.display())))
-    }
-}
-
-/// A time in the tool's RFC 3339 form, with the local offset.
-fn local_time(at: SystemTime) -> String {
-    jiff::Timestamp::try_from(at)
-        .map(|t| {
-            t.to_zoned_datetime(jiff::tz::TimeZone::system())
-                .strftime("%Y-%m-%dT%H:%M:%S%.6f%:z")
-                .to_string()
-        })
-        .unwrap_or_default()
 }
 
 /// One JSON line for a sample: the bus's fields, its time with the local offset.
@@ -453,13 +271,20 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     }
     let mut bus_file = match &args.file {
         Some(path) => {
-            let mut bus = load(path)?;
+            let mut bus = crate::bus_file::load(path)?;
             if let Some(address) = args.gateway {
                 move_gateway(&mut bus, address)?;
             }
             bus
         }
-        None if args.demo => demo(args.gateway)?,
+        None if args.demo => {
+            let mut bus = optobus_service::demo::bus(models::catalogue())
+                .map_err(|rejected| CliError::new(rejected.render()))?;
+            if let Some(address) = args.gateway {
+                move_gateway(&mut bus, address)?;
+            }
+            bus
+        }
         None => {
             let hint = "`optobus run --demo` runs a built-in bus of simulated sensors, one of \
                         every model; `optobus bus schema` prints what a bus file takes";
@@ -470,87 +295,30 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
         }
     };
     command_line_outputs(&mut bus_file, args)?;
-    let mut board = Board::new(&bus_file);
-    let recorder = match &args.record {
-        Some(dir) => Some(Outlet::start(
-            "optobus-record",
-            RECORD_SAMPLES,
-            Recorder::create(dir, &bus_file)?,
-        )),
-        None => None,
+    let mut view = TerminalView::new(&bus_file);
+    let (lines, devices) = (bus_file.lines.len(), bus_file.devices.len());
+    let options = Options {
+        record: args.record.clone(),
     };
-    let http = bus_file.outputs.http.clone();
-    let lines = bus_file.lines.len();
-    let devices = bus_file.devices.len();
-    let bus = Bus::new(bus_file.clone());
-    let mut events = bus.subscribe();
-    let mut outputs = Vec::new();
-    let exporter = match &bus_file.outputs.metrics {
-        Some(config) => {
-            let exporter = optobus_metrics::Exporter::start(config, &bus_file, bus.subscribe())
-                .await
-                .map_err(|e| CliError::failed(format!("metrics on {}: {e}", config.listen)))?;
-            outputs.push(format!("metrics on http://{}/metrics", exporter.address()));
-            Some(exporter)
-        }
-        None => None,
-    };
-    let mqtt_events = bus_file.outputs.mqtt.as_ref().map(|_| bus.subscribe());
-    let running = bus.start().map_err(|e| CliError::failed(e.to_string()))?;
-    let publisher = match (&bus_file.outputs.mqtt, mqtt_events) {
-        (Some(config), Some(events)) => {
-            let publisher =
-                optobus_mqtt::Publisher::start(config, &bus_file, events, Some(running.handle()))
-                    .map_err(|e| CliError::failed(e.to_string()))?;
-            outputs.push(format!(
-                "MQTT to {}:{}, topics {}/…{}",
-                config.host,
-                config.port,
-                config.prefix,
-                if config.homeassistant.is_some() {
-                    ", Home Assistant discovery"
-                } else {
-                    ""
-                }
-            ));
-            if let Some(exporter) = &exporter {
-                crate::mqtt_metrics::add(exporter.metrics(), publisher.counts_reader())
-                    .map_err(|e| CliError::failed(format!("metrics of MQTT: {e}")))?;
-            }
-            Some(publisher)
-        }
-        _ => None,
-    };
-    let gateways: Vec<String> = running
-        .gateways()
-        .map(|(line, address)| format!("gateway of {line} on {address}"))
-        .chain(outputs)
-        .collect();
+    let mut service = Service::start(bus_file, options, Arc::new(|text: &str| note!("{text}")))
+        .await
+        .map_err(|e| CliError::failed(e.to_string()))?;
     let header = format!(
-        "{lines} line{}, {devices} device{}{}",
-        if lines == 1 { "" } else { "s" },
-        if devices == 1 { "" } else { "s" },
-        gateways
+        "{}, {}{}",
+        counted(lines, "line"),
+        counted(devices, "device"),
+        service
+            .summary()
             .iter()
-            .map(|g| format!(" · {g}"))
+            .map(|part| format!(" · {part}"))
             .collect::<String>()
     );
-    if !gateways.is_empty() {
-        note!("optobus: {}", gateways.join(", "));
-    }
-    let console = match &http {
-        Some(config) => {
-            let server = optobus_console::serve(&running, config)
-                .await
-                .map_err(|e| CliError::failed(e.to_string()))?;
-            note!("optobus: the console is on {}", server.url());
-            Some(server)
-        }
-        None => None,
-    };
+    let events = service
+        .events()
+        .ok_or_else(|| CliError::failed("the run's events were taken"))?;
     let terminal = std::io::stdout().is_terminal() && !json;
     let stdout = if terminal {
-        // The newest board only: one waiting drawing is replaced by the next.
+        // The newest drawing only: one waiting drawing is replaced by the next.
         Outlet::start("optobus-stdout", 1, Stdout::Screen { drawn: 0 })
     } else {
         Outlet::start("optobus-stdout", STDOUT_LINES, Stdout::Lines)
@@ -573,11 +341,6 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     let take = |event: Event| {
         match &event {
             Event::Sample(sample) => {
-                if let Some(recorder) = &recorder {
-                    if recorder.push(Arc::clone(sample)).first_drop() {
-                        note!("optobus: --record is not keeping up: dropping its oldest samples");
-                    }
-                }
                 let line = if json {
                     Some(sample_json(sample))
                 } else if !terminal {
@@ -596,22 +359,9 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
                         note!("optobus: stdout is not being read: dropping its oldest lines");
                     }
                 }
-                if let Some(shown) = board.device(&sample.source.device) {
-                    let key = (
-                        sample.register.table as u8,
-                        sample.register.address,
-                        sample.register.name,
-                    );
-                    shown
-                        .values
-                        .insert(key, (sample.register, sample.value.clone()));
-                }
+                view.sample(sample);
             }
-            Event::Health(health) => {
-                if let Some(shown) = board.device(&health.source.device) {
-                    shown.health = health.health;
-                }
-            }
+            Event::Health(health) => view.health(&health.source.device, health.health),
             // Samples and measurements only on stdout: writes are in the audit trail (stderr).
             Event::Line(_) | Event::Written(_) => {}
             Event::Measurement(measurement) => {
@@ -641,35 +391,23 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
             }
         }
         if terminal && tokio::time::Instant::now() >= redraw_at {
-            stdout.push(board.text(&header));
+            stdout.push(view.text(&header));
             redraw_at = tokio::time::Instant::now() + REDRAW_EVERY;
         }
     };
-    let missed = follow(&mut events, stop, take).await;
-    drop(console);
-    drop(running);
-    if let Some(publisher) = publisher {
-        let counts = publisher.counts();
-        if counts.dropped > 0 || !counts.connected {
-            note!(
-                "optobus: MQTT: {} published, {} dropped while the broker was away, {} still queued",
-                counted(counts.published, "sample"),
-                counts.dropped,
-                counts.queued
-            );
-        }
-        publisher.stop(Duration::from_secs(2)).await;
-    }
-    drop(exporter);
-    // Stdout and the CSVs are waited for on a thread of the blocking pool: meanwhile the
-    // runtime goes on closing the gateway and the other listeners.
-    let (unwritten, stdout_dropped, recording) = tokio::task::spawn_blocking(move || {
+    let mut missed = 0;
+    Follower::new(events, |count| missed += count)
+        .until(stop, take)
+        .await;
+    // Stdout is waited for on a thread of the blocking pool while the service stops.
+    let drained = tokio::task::spawn_blocking(move || {
         let unwritten = stdout.flush(DRAIN_AT_END);
-        let recording = recorder.map(|r| (r.dropped(), r.finish(DRAIN_AT_END)));
-        (unwritten, stdout.dropped(), recording)
-    })
-    .await
-    .map_err(|e| CliError::failed(format!("the end of the run: {e}")))?;
+        (unwritten, stdout.dropped())
+    });
+    let stopped = service.stop().await;
+    let (unwritten, stdout_dropped) = drained
+        .await
+        .map_err(|e| CliError::failed(format!("the end of the run: {e}")))?;
     if !terminal {
         if stdout_dropped > 0 {
             note!(
@@ -690,49 +428,5 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
             counted(missed, "event")
         );
     }
-    if let Some((dropped, recorder)) = recording {
-        if dropped > 0 {
-            note!("optobus: --record fell behind: its {dropped} oldest samples were dropped");
-        }
-        match recorder {
-            Some(recorder) => recorder.finish()?,
-            None => {
-                return Err(CliError::failed(
-                    "--record: the CSVs did not take their last rows in time",
-                ))
-            }
-        }
-    }
-    Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[tokio::test]
-    async fn with_duration_the_last_polls_samples_are_taken_at_the_stop() {
-        // The last poll's events are in the receiver when the stop comes, in the same turn
-        // of the runtime: every one of them is still taken.
-        let (sender, mut events) = broadcast::channel(256);
-        for event in 0..100u32 {
-            sender.send(event).unwrap();
-        }
-        let mut taken = Vec::new();
-        let missed = follow(&mut events, std::future::ready(()), |e| taken.push(e)).await;
-        assert_eq!(missed, 0);
-        assert_eq!(taken, (0..100).collect::<Vec<_>>());
-    }
-
-    #[tokio::test]
-    async fn events_beyond_the_channel_are_counted_as_missed() {
-        let (sender, mut events) = broadcast::channel(4);
-        for event in 0..10u32 {
-            sender.send(event).unwrap();
-        }
-        let mut taken = Vec::new();
-        let missed = follow(&mut events, std::future::ready(()), |e| taken.push(e)).await;
-        assert_eq!(missed, 6);
-        assert_eq!(taken, [6, 7, 8, 9]);
-    }
+    stopped.map_err(|e| CliError::failed(e.to_string()))
 }

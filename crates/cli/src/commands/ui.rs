@@ -2,11 +2,14 @@
 //! `--spec`, `--serial`, `--tcp`) made into a one-device bus; prints the page's address.
 
 use std::net::SocketAddr;
+use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Args;
-use optobus_bus::{Bus, BusFile, HttpConfig};
+use optobus_bus::file::Measurements;
+use optobus_bus::{BusFile, DeviceConfig, HttpConfig, LineConfig, Outputs, PollConfig, Port};
 use optobus_device::DeviceInfo;
+use optobus_service::{Options, Service};
 
 use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
@@ -30,11 +33,6 @@ pub(crate) struct UiArgs {
     pub(crate) device: DeviceArgs,
 }
 
-/// A YAML string (JSON's quoting is YAML's).
-fn quoted(text: &str) -> String {
-    serde_json::Value::from(text).to_string()
-}
-
 /// The one-device bus of `global`: its port (or a simulated line), model or spec, slave,
 /// timeout, and a poll of its measurements (or its first group).
 fn one_device(global: &Global, every: Duration) -> Result<BusFile, CliError> {
@@ -42,49 +40,33 @@ fn one_device(global: &Global, every: Duration) -> Result<BusFile, CliError> {
     global.check_line(device)?;
     let slave = global.answering_slave(device, "ui")?;
     let target = &global.target;
-    let format = target.line_format(device);
     let port = match (&target.serial, &target.tcp) {
-        (Some(path), _) => format!("serial: {}", quoted(path)),
-        (None, Some(address)) => format!("tcp: {}", quoted(address)),
-        (None, None) => "simulated: true".to_owned(),
+        (Some(path), _) => Port::Serial(path.clone()),
+        (None, Some(address)) => Port::tcp(address).map_err(CliError::new)?,
+        (None, None) => Port::Simulated,
     };
-    let parity = format!("{:?}", format.parity).to_lowercase();
-    let model = match &global.spec {
-        Some(path) => {
-            let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.clone());
-            format!("spec: {}", quoted(&path.display().to_string()))
-        }
-        None => format!("model: {}", quoted(&device.model_name().to_string())),
-    };
+    let line = LineConfig::new("line", port, target.line_format(device));
+    let mut one = DeviceConfig::new(device.model_name().to_string(), device, 0, slave);
+    one.timeout = target.timeout;
+    if let Some(path) = &global.spec {
+        let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.clone());
+        one.model = path.display().to_string();
+    }
     let group = device
         .groups
         .iter()
         .find(|g| g.name == "measurements")
         .or(device.groups.first());
-    let poll = match group {
-        Some(group) => format!(
-            "[{{ read: {}, every: {}ms }}]",
-            group.name,
-            every.as_millis()
-        ),
-        None => "[]".to_owned(),
-    };
-    let line_format = if target.tcp.is_some() {
-        String::new()
-    } else {
-        format!(
-            ", baud: {}, parity: {parity}, data_bits: {}, stop_bits: {}, any_format: {}",
-            format.baud, format.data_bits, format.stop_bits, global.any_baud
-        )
-    };
-    let text = format!(
-        "lines: [{{ name: line, {port}{line_format} }}]\n\
-         devices: [{{ name: {name}, {model}, slave: {slave}, timeout: {timeout}ms, poll: {poll} }}]\n",
-        name = quoted(&device.model_name().to_string()),
-        timeout = target.timeout.as_millis(),
-    );
-    BusFile::parse("the device given", &text, ".".as_ref(), models::catalogue())
-        .map_err(|rejected| CliError::new(rejected.render()))
+    if let Some(group) = group {
+        let poll = PollConfig::new(device, group.name, Some(every)).map_err(CliError::new)?;
+        one.polls.push(poll);
+    }
+    Ok(BusFile {
+        lines: vec![line],
+        devices: vec![one],
+        measurements: Measurements::default(),
+        outputs: Outputs::default(),
+    })
 }
 
 pub(crate) async fn run(global: &Global, args: &UiArgs) -> Result<(), CliError> {
@@ -92,24 +74,29 @@ pub(crate) async fn run(global: &Global, args: &UiArgs) -> Result<(), CliError> 
         || global.spec.is_some()
         || global.target.addressed().is_some()
         || std::env::var_os(crate::connect::MODEL_VARIABLE).is_some();
-    let file = if addressed {
+    let mut file = if addressed {
         one_device(global, args.every)?
     } else {
-        let mut demo = super::run::demo(None)?;
+        let mut demo = optobus_service::demo::bus(models::catalogue())
+            .map_err(|rejected| CliError::new(rejected.render()))?;
         // The console is the point here: no gateway to collide with another program's port.
         for line in &mut demo.lines {
             line.gateway = None;
         }
         demo
     };
+    // The console alone: the bus's other outputs are `optobus run`'s.
+    file.outputs = Outputs::default();
+    file.outputs.http = Some(HttpConfig::new(args.http));
     crate::log::show_operations();
-    let bus = Bus::new(file);
-    let running = bus.start().map_err(|e| CliError::failed(e.to_string()))?;
-    let server = optobus_console::serve(&running, &HttpConfig::new(args.http))
-        .await
-        .map_err(|e| CliError::failed(e.to_string()))?;
-    note!("optobus: the console is on {}", server.url());
-    crate::render::print(&server.url());
+    let service = Service::start(
+        file,
+        Options::default(),
+        Arc::new(|text: &str| note!("{text}")),
+    )
+    .await
+    .map_err(|e| CliError::failed(e.to_string()))?;
+    crate::render::print(service.console_url().unwrap_or_default());
     let stop = async {
         match args.duration {
             Some(duration) => tokio::time::sleep(duration).await,
@@ -120,7 +107,8 @@ pub(crate) async fn run(global: &Global, args: &UiArgs) -> Result<(), CliError> 
         _ = tokio::signal::ctrl_c() => {}
         () = stop => {}
     }
-    drop(server);
-    drop(running);
-    Ok(())
+    service
+        .stop()
+        .await
+        .map_err(|e| CliError::failed(e.to_string()))
 }

@@ -1,7 +1,7 @@
 //! Output that never holds up the runtime: a writer on a thread of its own, fed through a
 //! bounded queue that drops its **oldest** items when full, and counts them.
 //!
-//! `optobus run` prints samples, redraws the terminal view, records CSVs and writes its notes
+//! A run (`optobus run`) prints samples, redraws the terminal view, records CSVs and writes its notes
 //! on a current-thread runtime that also serves the gateway, the console, /metrics and MQTT.
 //! A blocking write there to a pipe nobody reads (`optobus run --json | consumer` with a
 //! consumer that stopped reading) would freeze all of them. Through an [`Outlet`], the runtime
@@ -13,7 +13,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 /// Where an outlet's items go, on the outlet's thread.
-pub(crate) trait Sink<T>: Send + 'static {
+pub trait Sink<T>: Send + 'static {
     /// Writes `items` (everything queued since the last call, oldest first). `dropped` is how
     /// many items the outlet has dropped so far, for a sink that tells it in its own stream.
     fn write(&mut self, items: Vec<T>, dropped: u64);
@@ -21,7 +21,7 @@ pub(crate) trait Sink<T>: Send + 'static {
 
 /// What [`Outlet::push`] did with an item.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Pushed {
+pub enum Pushed {
     /// Queued behind the others.
     Queued,
     /// Queued, the queue being full: its oldest item was dropped. `first` on the outlet's
@@ -34,13 +34,13 @@ pub(crate) enum Pushed {
 
 impl Pushed {
     /// Whether this push made the outlet drop an item for the first time.
-    pub(crate) fn first_drop(self) -> bool {
+    pub fn first_drop(self) -> bool {
         self == Self::DroppedOldest { first: true }
     }
 }
 
 /// A bounded queue that a thread of its own empties into a [`Sink`]; pushing never waits.
-pub(crate) struct Outlet<T, S> {
+pub struct Outlet<T, S> {
     shared: Arc<Shared<T, S>>,
     /// No thread could be started: each item is written on the pusher's thread.
     inline: bool,
@@ -96,7 +96,7 @@ impl<T: Send + 'static, S: Sink<T>> Outlet<T, S> {
     /// Starts a thread called `name` that writes to `sink`, queueing at most `capacity` items
     /// (at least 1) besides the batch being written. If no thread can be started, items are
     /// written on the caller's thread instead, as without an outlet.
-    pub(crate) fn start(name: &str, capacity: usize, sink: S) -> Self {
+    pub fn start(name: &str, capacity: usize, sink: S) -> Self {
         let shared = Arc::new(Shared {
             state: Mutex::new(State {
                 items: VecDeque::new(),
@@ -120,7 +120,7 @@ impl<T: Send + 'static, S: Sink<T>> Outlet<T, S> {
 
     /// Hands `item` to the writer; never waits for it. When the queue is full, its oldest
     /// item is dropped and counted.
-    pub(crate) fn push(&self, item: T) -> Pushed {
+    pub fn push(&self, item: T) -> Pushed {
         if self.inline {
             if let Some(sink) = lock(&self.shared.sink).as_mut() {
                 sink.write(vec![item], 0);
@@ -147,13 +147,13 @@ impl<T: Send + 'static, S: Sink<T>> Outlet<T, S> {
     }
 
     /// Items dropped so far.
-    pub(crate) fn dropped(&self) -> u64 {
+    pub fn dropped(&self) -> u64 {
         lock(&self.shared.state).dropped
     }
 
     /// Waits until everything pushed so far is written, at most `within` (the reader may
     /// never read again); gives the items still unwritten then (0: all written).
-    pub(crate) fn flush(&self, within: Duration) -> usize {
+    pub fn flush(&self, within: Duration) -> usize {
         let deadline = Instant::now() + within;
         let mut state = lock(&self.shared.state);
         loop {
@@ -171,7 +171,7 @@ impl<T: Send + 'static, S: Sink<T>> Outlet<T, S> {
     /// Writes what is queued, waiting at most `within`, stops the writer and gives the sink
     /// back (for its last words: a CSV's last row, an error). `None` if the writer is still
     /// stuck in a write when the time is up; it is left to the process's end.
-    pub(crate) fn finish(self, within: Duration) -> Option<S> {
+    pub fn finish(self, within: Duration) -> Option<S> {
         let deadline = Instant::now() + within;
         let mut state = lock(&self.shared.state);
         state.closed = true;

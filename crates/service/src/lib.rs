@@ -1,0 +1,183 @@
+//! A bus of optobus sensors run with its outputs, started and stopped as one: the MQTT
+//! publisher, the Prometheus exporter, the console in the browser and a CSV recording, each
+//! an [`Output`] started from the same [`Start`], and the run's start and stop sequence
+//! written once ([`Service`]). A front end (the `optobus` tool) starts a service and renders
+//! what it says; it follows the bus's events itself for what it shows.
+//!
+//! It also holds what such a run is made of and nothing below it owns: the
+//! [recording format](mod@recording) (writer and reader side by side), the [demo bus](mod@demo),
+//! the MQTT publisher's counts as Prometheus series ([`mqtt_metrics`]), and the bounded,
+//! counted queue towards a slow writer ([`outlet`]).
+#![forbid(unsafe_code)]
+
+pub mod demo;
+pub mod mqtt_metrics;
+pub mod outlet;
+mod output;
+pub mod recording;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use optobus_bus::{Bus, BusFile, Event, Running};
+use tokio::sync::broadcast;
+
+pub use output::{Console, Metrics, Mqtt, Output, Record, Start, Stopping, DRAIN_AT_END};
+
+/// Where a service says what happens (a line for people: `optobus: …`); the front end
+/// decides where it goes (stderr, a log).
+pub type Say = Arc<dyn Fn(&str) + Send + Sync>;
+
+/// Why a service could not start, or an output failed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ServiceError(String);
+
+impl ServiceError {
+    /// An error saying `message`.
+    pub fn new(message: impl Into<String>) -> Self {
+        Self(message.into())
+    }
+}
+
+impl std::fmt::Display for ServiceError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for ServiceError {}
+
+/// `1 event`, `2 events`.
+fn counted(count: u64, noun: &str) -> String {
+    let plural = if count == 1 { "" } else { "s" };
+    format!("{count} {noun}{plural}")
+}
+
+/// What a service runs besides the bus file's own outputs.
+#[derive(Clone, Default)]
+pub struct Options {
+    /// A CSV per device into this folder (the [recording format](mod@recording)).
+    pub record: Option<PathBuf>,
+}
+
+/// A bus running with its outputs.
+pub struct Service {
+    running: Running,
+    /// In the order they started; they stop in the same order, after the bus.
+    outputs: Vec<Box<dyn Output>>,
+    /// The run's first note's parts: each gateway, then each output that has a summary.
+    summary: Vec<String>,
+    console: Option<String>,
+    /// The caller's subscription, taken before the bus started.
+    events: Option<broadcast::Receiver<Event>>,
+    say: Say,
+}
+
+impl Service {
+    /// Starts the bus of `file`, then its outputs (the file's `outputs`, and `options`), each
+    /// with a subscription taken before the bus started: the recording, the metrics, MQTT
+    /// (the publisher's counts on the metrics when both run), then says the gateways and
+    /// outputs on one line, starts the console and says where it is.
+    pub async fn start(file: BusFile, options: Options, say: Say) -> Result<Self, ServiceError> {
+        let bus = Bus::new(file.clone());
+        let events = bus.subscribe();
+        let record_events = options.record.as_ref().map(|_| bus.subscribe());
+        let metrics_events = file.outputs.metrics.as_ref().map(|_| bus.subscribe());
+        let mqtt_events = file.outputs.mqtt.as_ref().map(|_| bus.subscribe());
+        let console_events = file.outputs.http.as_ref().map(|_| bus.subscribe());
+        let running = bus.start().map_err(|e| ServiceError::new(e.to_string()))?;
+        let start = |events| Start {
+            file: &file,
+            running: &running,
+            events,
+            say: Arc::clone(&say),
+        };
+        let mut outputs: Vec<Box<dyn Output>> = Vec::new();
+        if let (Some(dir), Some(events)) = (&options.record, record_events) {
+            outputs.push(Box::new(Record::start(dir, start(events)).await?));
+        }
+        let metrics = match (&file.outputs.metrics, metrics_events) {
+            (Some(config), Some(events)) => Some(Metrics::start(config, start(events)).await?),
+            _ => None,
+        };
+        let mqtt = match (&file.outputs.mqtt, mqtt_events) {
+            (Some(config), Some(events)) => Some(Mqtt::start(config, start(events)).await?),
+            _ => None,
+        };
+        if let (Some(metrics), Some(mqtt)) = (&metrics, &mqtt) {
+            mqtt_metrics::add(metrics.metrics(), mqtt.counts_reader())
+                .map_err(|e| ServiceError::new(format!("metrics of MQTT: {e}")))?;
+        }
+        outputs.extend(metrics.map(|m| Box::new(m) as Box<dyn Output>));
+        outputs.extend(mqtt.map(|m| Box::new(m) as Box<dyn Output>));
+        let summary: Vec<String> = running
+            .gateways()
+            .map(|(line, address)| format!("gateway of {line} on {address}"))
+            .chain(outputs.iter().filter_map(|output| output.summary()))
+            .collect();
+        if !summary.is_empty() {
+            say(&format!("optobus: {}", summary.join(", ")));
+        }
+        let mut console = None;
+        if let (Some(config), Some(events)) = (&file.outputs.http, console_events) {
+            let started = Console::start(config, start(events)).await?;
+            console = Some(started.url());
+            outputs.push(Box::new(started));
+        }
+        for output in &outputs {
+            if let Some(note) = output.note() {
+                say(&note);
+            }
+        }
+        Ok(Self {
+            running,
+            outputs,
+            summary,
+            console,
+            events: Some(events),
+            say,
+        })
+    }
+
+    /// The caller's subscription to the bus's events, taken before the bus started (every
+    /// event from the first); `None` after the first call.
+    pub fn events(&mut self) -> Option<broadcast::Receiver<Event>> {
+        self.events.take()
+    }
+
+    /// The run's first note's parts: each gateway and where it listens, then each output's
+    /// summary (`metrics on http://…/metrics`, `MQTT to …`).
+    pub fn summary(&self) -> &[String] {
+        &self.summary
+    }
+
+    /// The console's page, when it runs.
+    pub fn console_url(&self) -> Option<&str> {
+        self.console.as_deref()
+    }
+
+    /// The running bus.
+    pub fn running(&self) -> &Running {
+        &self.running
+    }
+
+    /// Stops the bus, then each output in the order they started, each taking what it still
+    /// holds within its limit and saying what it dropped; gives the first output's failure.
+    pub async fn stop(self) -> Result<(), ServiceError> {
+        let Self {
+            running,
+            outputs,
+            say,
+            ..
+        } = self;
+        drop(running);
+        let mut failed = Ok(());
+        for output in outputs {
+            let stopped = output.stop(Arc::clone(&say)).await;
+            if failed.is_ok() {
+                failed = stopped;
+            }
+        }
+        failed
+    }
+}
