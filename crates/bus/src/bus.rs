@@ -16,11 +16,12 @@ use tokio::time::Instant;
 use crate::event::{DeviceId, ErrorCounts, Event};
 use crate::file::{BusFile, Port};
 use crate::gateway::{self, GatewayCounters, GatewayCounts};
-use crate::handle::{Entry, Handle, LineQueues, Source};
+use crate::handle::{Entry, Handle, LineQueues};
 use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun, Turns};
 use crate::link::{DeviceLink, DeviceSettings, LineState};
 use crate::measuring::{self, Measuring};
 use crate::schedule::Schedule;
+use crate::source::Source;
 use crate::trace::LineFrames;
 
 /// Events a bus keeps for a slow receiver before it drops the oldest (the receiver learns how

@@ -8,9 +8,10 @@ use optobus_inspect::Value;
 use serde::ser::{SerializeStruct, Serializer};
 use serde::Serialize;
 
-use crate::handle::Source;
-use crate::measuring::MeasurementEvent;
+use crate::measurement::MeasurementEvent;
 use crate::schedule::Health;
+use crate::source::Source;
+pub use crate::time::rfc3339;
 
 /// One event of a running bus.
 #[derive(Clone, Debug)]
@@ -117,13 +118,6 @@ impl Serialize for Sample {
         fields.serialize_field("time", &rfc3339(self.replied))?;
         fields.end()
     }
-}
-
-/// A time in RFC 3339, UTC, with microseconds.
-pub fn rfc3339(time: SystemTime) -> String {
-    jiff::Timestamp::try_from(time)
-        .map(|t| format!("{:.6}", t))
-        .unwrap_or_else(|_| "out of range".to_owned())
 }
 
 /// Failed transactions of a device or line, by kind.

@@ -22,9 +22,12 @@ mod gateway;
 mod handle;
 mod line;
 mod link;
+mod measurement;
 mod measuring;
 mod policy;
 pub mod schedule;
+mod source;
+mod time;
 mod trace;
 
 pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
@@ -37,14 +40,15 @@ pub use file::{
 };
 pub use follow::Follower;
 pub use gateway::GatewayCounts;
-pub use handle::{Buffered, Handle, JobError, Source, AUDIT_TARGET, NETWORK_QUEUE};
+pub use handle::{Buffered, Handle, JobError, AUDIT_TARGET};
 pub use line::NETWORK_SHARE;
-pub use measuring::{InputValue, MeasurementEvent};
+pub use measurement::{InputValue, MeasurementEvent};
 /// The models a bus file may name: one catalogue, shared with the `optobus` tool.
 pub use optobus_spec::Catalogue;
 pub use optobus_transport::Stream;
 pub use policy::{Policy, Refusal, RefusalKind};
 pub use schedule::Health;
+pub use source::{Source, NETWORK_QUEUE};
 pub use trace::{Direction, Frame, FRAMES_KEPT};
 
 /// The README's examples, compiled and run as doctests.

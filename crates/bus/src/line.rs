@@ -17,10 +17,11 @@ use tokio::time::Instant;
 use crate::event::{DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample, Writer, Written};
 use crate::file::Writable;
 use crate::gateway::{self, GatewayRequest};
-use crate::handle::{self, Checked, Job, Source};
+use crate::handle::{self, Checked, Job};
 use crate::link::{count, DeviceLink, DeviceSettings, LineState};
 use crate::policy::{self, Policy, Refusal};
 use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
+use crate::source::Source;
 use crate::trace::{LineFrames, TracedStream};
 
 /// The gateway's exception for a request the line could not carry out.

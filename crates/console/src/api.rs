@@ -15,10 +15,10 @@ use optobus_inspect::{did_you_mean, hex};
 
 use crate::error::ApiError;
 use crate::reply::{
-    Connections, DeviceJson, DeviceMap, Devices, FrameJson, HealthJson, LatestSample,
-    RegisterValue, Status, Values,
+    unix_ms, Connections, DeviceJson, DeviceMap, Devices, FrameJson, LatestSample, RegisterValue,
+    Status, Values,
 };
-use crate::state::{unix_ms, Shared};
+use crate::state::Shared;
 use crate::{guard, map, page, stream, write, BODY_LIMIT};
 
 pub(crate) fn router(shared: Arc<Shared>) -> Router {
@@ -53,7 +53,7 @@ async fn devices(State(shared): State<Arc<Shared>>) -> Response {
         .devices
         .iter()
         .map(|d| DeviceJson {
-            health: HealthJson::new(d),
+            health: d.health_json(),
             model: Arc::clone(&d.id.model),
             line: Arc::clone(&d.id.line),
             slave: d.id.slave,

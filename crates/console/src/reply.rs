@@ -2,13 +2,12 @@
 //! the API, one struct per shape, in the order its keys are sent.
 
 use std::sync::Arc;
+use std::time::{SystemTime, UNIX_EPOCH};
 
 use optobus_bus::{ErrorCounts, Health, LineStats, Sample};
 use optobus_device::{FieldInfo, RegisterInfo, ValueKind};
 use optobus_inspect::Value;
 use serde::ser::{Serialize, SerializeMap, Serializer};
-
-use crate::state::{unix_ms, DeviceState};
 
 /// A sample as the page takes it: its text as the tool shows it, its JSON value, a number for
 /// charts, the fields of a packed or record register (a row each on the page), and the
@@ -47,6 +46,12 @@ impl SampleJson {
             time: unix_ms(sample.replied),
         }
     }
+}
+
+/// Milliseconds since 1970, as the page's charts take times.
+pub(crate) fn unix_ms(time: SystemTime) -> f64 {
+    time.duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
 }
 
 /// A value as a number for a chart, when it is one.
@@ -120,12 +125,17 @@ pub(crate) struct HealthJson {
 }
 
 impl HealthJson {
-    pub(crate) fn new(state: &DeviceState) -> Self {
+    pub(crate) fn new(
+        device: &Arc<str>,
+        health: Health,
+        errors: ErrorCounts,
+        reason: Option<String>,
+    ) -> Self {
         Self {
-            device: Arc::clone(&state.id.device),
-            health: state.health,
-            errors: state.errors,
-            reason: state.reason.clone(),
+            device: Arc::clone(device),
+            health,
+            errors,
+            reason,
         }
     }
 }

@@ -6,7 +6,6 @@
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, Weak};
-use std::time::{SystemTime, UNIX_EPOCH};
 
 use optobus_bus::{DeviceId, ErrorCounts, Event, Follower, Handle, Health, HealthEvent};
 use optobus_device::DeviceInfo;
@@ -106,6 +105,18 @@ pub(crate) struct Board {
     pub(crate) lines: Vec<(Arc<str>, LineJson)>,
 }
 
+impl DeviceState {
+    /// Its health as the stream sends it.
+    pub(crate) fn health_json(&self) -> HealthJson {
+        HealthJson::new(
+            &self.id.device,
+            self.health,
+            self.errors,
+            self.reason.clone(),
+        )
+    }
+}
+
 impl Shared {
     pub(crate) fn new(handle: Handle, guard: Guard) -> Self {
         let devices = handle
@@ -169,12 +180,6 @@ impl Shared {
     }
 }
 
-/// Milliseconds since 1970, as the page's charts take times.
-pub(crate) fn unix_ms(time: SystemTime) -> f64 {
-    time.duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64() * 1000.0)
-}
-
 impl Board {
     fn device(&mut self, name: &str) -> Option<&mut DeviceState> {
         self.devices.iter_mut().find(|d| &*d.id.device == name)
@@ -208,7 +213,7 @@ impl Board {
                 }
                 device.errors = *errors;
                 device.reason.clone_from(reason);
-                Some(Entry::Health(HealthJson::new(device)))
+                Some(Entry::Health(device.health_json()))
             }
             // Shown by the console with issue 32's outputs; not yet.
             Event::Measurement(_) => None,
