@@ -4,7 +4,7 @@
 pub(crate) const API_QUEUE: usize = 64;
 
 /// Jobs a line keeps queued for each network source; one more is refused at once
-/// ([`JobError::Busy`]).
+/// ([`JobError::Busy`](crate::JobError::Busy)).
 pub const NETWORK_QUEUE: usize = 8;
 
 /// Who asks a line for work. Each source has its own bounded queue on every line, and the
