@@ -11,18 +11,18 @@ use std::net::SocketAddr;
 use tokio::net::TcpListener;
 use tokio::sync::{broadcast, mpsc, Mutex};
 use tokio::task::JoinHandle;
-use tokio::time::Instant;
 
 use crate::event::{DeviceId, ErrorCounts, Event};
 use crate::file::{BusFile, Port};
 use crate::gateway::{self, GatewayCounters, GatewayCounts};
 use crate::handle::{Entry, Handle, LineQueues};
-use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun, Turns};
+use crate::line::{Clock, DeviceRun, GatewayQueue, LineTask, Opener, PollRun};
 use crate::link::{DeviceLink, DeviceSettings, LineState};
 use crate::measuring::{self, Measuring};
-use crate::schedule::Schedule;
+use crate::schedule::{measurement_groups, Schedule};
 use crate::source::Source;
 use crate::trace::LineFrames;
+use crate::turns::Turns;
 
 /// Events a bus keeps for a slow receiver before it drops the oldest (the receiver learns how
 /// many it missed).
@@ -33,6 +33,9 @@ pub struct Bus {
     file: BusFile,
     streams: HashMap<String, Box<dyn Stream>>,
     events: broadcast::Sender<Event>,
+    /// Whether a measurement's polls are scheduled as a group (off only to measure what the
+    /// groups change).
+    grouped: bool,
 }
 
 impl std::fmt::Debug for Bus {
@@ -60,7 +63,16 @@ impl Bus {
             file,
             streams: HashMap::new(),
             events: broadcast::channel(DEFAULT_EVENT_CAPACITY).0,
+            grouped: true,
         }
+    }
+
+    /// Schedules every poll on its own phase, a measurement's polls as any other: the
+    /// scheduling before measurement groups, kept for the `skew` bench to measure against.
+    #[doc(hidden)]
+    pub fn without_measurement_groups(mut self) -> Self {
+        self.grouped = false;
+        self
     }
 
     /// Keeps `capacity` events (at least 1) for slow receivers.
@@ -90,7 +102,15 @@ impl Bus {
         let mut job_queues = Vec::new();
         let mut entries = Vec::new();
         let mut line_frames = Vec::new();
-        let start = Instant::now();
+        // One clock for every line: the request times of two lines' samples compare exactly,
+        // and the measurement groups tick from this start on every line.
+        let clock = Clock::now();
+        let start = clock.instant;
+        let groups = if self.grouped {
+            measurement_groups(&self.file)
+        } else {
+            Vec::new()
+        };
         // Subscribed before any line runs, so that no input's first sample is missed.
         let measuring = (!self.file.measurements.is_empty()).then(|| {
             let measuring = Arc::new(Measuring::new(self.file.measurements.clone()));
@@ -114,7 +134,10 @@ impl Bus {
             let mut devices = Vec::new();
             let mut polls = Vec::new();
             let mut line_simulators = Vec::new();
-            for (_, config) in self.file.devices_on(index) {
+            // Each poll of the file's devices on this line: (device in the file, its poll) to
+            // the line's poll.
+            let mut line_polls = HashMap::new();
+            for (file_index, config) in self.file.devices_on(index) {
                 let id = Arc::new(DeviceId {
                     device: Arc::from(config.name.as_str()),
                     model: Arc::from(config.device.model_name().to_string()),
@@ -145,8 +168,9 @@ impl Bus {
                 let core = Core::new(link, config.slave, config.device)
                     .expect("bus files hold slaves 1 to 247");
                 let device = schedule.add_device(start + config.power_up);
-                for poll in &config.polls {
-                    schedule.add_poll(device, poll.every, poll.priority);
+                for (poll_index, poll) in config.polls.iter().enumerate() {
+                    let added = schedule.add_poll(device, poll.every, poll.priority);
+                    line_polls.insert((file_index, poll_index), added);
                     polls.push(PollRun {
                         registers: poll.registers.clone(),
                     });
@@ -162,6 +186,16 @@ impl Bus {
                     let simulator = config.simulator();
                     line_simulators.push(simulator.clone());
                     simulators.push((config.name.clone(), simulator));
+                }
+            }
+            for group in &groups {
+                let members: Vec<usize> = group
+                    .polls
+                    .iter()
+                    .filter_map(|poll| line_polls.get(poll).copied())
+                    .collect();
+                if !members.is_empty() {
+                    schedule.add_group(members, group.every, start);
                 }
             }
             let opener = match self.streams.remove(&line.name) {
@@ -212,6 +246,7 @@ impl Bus {
                 events: self.events.clone(),
                 finishing: Vec::new(),
                 turns: Turns::default(),
+                clock,
             };
             tasks.push(tokio::spawn(task.run()));
         }

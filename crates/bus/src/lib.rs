@@ -29,6 +29,7 @@ pub mod schedule;
 mod source;
 mod time;
 mod trace;
+mod turns;
 
 pub use bus::{Bus, Running, StartError, DEFAULT_EVENT_CAPACITY};
 pub use event::{
@@ -41,7 +42,6 @@ pub use file::{
 pub use follow::Follower;
 pub use gateway::GatewayCounts;
 pub use handle::{Buffered, Handle, JobError, AUDIT_TARGET};
-pub use line::NETWORK_SHARE;
 pub use measurement::{InputValue, MeasurementEvent};
 /// The models a bus file may name: one catalogue, shared with the `optobus` tool.
 pub use optobus_spec::Catalogue;
@@ -50,6 +50,7 @@ pub use policy::{Policy, Refusal, RefusalKind};
 pub use schedule::Health;
 pub use source::{Source, NETWORK_QUEUE};
 pub use trace::{Direction, Frame, FRAMES_KEPT};
+pub use turns::NETWORK_SHARE;
 
 /// The README's examples, compiled and run as doctests.
 #[cfg(doctest)]

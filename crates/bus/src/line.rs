@@ -23,6 +23,7 @@ use crate::policy::{self, Policy, Refusal};
 use crate::schedule::{Health, Next, Outcome, Schedule, FIRST_BACKOFF, MAX_BACKOFF};
 use crate::source::Source;
 use crate::trace::{LineFrames, TracedStream};
+use crate::turns::Turns;
 
 /// The gateway's exception for a request the line could not carry out.
 fn path_or_target(error: &Error) -> u8 {
@@ -151,15 +152,15 @@ pub(crate) struct PollRun {
     pub(crate) registers: Vec<&'static RegisterInfo>,
 }
 
-/// Maps the line's monotonic clock to wall-clock times for samples.
+/// Maps the bus's monotonic clock to wall-clock times for samples (one for every line).
 #[derive(Clone, Copy)]
-struct Clock {
-    instant: Instant,
+pub(crate) struct Clock {
+    pub(crate) instant: Instant,
     system: SystemTime,
 }
 
 impl Clock {
-    fn now() -> Self {
+    pub(crate) fn now() -> Self {
         Self {
             instant: Instant::now(),
             system: SystemTime::now(),
@@ -191,6 +192,8 @@ pub(crate) struct LineTask {
     pub(crate) broadcast_turnaround: Duration,
     /// Commands waiting for their device to show it finished (`done_when`).
     pub(crate) finishing: Vec<Finishing>,
+    /// The bus's clock, shared by its lines.
+    pub(crate) clock: Clock,
 }
 
 /// A command whose register the line reads, between other requests, until it shows the
@@ -203,80 +206,11 @@ pub(crate) struct Finishing {
     done: tokio::sync::oneshot::Sender<Result<(), DriverError>>,
 }
 
-/// How many queues of network work a line serves in turns: the gateway's and one per
-/// [`Source`].
-const QUEUES: usize = 1 + Source::ALL.len();
-
 /// Work asked of the line from outside its schedule.
 enum Work {
     Gateway(GatewayRequest),
     /// A job, and the source whose queue it came from.
     Job(Job, Source),
-}
-
-/// The share of a line's time that work from outside its schedule may take on a line with
-/// polls: a request that costs the line long (a slave that does not answer, its timeout and
-/// the quiet after it) is paid back to the polls before the next one goes.
-pub const NETWORK_SHARE: f64 = 0.5;
-
-/// The most line time such work may save up while nobody asks.
-const NETWORK_BURST: Duration = Duration::from_millis(500);
-
-/// Whose turn it is among a line's queues of network work (queue 0 the gateway's, then one per
-/// [`Source`] in [`Source::ALL`] order), and how much line time that work may still take.
-#[derive(Debug)]
-pub(crate) struct Turns {
-    /// What each queue may still have served before the next due poll.
-    allowance: [usize; QUEUES],
-    /// The queue looked at first, so that no queue starves another.
-    next: usize,
-    /// Line time the work may still take, in seconds (negative: owed to the polls); it grows
-    /// by [`NETWORK_SHARE`] of the time that passes, up to [`NETWORK_BURST`].
-    credit: f64,
-    /// When the credit was last brought up to date.
-    at: Instant,
-}
-
-impl Default for Turns {
-    fn default() -> Self {
-        Self {
-            allowance: [0; QUEUES],
-            next: 0,
-            credit: NETWORK_BURST.as_secs_f64(),
-            at: Instant::now(),
-        }
-    }
-}
-
-impl Turns {
-    /// A poll ran: the gateway's clients that waited through it get a turn each, every source
-    /// one.
-    fn after_poll(&mut self, gateway_waiting: usize) {
-        self.allowance = [1; QUEUES];
-        self.allowance[0] = gateway_waiting;
-    }
-
-    /// Whether the work has not taken more than its share of the line by `now`.
-    fn in_credit(&mut self, now: Instant) -> bool {
-        self.credit = (self.credit
-            + NETWORK_SHARE * now.saturating_duration_since(self.at).as_secs_f64())
-        .min(NETWORK_BURST.as_secs_f64());
-        self.at = self.at.max(now);
-        self.credit >= 0.0
-    }
-
-    /// When the work is back within its share, if it is beyond it now.
-    fn back_in_credit(&self) -> Option<Instant> {
-        (self.credit < 0.0).then(|| {
-            let wait = Duration::try_from_secs_f64(-self.credit / NETWORK_SHARE);
-            self.at + wait.map_or(MAX_BACKOFF, |wait| wait.min(MAX_BACKOFF))
-        })
-    }
-
-    /// Work took `took` of the line.
-    fn spent(&mut self, took: Duration) {
-        self.credit -= took.as_secs_f64();
-    }
 }
 
 /// The next request of the gateway, or never when the line has none.
@@ -293,11 +227,11 @@ impl LineTask {
     /// Polls that are due go first. Between them the line serves the network's work in turns
     /// (see [`Turns`]): after each poll every queue gets one turn (the gateway one per request
     /// that waited through the poll, at most the gateway's `queue`; each [`Source`] one job), then the
-    /// next due poll runs; and on a line with polls that work takes at most [`NETWORK_SHARE`]
+    /// next due poll runs; and on a line with polls that work takes at most [`NETWORK_SHARE`](crate::NETWORK_SHARE)
     /// of the line's time. The polls keep their schedule however much work is queued, and
     /// however long it takes.
     pub(crate) async fn run(mut self) {
-        let clock = Clock::now();
+        let clock = self.clock;
         let mut next_stats = clock.instant + STATS_EVERY;
         let mut reopen_at = clock.instant;
         let mut reopen_wait = FIRST_BACKOFF;
@@ -339,6 +273,14 @@ impl LineTask {
             } else {
                 Next::Wait(reopen_at)
             };
+            // A measurement's polls run back to back: nothing else takes the line between
+            // them, and the network's turns come once the whole group has run.
+            if let (true, Next::Run(poll)) = (self.schedule.mid_group(), next) {
+                self.run_poll(poll, &clock).await;
+                self.settle().await;
+                self.after_poll();
+                continue;
+            }
             if let Some(index) = self.finishing.iter().position(|f| f.at <= now) {
                 self.check_finished(index).await;
                 continue;
@@ -353,8 +295,7 @@ impl LineTask {
                 Next::Run(poll) => {
                     self.run_poll(poll, &clock).await;
                     self.settle().await;
-                    let waiting = self.gateway.as_ref().map_or(0, |g| g.requests.len());
-                    self.turns.after_poll(waiting);
+                    self.after_poll();
                     continue;
                 }
                 Next::Wait(until) => until.min(next_stats),
@@ -383,6 +324,15 @@ impl LineTask {
         }
     }
 
+    /// A poll ran: unless its group still has polls to run, the network's queues get their
+    /// turns.
+    fn after_poll(&mut self) {
+        if !self.schedule.mid_group() {
+            let waiting = self.gateway.as_ref().map_or(0, |g| g.requests.len());
+            self.turns.after_poll(waiting);
+        }
+    }
+
     /// The next work to do before the next poll, if the work is within its share of the line
     /// (`budgeted`: while the line has polls): any that waits when no poll is due, else only
     /// from queues that still have a turn in this round.
@@ -390,11 +340,8 @@ impl LineTask {
         if budgeted && !self.turns.in_credit(Instant::now()) {
             return None;
         }
-        for step in 0..QUEUES {
-            let queue = (self.turns.next + step) % QUEUES;
-            if poll_due && self.turns.allowance[queue] == 0 {
-                continue;
-            }
+        let queues: Vec<usize> = self.turns.queues(poll_due).collect();
+        for queue in queues {
             let work = match queue.checked_sub(1) {
                 None => self
                     .gateway
@@ -407,8 +354,7 @@ impl LineTask {
                     .map(|job| Work::Job(job, Source::ALL[source])),
             };
             if let Some(work) = work {
-                self.turns.allowance[queue] = self.turns.allowance[queue].saturating_sub(1);
-                self.turns.next = (queue + 1) % QUEUES;
+                self.turns.served(queue);
                 return Some(work);
             }
         }

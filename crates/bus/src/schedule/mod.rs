@@ -10,10 +10,19 @@
 //!   [`MAX_BACKOFF`], so a dead device costs at most one attempt per backoff period. A
 //!   successful probe brings it back online, its periodic polls resuming at their phases.
 //! - A device is first asked once its power-up wait has passed.
+//! - The polls that feed one measurement run as a [group](group): back to back when due, on
+//!   ticks counted from the bus's start, so that its inputs are read together.
+
+mod group;
+mod plan;
 
 use std::time::Duration;
 
 use tokio::time::Instant;
+
+pub(crate) use group::measurement_groups;
+use group::Group;
+use plan::{plan_phases, PlannedPoll};
 
 /// Failures in a row that take a device offline.
 pub const OFFLINE_AFTER: u32 = 3;
@@ -54,6 +63,8 @@ struct Poll {
     took: Option<Duration>,
     /// When its last run started.
     started: Option<Instant>,
+    /// The measurement group it runs in, if any (its ticks are the group's then).
+    group: Option<usize>,
 }
 
 #[derive(Debug)]
@@ -96,6 +107,11 @@ pub(crate) struct Schedule {
     turns: u64,
     /// Whether the periodic polls run at their planned phases yet.
     phased: bool,
+    /// The measurement groups of the line.
+    groups: Vec<Group>,
+    /// The polls of the group being run that are still to go, in order: nothing else takes
+    /// the line before them.
+    cycle: Vec<usize>,
 }
 
 impl Schedule {
@@ -127,8 +143,54 @@ impl Schedule {
             served: 0,
             took: None,
             started: None,
+            group: None,
         });
         self.polls.len() - 1
+    }
+
+    /// Makes `members` (periodic polls of this line, in the order they run) the group of a
+    /// measurement: due every `every` from `origin` (the bus's start, shared by every line),
+    /// and run back to back.
+    pub(crate) fn add_group(&mut self, members: Vec<usize>, every: Duration, origin: Instant) {
+        let index = self.groups.len();
+        let mut priority = 0;
+        for &member in &members {
+            let poll = &mut self.polls[member];
+            poll.every = Some(every);
+            poll.group = Some(index);
+            priority = priority.max(poll.priority);
+        }
+        self.groups.push(Group {
+            members,
+            every,
+            priority,
+            due: origin,
+            started: None,
+        });
+    }
+
+    /// Whether a group is being run: its next poll goes before anything else.
+    pub(crate) fn mid_group(&self) -> bool {
+        !self.cycle.is_empty()
+    }
+
+    /// Whether poll `index`'s device may be asked at `now` (online, not held).
+    fn runnable(&self, index: usize, now: Instant) -> bool {
+        let device = &self.devices[self.polls[index].device];
+        device.health == Health::Online && device.not_before <= now
+    }
+
+    /// When group `group` may run: its tick, or later while its online devices are held;
+    /// `None` while none of its devices is online (their probes stand for it then).
+    fn group_ready(&self, group: &Group) -> Option<Instant> {
+        let held = group
+            .members
+            .iter()
+            .map(|&m| &self.devices[self.polls[m].device])
+            .filter(|d| d.health == Health::Online)
+            .map(|d| d.not_before)
+            .min()?;
+        Some(group.due.max(held))
     }
 
     /// Asks nothing of `device` before `until` (it is busy after a command).
@@ -147,13 +209,14 @@ impl Schedule {
     /// Once every periodic poll of a device online has run (and so been timed), moves their
     /// next deadlines to the phases [`plan_phases`] finds, from `now` on.
     fn plan_once_timed(&mut self, now: Instant) {
+        let online = |poll: &Poll| self.devices[poll.device].health == Health::Online;
         let periodic: Vec<usize> = (0..self.polls.len())
             .filter(|&i| {
                 let poll = &self.polls[i];
-                poll.every.is_some() && self.devices[poll.device].health == Health::Online
+                poll.every.is_some() && poll.group.is_none() && online(poll)
             })
             .collect();
-        let timed: Vec<PlannedPoll> = periodic
+        let mut timed: Vec<PlannedPoll> = periodic
             .iter()
             .filter_map(|&i| {
                 let poll = &self.polls[i];
@@ -161,11 +224,33 @@ impl Schedule {
                     every: poll.every?,
                     took: poll.took?,
                     priority: poll.priority,
+                    fixed: None,
                 })
             })
             .collect();
         if timed.len() < periodic.len() {
             return;
+        }
+        // The groups keep their ticks; the other polls are placed around them, each group
+        // taking the time of its polls together.
+        for group in &self.groups {
+            let mut took = Duration::ZERO;
+            for &member in &group.members {
+                match self.polls[member].took {
+                    Some(time) => took += time,
+                    None if online(&self.polls[member]) => return,
+                    None => {}
+                }
+            }
+            let phase = group.due.saturating_duration_since(now);
+            timed.push(PlannedPoll {
+                every: group.every,
+                took,
+                priority: group.priority,
+                fixed: Some(Duration::from_nanos(
+                    (phase.as_nanos() % group.every.as_nanos().max(1)) as u64,
+                )),
+            });
         }
         self.phased = true;
         for (&index, phase) in periodic.iter().zip(plan_phases(&timed)) {
@@ -196,15 +281,23 @@ impl Schedule {
         }
     }
 
-    /// The first poll of each offline device stands for it as its probe.
+    /// The first poll of each offline device stands for it as its probe; an online device's
+    /// polls in a group run with their group.
     fn is_probe_or_online(&self, index: usize) -> bool {
         let poll = &self.polls[index];
-        self.devices[poll.device].health == Health::Online
-            || self.polls.iter().position(|p| p.device == poll.device) == Some(index)
+        match self.devices[poll.device].health {
+            Health::Online => poll.group.is_none(),
+            Health::Offline => {
+                self.polls.iter().position(|p| p.device == poll.device) == Some(index)
+            }
+        }
     }
 
     /// What to do at `now`.
     pub(crate) fn next(&self, now: Instant) -> Next {
+        if let Some(&member) = self.cycle.first() {
+            return Next::Run(member);
+        }
         let candidates = (0..self.polls.len()).filter(|&i| self.is_probe_or_online(i));
         let mut due_periodic: Option<(usize, (u8, Instant))> = None;
         let mut due_fast: Option<(usize, (u8, u64))> = None;
@@ -229,6 +322,24 @@ impl Schedule {
                 }
             }
         }
+        for group in &self.groups {
+            let Some(ready) = self.group_ready(group) else {
+                continue;
+            };
+            if ready > now {
+                earliest = Some(earliest.map_or(ready, |e| e.min(ready)));
+                continue;
+            }
+            let Some(&first) = group.members.iter().find(|&&m| self.runnable(m, now)) else {
+                continue;
+            };
+            // On a tie the group goes first: it keeps the bus's common ticks, the others
+            // have phases to move to.
+            let key = (u8::MAX - group.priority, ready);
+            if due_periodic.is_none_or(|(_, best)| key <= best) {
+                due_periodic = Some((first, key));
+            }
+        }
         match (due_periodic, due_fast, earliest) {
             (Some((index, _)), _, _) | (None, Some((index, _)), _) => Next::Run(index),
             (None, None, Some(at)) => Next::Wait(at),
@@ -251,23 +362,63 @@ impl Schedule {
                 down.push(index);
             }
         }
+        // A group cut short: it runs again on its next tick once the line is back.
+        self.cycle.clear();
         down
     }
 
     /// Records that poll `index` ended at `now` with `outcome`; gives the device's new health
     /// when it changed.
     pub(crate) fn done(&mut self, index: usize, now: Instant, outcome: Outcome) -> Option<Health> {
-        self.turns += 1;
         let device_index = self.polls[index].device;
+        let probing = self.devices[device_index].health == Health::Offline;
+        let change = self.health_after(index, now, outcome);
+        self.turns += 1;
         let poll = &mut self.polls[index];
         poll.served = self.turns;
-        if let Some(every) = poll.every {
-            poll.due = next_tick(poll.due, every, now);
-            poll.keep_apart();
+        match (poll.group, poll.every) {
+            // A probe of an offline device is no run of its group.
+            (Some(group), _) if !probing => self.member_done(group, index, now),
+            (Some(_), _) => {}
+            (None, Some(every)) => {
+                poll.due = next_tick(poll.due, every, now);
+                poll.keep_apart();
+            }
+            (None, None) => {}
         }
         if !self.phased {
             self.plan_once_timed(now);
         }
+        change
+    }
+
+    /// Poll `index` of group `group` ran: the group's other polls that may be asked go next,
+    /// and once none is left the group waits for its next tick.
+    fn member_done(&mut self, group: usize, index: usize, now: Instant) {
+        if self.cycle.is_empty() {
+            let members = self.groups[group].members.clone();
+            self.cycle = members.into_iter().filter(|&m| m != index).collect();
+            let started = self.polls[index].started.unwrap_or(now);
+            self.groups[group].started = Some(started);
+        } else {
+            self.cycle.retain(|&m| m != index);
+        }
+        // An offline or busy device's poll is left out of this run: it costs the others
+        // nothing.
+        let cycle = std::mem::take(&mut self.cycle);
+        self.cycle = cycle
+            .into_iter()
+            .filter(|&m| self.runnable(m, now))
+            .collect();
+        if self.cycle.is_empty() {
+            self.groups[group].advance(now);
+        }
+    }
+
+    /// The device of poll `index` after a run that ended with `outcome`: its new health when
+    /// it changed.
+    fn health_after(&mut self, index: usize, now: Instant, outcome: Outcome) -> Option<Health> {
+        let device_index = self.polls[index].device;
         let device = &mut self.devices[device_index];
         match (outcome, device.health) {
             (Outcome::Answered, Health::Online) => {
@@ -306,115 +457,6 @@ impl Schedule {
             }
         }
     }
-}
-
-/// A periodic poll as the phase plan sees it.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct PlannedPoll {
-    pub(crate) every: Duration,
-    pub(crate) took: Duration,
-    pub(crate) priority: u8,
-}
-
-/// Phases tried per poll at most.
-const PHASE_CANDIDATES: u32 = 64;
-/// Poll runs simulated per candidate phase at most.
-const PLANNED_RUNS: f64 = 2000.0;
-/// About how many poll choices a whole plan may simulate (each looks at every poll).
-const PLAN_BUDGET: f64 = 2e7;
-/// The longest stretch a plan simulates.
-const MAX_HORIZON: Duration = Duration::from_secs(24 * 60 * 60);
-
-/// The phase of each poll (its first deadline after the plan starts) that keeps colliding
-/// deadlines, and so period jitter, low: polls are placed one at a time, shortest period
-/// first, each at the phase (of up to [`PHASE_CANDIDATES`] spread over its period) with the
-/// least worst-case, then total, jitter of the polls placed so far, found by running this
-/// very schedule on a simulated line where each poll takes its measured time.
-///
-/// Periods that share no common step make collisions unavoidable (38 ms and 45 ms meet every
-/// 1.71 s at every offset); the plan makes them rare and short, where spreading the phases
-/// evenly leaves chains of several polls waiting behind each other.
-pub(crate) fn plan_phases(polls: &[PlannedPoll]) -> Vec<Duration> {
-    if polls.len() < 2 {
-        return vec![Duration::ZERO; polls.len()];
-    }
-    let mut order: Vec<usize> = (0..polls.len()).collect();
-    order.sort_by_key(|&i| (polls[i].every, i));
-    let horizon = plan_horizon(polls);
-    let mut phases = vec![Duration::ZERO; polls.len()];
-    for placed in 0..order.len() {
-        let index = order[placed];
-        let every = polls[index].every;
-        let step = (every / PHASE_CANDIDATES).max(Duration::from_millis(1));
-        let mut best: Option<((Duration, Duration), Duration)> = None;
-        let mut phase = Duration::ZERO;
-        while phase < every {
-            phases[index] = phase;
-            let score = simulated_jitter(polls, &order[..=placed], &phases, horizon);
-            if best.is_none_or(|(least, _)| score < least) {
-                best = Some((score, phase));
-            }
-            if score.0.is_zero() {
-                break;
-            }
-            phase += step;
-        }
-        phases[index] = best.map_or(Duration::ZERO, |(_, phase)| phase);
-    }
-    phases
-}
-
-/// How long a plan simulates: [`PLANNED_RUNS`] runs of the polls, so that periods which meet
-/// rarely are seen meeting, fewer when there are so many polls that the plan would take more
-/// than some [`PLAN_BUDGET`] steps (a line's task plans between two polls), and at most a day.
-fn plan_horizon(polls: &[PlannedPoll]) -> Duration {
-    let n = polls.len() as f64;
-    let runs = PLANNED_RUNS.min(PLAN_BUDGET / (n * n * f64::from(PHASE_CANDIDATES)));
-    let runs_per_second: f64 = polls.iter().map(|p| 1.0 / p.every.as_secs_f64()).sum();
-    Duration::try_from_secs_f64(runs / runs_per_second)
-        .map_or(MAX_HORIZON, |horizon| horizon.min(MAX_HORIZON))
-}
-
-/// The worst and the total of the largest period jitter of polls `placed` at `phases`, run
-/// by this schedule for `horizon` with each poll taking its time.
-fn simulated_jitter(
-    polls: &[PlannedPoll],
-    placed: &[usize],
-    phases: &[Duration],
-    horizon: Duration,
-) -> (Duration, Duration) {
-    let start = Instant::now();
-    let mut schedule = Schedule {
-        phased: true,
-        ..Schedule::default()
-    };
-    for &index in placed {
-        let device = schedule.add_device(start);
-        let poll = &polls[index];
-        let added = schedule.add_poll(device, Some(poll.every), poll.priority);
-        schedule.polls[added].due = start + phases[index];
-    }
-    let mut last: Vec<Option<Instant>> = vec![None; placed.len()];
-    let mut jitter = vec![Duration::ZERO; placed.len()];
-    let mut now = start;
-    while now < start + horizon {
-        match schedule.next(now) {
-            Next::Run(k) => {
-                let poll = &polls[placed[k]];
-                if let Some(previous) = last[k] {
-                    let interval = now.duration_since(previous);
-                    jitter[k] = jitter[k].max(interval.abs_diff(poll.every));
-                }
-                last[k] = Some(now);
-                now += poll.took;
-                schedule.done(k, now, Outcome::Answered);
-            }
-            Next::Wait(at) => now = at,
-            Next::Idle => break,
-        }
-    }
-    let worst = jitter.iter().copied().max().unwrap_or_default();
-    (worst, jitter.iter().sum())
 }
 
 /// The first tick of a schedule (`due`, every `every`) after `now`: ticks already missed are
@@ -634,52 +676,6 @@ mod tests {
                 assert_eq!(pair[1] - pair[0], ms(100), "poll {poll}: {starts:?}");
             }
         }
-    }
-
-    #[test]
-    fn planned_phases_keep_colliding_periods_within_one_transaction_of_jitter() {
-        // The jitter bench's polls: periods with no common step, each taking 2 to 7 ms.
-        let polls: Vec<PlannedPoll> = [(38, 4), (45, 4), (60, 6), (75, 2), (90, 7), (120, 5)]
-            .into_iter()
-            .chain([(150, 4), (190, 7)])
-            .map(|(every, took)| PlannedPoll {
-                every: ms(every),
-                took: ms(took),
-                priority: 0,
-            })
-            .collect();
-        let phases = plan_phases(&polls);
-        let all: Vec<usize> = (0..polls.len()).collect();
-        let (worst, _) = simulated_jitter(&polls, &all, &phases, Duration::from_secs(60));
-        assert!(
-            worst <= ms(7),
-            "worst jitter {worst:?} at phases {phases:?}"
-        );
-        // Spread evenly over their periods instead, they wait behind each other in chains.
-        let even: Vec<Duration> = polls
-            .iter()
-            .zip(0u32..)
-            .map(|(poll, k)| poll.every / 8 * k)
-            .collect();
-        let (spread, _) = simulated_jitter(&polls, &all, &even, Duration::from_secs(60));
-        assert!(spread > ms(10), "{spread:?}");
-    }
-
-    #[test]
-    fn a_plan_of_many_polls_is_bounded_and_keeps_each_phase_within_its_period() {
-        let polls: Vec<PlannedPoll> = (0..120u64)
-            .map(|k| PlannedPoll {
-                every: ms(50 + 7 * k),
-                took: ms(1 + k % 5),
-                priority: 0,
-            })
-            .collect();
-        assert!(plan_horizon(&polls) < plan_horizon(&polls[..8]));
-        let phases = plan_phases(&polls);
-        for (poll, phase) in polls.iter().zip(&phases) {
-            assert!(*phase < poll.every, "{phase:?} of {:?}", poll.every);
-        }
-        assert!(phases.iter().any(|phase| !phase.is_zero()));
     }
 
     #[test]
