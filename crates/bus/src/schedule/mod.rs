@@ -692,4 +692,82 @@ mod tests {
         assert!(next > start + ms(1000) && next <= start + ms(1007));
         assert_eq!(next.duration_since(start).as_millis() % 7, 0);
     }
+
+    #[test]
+    fn a_due_group_runs_back_to_back_before_any_other_due_poll() {
+        let start = Instant::now();
+        let mut schedule = Schedule::default();
+        let devices: Vec<usize> = (0..3).map(|_| schedule.add_device(start)).collect();
+        let top = schedule.add_poll(devices[0], Some(ms(20)), 0);
+        let other = schedule.add_poll(devices[1], Some(ms(20)), 9);
+        let fast = schedule.add_poll(devices[1], None, 0);
+        let bottom = schedule.add_poll(devices[2], Some(ms(50)), 0);
+        schedule.add_group(vec![top, bottom], ms(20), start);
+        let mut now = start + ms(20);
+        // `other` has the higher priority: it goes first, then the group whole.
+        let mut order = Vec::new();
+        for _ in 0..3 {
+            let Next::Run(poll) = schedule.next(now) else {
+                panic!("polls are due")
+            };
+            assert_eq!(schedule.mid_group(), poll == bottom, "{order:?}");
+            order.push(poll);
+            now += ms(1);
+            schedule.done(poll, now, Outcome::Answered);
+        }
+        assert_eq!(order, [other, top, bottom]);
+        assert!(!schedule.mid_group());
+        assert_eq!(schedule.next(now), Next::Run(fast));
+        schedule.done(fast, now, Outcome::Answered);
+        // The group's next tick is on the grid from its origin, at the fastest period.
+        assert_eq!(schedule.next(start + ms(39)), Next::Run(fast));
+        assert_eq!(schedule.next(start + ms(40)), Next::Run(other));
+        schedule.done(other, start + ms(41), Outcome::Answered);
+        assert_eq!(schedule.next(start + ms(41)), Next::Run(top));
+    }
+
+    #[test]
+    fn an_offline_member_is_left_out_of_its_groups_run_and_probed_alone() {
+        let start = Instant::now();
+        let mut schedule = Schedule::default();
+        let dead = schedule.add_device(start);
+        let alive = schedule.add_device(start);
+        let top = schedule.add_poll(dead, Some(ms(20)), 0);
+        let bottom = schedule.add_poll(alive, Some(ms(20)), 0);
+        schedule.add_group(vec![top, bottom], ms(20), start);
+        let mut now = start;
+        let mut failed_at = start;
+        let mut runs = Vec::new();
+        for _ in 0..OFFLINE_AFTER {
+            if let Next::Wait(at) = schedule.next(now) {
+                now = at;
+            }
+            runs.push(now);
+            assert_eq!(schedule.next(now), Next::Run(top));
+            failed_at = now + ms(100);
+            schedule.done(top, failed_at, Outcome::Failed);
+            assert_eq!(schedule.next(failed_at), Next::Run(bottom));
+            now = failed_at + ms(1);
+            schedule.done(bottom, now, Outcome::Answered);
+        }
+        assert_eq!(schedule.health(dead), Health::Offline);
+        // Each run took top's timeout: the next started on the first tick after it.
+        assert_eq!(runs, [start, start + ms(120), start + ms(240)]);
+        // The group's run is bottom alone, on its ticks, until top's probe is due.
+        assert_eq!(schedule.next(now), Next::Wait(start + ms(360)));
+        let tick = start + ms(360);
+        assert_eq!(schedule.next(tick), Next::Run(bottom));
+        schedule.done(bottom, tick + ms(1), Outcome::Answered);
+        assert!(!schedule.mid_group());
+        let probe = failed_at + FIRST_BACKOFF;
+        assert_eq!(
+            schedule.next(probe),
+            Next::Run(bottom),
+            "its overdue tick first"
+        );
+        schedule.done(bottom, probe, Outcome::Answered);
+        assert_eq!(schedule.next(probe), Next::Run(top));
+        schedule.done(top, probe + ms(100), Outcome::Failed);
+        assert!(!schedule.mid_group(), "a probe is no run of the group");
+    }
 }
