@@ -28,14 +28,25 @@ pub(crate) struct Group {
     pub(crate) due: Instant,
     /// When its last run started.
     pub(crate) started: Option<Instant>,
+    /// Whether a poll of its last run failed.
+    pub(crate) failed: bool,
 }
 
 impl Group {
-    /// Its run ended at `now`: the next tick after it, one more when the run started so late
-    /// that the next tick would follow it within half a period (a burst); ticks stay on the
+    /// Its run ended at `now`: its next tick is the first more than half a period after the
+    /// run started (closer would be a burst), decided by the start alone, so that its runs on
+    /// other lines, which started at the same instant, decide alike even when the machine
+    /// stalled them into their next tick (which then runs late rather than being skipped on
+    /// one line only). A run with a failed poll (a timeout) waits for the first tick after it
+    /// ended, as a poll does: a dead device is not asked again at once. Ticks stay on the
     /// bus's common grid either way.
     pub(crate) fn advance(&mut self, now: Instant) {
-        self.due = super::next_tick(self.due, self.every, now);
+        let after = match (self.started, self.failed) {
+            (Some(started), false) => started + self.every / 2,
+            _ => now,
+        };
+        self.due = super::next_tick(self.due, self.every, after);
+        self.failed = false;
         if let Some(started) = self.started {
             if self.due < started + self.every / 2 {
                 self.due += self.every;

@@ -166,6 +166,7 @@ impl Schedule {
             priority,
             due: origin,
             started: None,
+            failed: false,
         });
     }
 
@@ -378,7 +379,7 @@ impl Schedule {
         poll.served = self.turns;
         match (poll.group, poll.every) {
             // A probe of an offline device is no run of its group.
-            (Some(group), _) if !probing => self.member_done(group, index, now),
+            (Some(group), _) if !probing => self.member_done(group, index, now, outcome),
             (Some(_), _) => {}
             (None, Some(every)) => {
                 poll.due = next_tick(poll.due, every, now);
@@ -394,7 +395,7 @@ impl Schedule {
 
     /// Poll `index` of group `group` ran: the group's other polls that may be asked go next,
     /// and once none is left the group waits for its next tick.
-    fn member_done(&mut self, group: usize, index: usize, now: Instant) {
+    fn member_done(&mut self, group: usize, index: usize, now: Instant, outcome: Outcome) {
         if self.cycle.is_empty() {
             let members = self.groups[group].members.clone();
             self.cycle = members.into_iter().filter(|&m| m != index).collect();
@@ -403,6 +404,7 @@ impl Schedule {
         } else {
             self.cycle.retain(|&m| m != index);
         }
+        self.groups[group].failed |= outcome == Outcome::Failed;
         // An offline or busy device's poll is left out of this run: it costs the others
         // nothing.
         let cycle = std::mem::take(&mut self.cycle);
@@ -769,5 +771,29 @@ mod tests {
         assert_eq!(schedule.next(probe), Next::Run(top));
         schedule.done(top, probe + ms(100), Outcome::Failed);
         assert!(!schedule.mid_group(), "a probe is no run of the group");
+    }
+
+    #[test]
+    fn a_group_run_stalled_past_its_next_tick_keeps_that_tick_unless_it_failed() {
+        let start = Instant::now();
+        let mut schedule = Schedule::default();
+        let devices: Vec<usize> = (0..2).map(|_| schedule.add_device(start)).collect();
+        let top = schedule.add_poll(devices[0], Some(ms(20)), 0);
+        let bottom = schedule.add_poll(devices[1], Some(ms(20)), 0);
+        schedule.add_group(vec![top, bottom], ms(20), start);
+        // Started on its tick, stalled (the machine) until after the next one: that tick is
+        // run late, not skipped, as on the other lines whose runs started at the same instant.
+        assert_eq!(schedule.next(start), Next::Run(top));
+        schedule.measured(top, start, ms(24));
+        schedule.done(top, start + ms(24), Outcome::Answered);
+        schedule.measured(bottom, start + ms(24), ms(1));
+        schedule.done(bottom, start + ms(25), Outcome::Answered);
+        assert_eq!(schedule.next(start + ms(25)), Next::Run(top));
+        // A run with a timeout waits for the first tick after it ended.
+        schedule.measured(top, start + ms(25), ms(20));
+        schedule.done(top, start + ms(45), Outcome::Failed);
+        schedule.measured(bottom, start + ms(45), ms(2));
+        schedule.done(bottom, start + ms(47), Outcome::Answered);
+        assert_eq!(schedule.next(start + ms(47)), Next::Wait(start + ms(60)));
     }
 }
