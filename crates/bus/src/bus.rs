@@ -19,6 +19,7 @@ use crate::gateway::{self, GatewayCounters, GatewayCounts};
 use crate::handle::{Entry, Handle, LineQueues};
 use crate::line::{DeviceRun, GatewayQueue, LineTask, Opener, PollRun, Turns};
 use crate::link::{DeviceLink, DeviceSettings, LineState};
+use crate::measurement_unit::{self, MeasurementUnit};
 use crate::measuring::{self, Measuring};
 use crate::schedule::Schedule;
 use crate::source::Source;
@@ -100,6 +101,17 @@ impl Bus {
                 self.events.clone(),
             )));
             measuring
+        });
+        // The measurements as registers of each gateway's measurements unit, followed from
+        // before any line runs.
+        let has_gateway = self.file.lines.iter().any(|line| line.gateway.is_some());
+        let measurement_unit = (has_gateway && !self.file.measurements.is_empty()).then(|| {
+            let unit = Arc::new(MeasurementUnit::new(&self.file.measurements));
+            tasks.push(tokio::spawn(measurement_unit::follow(
+                Arc::clone(&unit),
+                self.events.subscribe(),
+            )));
+            unit
         });
         for (index, line) in self.file.lines.iter().enumerate() {
             let name: Arc<str> = Arc::from(line.name.as_str());
@@ -185,6 +197,7 @@ impl Bus {
                         listener,
                         config.clone(),
                         gateway::Slaves::of(slaves),
+                        measurement_unit.clone(),
                         queue,
                         Arc::clone(&counters),
                     )));
