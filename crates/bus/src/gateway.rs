@@ -68,7 +68,7 @@ pub(crate) struct GatewayRequest {
 
 /// The exception reply PDU to a request of `function`.
 pub(crate) fn exception(function: u8, code: u8) -> Vec<u8> {
-    vec![function | EXCEPTION_BIT, code]
+    optobus_codec::server::exception_pdu(function, code).to_vec()
 }
 
 /// Tells the audit trail ([`AUDIT_TARGET`](crate::AUDIT_TARGET)) of a write that `client`

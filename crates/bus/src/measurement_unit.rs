@@ -10,9 +10,9 @@ use std::collections::HashSet;
 use std::sync::{Arc, PoisonError, RwLock};
 use std::time::Duration;
 
-use optobus_codec::passthrough::{Access, PassPdu};
+use optobus_codec::server::{self, ServerRequest};
 use optobus_codec::value::{Fixed, Scale};
-use optobus_codec::EncodeError;
+use optobus_codec::{FrameShape, ReadFunction, MAX_READ_WORDS};
 use optobus_measure::Judgement;
 use tokio::sync::broadcast::{self, error::RecvError};
 
@@ -154,26 +154,27 @@ impl MeasurementUnit {
             .ok_or(ILLEGAL_ADDRESS)
     }
 
-    /// The reply PDU to a request PDU: FC04 reads of the map; exception 02 for a read outside
-    /// it, 03 for a request malformed for its function, 01 for anything else (a write, FC03).
+    /// The reply PDU to a request PDU, read with the codec's server framing: FC04 reads of
+    /// the map; exception 02 for a read outside it, 03 for a request malformed for its
+    /// function, 01 for anything else (a write, FC03, another function).
     pub(crate) fn answer(&self, pdu: &[u8]) -> Vec<u8> {
-        let function = pdu.first().copied().unwrap_or_default();
-        let access = match PassPdu::new(pdu) {
-            Ok(pass) => pass.access(),
-            Err(EncodeError::MalformedRequest { .. }) => return exception(function, ILLEGAL_VALUE),
-            Err(_) => return exception(function, ILLEGAL_FUNCTION),
+        let request = match server::parse_request(pdu, &FrameShape::STANDARD) {
+            Ok(request) => request,
+            Err(refused) => return exception(refused.function(), refused.exception().0 as u8),
         };
-        match access {
-            Access::ReadRegisters {
-                input: true,
+        let function = request.function_code();
+        match request {
+            ServerRequest::Read {
+                function: ReadFunction::Input,
                 address,
                 count,
             } => match self.read(address, count) {
                 Ok(words) => {
-                    // At most 125 words: the byte count fits.
-                    let mut reply = vec![function, (2 * words.len()) as u8];
-                    reply.extend(words.iter().flat_map(|word| word.to_be_bytes()));
-                    reply
+                    let mut reply = [0u8; 2 + 2 * MAX_READ_WORDS as usize];
+                    match server::encode_read_reply(&mut reply, ReadFunction::Input, words) {
+                        Ok(len) => reply[..len].to_vec(),
+                        Err(_) => exception(function, ILLEGAL_VALUE),
+                    }
                 }
                 Err(code) => exception(function, code),
             },
