@@ -4,27 +4,32 @@
 
 use std::time::Duration;
 
+use optobus_codec::{passthrough, tcp};
 use optobus_p_series::DEVICE;
 use optobus_simulator::Simulator;
 use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream};
+use tokio::time::timeout;
 
-/// Sends one request and reads its whole reply frame.
+/// Sends one request PDU behind its MBAP header and reads the whole reply frame, both framed
+/// by the codec.
 async fn ask(stream: &mut DuplexStream, transaction: u16, unit: u8, pdu: &[u8]) -> Vec<u8> {
-    let mut frame = transaction.to_be_bytes().to_vec();
-    frame.extend_from_slice(&[0, 0]);
-    frame.extend_from_slice(&(pdu.len() as u16 + 1).to_be_bytes());
-    frame.push(unit);
-    frame.extend_from_slice(pdu);
-    stream.write_all(&frame).await.unwrap();
-    let mut header = [0u8; 7];
-    tokio::time::timeout(Duration::from_secs(5), stream.read_exact(&mut header))
+    let mut frame = [0u8; tcp::MAX_FRAME_LEN];
+    let header = tcp::Header { transaction, unit };
+    // An MBAP frame is the same both ways: the header, the unit id and the PDU.
+    let len = passthrough::encode_tcp_reply(&mut frame, header, pdu).unwrap();
+    stream.write_all(&frame[..len]).await.unwrap();
+    let mut reply = vec![0u8; tcp::HEADER_LEN];
+    let read = stream.read_exact(&mut reply);
+    timeout(Duration::from_secs(5), read)
         .await
         .expect("a reply within 5 s")
         .expect("the connection stays open");
-    let len = usize::from(u16::from_be_bytes([header[4], header[5]])) - 1;
-    let mut reply = header.to_vec();
-    reply.resize(7 + len, 0);
-    stream.read_exact(&mut reply[7..]).await.unwrap();
+    let whole = tcp::Mbap::parse(&reply).unwrap().frame_len();
+    reply.resize(whole, 0);
+    stream
+        .read_exact(&mut reply[tcp::HEADER_LEN..])
+        .await
+        .unwrap();
     reply
 }
 
