@@ -60,27 +60,16 @@ struct Pinned {
 
 fn pinned() -> [Pinned; 4] {
     [
-        Pinned {
-            model: &optobus_p_series::DEVICE,
-            register: "light_power",
-            value: 425,
-        },
-        Pinned {
-            model: &optobus_ccs::DEVICE,
-            register: "invalid_hold_count",
-            value: 321,
-        },
-        Pinned {
-            model: &optobus_ccf::DEVICE,
-            register: "invalid_hold_count",
-            value: 123,
-        },
-        Pinned {
-            model: &optobus_rangefinder::DEVICE,
-            register: "distance_offset",
-            value: 77,
-        },
+        (&optobus_p_series::DEVICE, "light_power", 425),
+        (&optobus_ccs::DEVICE, "invalid_hold_count", 321),
+        (&optobus_ccf::DEVICE, "invalid_hold_count", 123),
+        (&optobus_rangefinder::DEVICE, "distance_offset", 77),
     ]
+    .map(|(model, register, value)| Pinned {
+        model,
+        register,
+        value,
+    })
 }
 
 fn address(pinned: &Pinned) -> u16 {
@@ -205,6 +194,14 @@ struct Tally {
 }
 
 impl Tally {
+    /// A client's tally, before its first read.
+    fn new(name: &str) -> Self {
+        Self {
+            name: name.to_owned(),
+            ..Self::default()
+        }
+    }
+
     fn value(&mut self, value: Option<u16>, expected: u16) {
         self.reads += 1;
         match value {
@@ -217,9 +214,8 @@ impl Tally {
 
 fn missing(name: &str, why: String) -> Tally {
     Tally {
-        name: name.to_owned(),
         note: Some(why),
-        ..Tally::default()
+        ..Tally::new(name)
     }
 }
 
@@ -251,10 +247,7 @@ fn pymodbus(port: u16, pace: Option<Duration>) -> Tally {
         }
         Err(error) => return missing(name, format!("not run: python3: {error}")),
     };
-    let mut tally = Tally {
-        name: name.to_owned(),
-        ..Tally::default()
-    };
+    let mut tally = Tally::new(name);
     for line in String::from_utf8_lossy(&output.stdout).lines() {
         if let Some(values) = line.strip_prefix("ok ") {
             tally.value(values.trim().parse().ok(), p.value);
@@ -305,10 +298,7 @@ fn mbpoll(port: u16, pace: Option<Duration>) -> Tally {
         .args(["-INT", &child.id().to_string()])
         .status();
     let output = child.wait_with_output().expect("mbpoll ends");
-    let mut tally = Tally {
-        name: name.to_owned(),
-        ..Tally::default()
-    };
+    let mut tally = Tally::new(name);
     let text = String::from_utf8_lossy(&output.stdout);
     for line in text.lines() {
         let line = line.trim();
@@ -347,10 +337,7 @@ fn pacer(pace: Option<Duration>) -> tokio::time::Interval {
 /// Our `TcpClient`, reading unit 3's pinned register for `RUN`.
 async fn our_client(address: SocketAddr, pace: Option<Duration>) -> Tally {
     let p = &pinned()[2];
-    let mut tally = Tally {
-        name: "TcpClient".to_owned(),
-        ..Tally::default()
-    };
+    let mut tally = Tally::new("TcpClient");
     let mut client = match TcpClient::connect(address, TcpConfig::default()).await {
         Ok(client) => client,
         Err(error) => return missing("TcpClient", format!("cannot connect: {error}")),
@@ -369,10 +356,7 @@ async fn our_client(address: SocketAddr, pace: Option<Duration>) -> Tally {
 /// A raw socket, reading unit 4's pinned register for `RUN`.
 async fn raw_client(address: SocketAddr, pace: Option<Duration>) -> Tally {
     let p = &pinned()[3];
-    let mut tally = Tally {
-        name: "raw socket".to_owned(),
-        ..Tally::default()
-    };
+    let mut tally = Tally::new("raw socket");
     let Ok(mut socket) = TcpStream::connect(address).await else {
         return missing("raw socket", "cannot connect".to_owned());
     };

@@ -18,6 +18,7 @@ use crate::gateway::{self, GatewayCounters, GatewayCounts};
 use crate::handle::{Entry, Handle, LineQueues};
 use crate::line::{Clock, DeviceRun, GatewayQueue, LineTask, Opener, PollRun};
 use crate::link::{DeviceLink, DeviceSettings, LineState};
+use crate::measurement_unit::{self, MeasurementUnit};
 use crate::measuring::{self, Measuring};
 use crate::schedule::{measurement_groups, Schedule};
 use crate::source::Source;
@@ -121,6 +122,17 @@ impl Bus {
             )));
             measuring
         });
+        // The measurements as registers of each gateway's measurements unit, followed from
+        // before any line runs.
+        let has_gateway = self.file.lines.iter().any(|line| line.gateway.is_some());
+        let measurement_unit = (has_gateway && !self.file.measurements.is_empty()).then(|| {
+            let unit = Arc::new(MeasurementUnit::new(&self.file.measurements));
+            tasks.push(tokio::spawn(measurement_unit::follow(
+                Arc::clone(&unit),
+                self.events.subscribe(),
+            )));
+            unit
+        });
         for (index, line) in self.file.lines.iter().enumerate() {
             let name: Arc<str> = Arc::from(line.name.as_str());
             let frames = Arc::new(LineFrames::new(self.file.devices_on(index).count()));
@@ -219,6 +231,7 @@ impl Bus {
                         listener,
                         config.clone(),
                         gateway::Slaves::of(slaves),
+                        measurement_unit.clone(),
                         queue,
                         Arc::clone(&counters),
                     )));

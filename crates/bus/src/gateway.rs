@@ -18,6 +18,10 @@
 //! within it, is closed. At the client limit a new client closes the one idle the longest (no
 //! request in flight), as mbusd and mosquitto do; it is refused only when every client has a
 //! request in flight. Everything refused and closed is counted ([`GatewayCounts`]).
+//!
+//! Where the bus file has measurements, the gateway answers their unit id (`measurements_unit`)
+//! itself, from the measurements' latest values (`crate::measurement_unit`): nothing of it
+//! reaches the line.
 
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -35,6 +39,7 @@ use tokio::task::{AbortHandle, JoinSet};
 use tokio::time::{timeout, Instant};
 
 use crate::file::GatewayConfig;
+use crate::measurement_unit::MeasurementUnit;
 use crate::policy::{Refusal, RefusalKind};
 
 /// Illegal function: not passed (unframable, or a write the bus file does not allow).
@@ -63,7 +68,7 @@ pub(crate) struct GatewayRequest {
 
 /// The exception reply PDU to a request of `function`.
 pub(crate) fn exception(function: u8, code: u8) -> Vec<u8> {
-    vec![function | EXCEPTION_BIT, code]
+    optobus_codec::server::exception_pdu(function, code).to_vec()
 }
 
 /// Tells the audit trail ([`AUDIT_TARGET`](crate::AUDIT_TARGET)) of a write that `client`
@@ -144,6 +149,9 @@ pub struct GatewayCounts {
     pub stalled: u64,
     /// Clients closed because they sent what is not Modbus TCP.
     pub not_modbus: u64,
+    /// Requests the measurements' unit answered (reads, and the exceptions it gives to a
+    /// write or a read outside its map; a malformed one counts as `malformed`).
+    pub measurements: u64,
 }
 
 /// A gateway's [`GatewayCounts`], counted as it goes.
@@ -159,6 +167,7 @@ pub(crate) struct GatewayCounters {
     idle_closed: AtomicU64,
     stalled: AtomicU64,
     not_modbus: AtomicU64,
+    measurements: AtomicU64,
 }
 
 pub(crate) fn add(counter: &AtomicU64) {
@@ -180,6 +189,7 @@ impl GatewayCounters {
             idle_closed: load(&self.idle_closed),
             stalled: load(&self.stalled),
             not_modbus: load(&self.not_modbus),
+            measurements: load(&self.measurements),
         }
     }
 }
@@ -292,12 +302,24 @@ impl Slaves {
 }
 
 /// What each connection needs of the gateway's settings.
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 struct Settings {
     idle: Duration,
     writes: bool,
     /// The devices it reaches: a request to another unit id is answered 0B at once.
     slaves: Slaves,
+    /// The measurements' unit id and registers, where the bus has measurements.
+    measurements: Option<(u8, Arc<MeasurementUnit>)>,
+}
+
+impl Settings {
+    /// The measurements' registers, if `unit` is their unit id.
+    fn measurements_at(&self, unit: u8) -> Option<&MeasurementUnit> {
+        self.measurements
+            .as_ref()
+            .filter(|(id, _)| *id == unit)
+            .map(|(_, registers)| &**registers)
+    }
 }
 
 /// Accepts clients on `listener` until the task is aborted, which closes every client.
@@ -305,6 +327,7 @@ pub(crate) async fn serve(
     listener: TcpListener,
     config: GatewayConfig,
     slaves: Slaves,
+    measurements: Option<Arc<MeasurementUnit>>,
     queue: mpsc::Sender<GatewayRequest>,
     counters: Arc<GatewayCounters>,
 ) {
@@ -312,6 +335,7 @@ pub(crate) async fn serve(
         idle: config.idle,
         writes: config.writes,
         slaves,
+        measurements: measurements.map(|registers| (config.measurements_unit, registers)),
     };
     let clients = Arc::new(Mutex::new(Clients::default()));
     let mut tasks = JoinSet::new();
@@ -343,7 +367,7 @@ pub(crate) async fn serve(
             socket,
             peer,
             place,
-            settings,
+            settings.clone(),
             queue.clone(),
             Arc::clone(&counters),
         ));
@@ -443,47 +467,65 @@ async fn connection(
         }
         let pdu = &pdu[..len];
         let function = pdu[0];
-        let reply = match own_answer(mbap.unit, pdu, &settings) {
-            Some(OwnAnswer::Malformed) => {
-                add(&counters.malformed);
-                exception(function, ILLEGAL_VALUE)
-            }
-            Some(OwnAnswer::NotCarried(code)) => {
-                add(&counters.not_carried);
-                let reply = exception(function, code);
+        let own = match settings.measurements_at(mbap.unit) {
+            Some(measurements) => Err(measurements.answer(pdu)),
+            None => Ok(own_answer(mbap.unit, pdu, &settings)),
+        };
+        let reply = match own {
+            Err(reply) => {
+                let malformed = reply == exception(function, ILLEGAL_VALUE);
+                add(if malformed {
+                    &counters.malformed
+                } else {
+                    &counters.measurements
+                });
                 if PassPdu::new(pdu).is_ok_and(|pass| pass.writes()) {
                     audit_write(peer, mbap.unit, pdu, Some(&reply), None);
                 }
                 reply
             }
-            None => {
-                let (reply, answer) = oneshot::channel();
-                let request = GatewayRequest {
-                    client: peer,
-                    unit: mbap.unit,
-                    pdu: pdu.to_vec(),
-                    reply,
-                };
-                match queue.try_send(request) {
-                    Ok(()) => {
-                        add(&counters.requests);
-                        match answer.await {
-                            Ok(Some(reply)) => reply,
-                            // A broadcast: nothing goes back.
-                            Ok(None) => {
-                                place.idle();
-                                continue;
-                            }
-                            Err(_) => return,
-                        }
-                    }
-                    Err(TrySendError::Full(_)) => {
-                        add(&counters.busy);
-                        exception(function, BUSY)
-                    }
-                    Err(TrySendError::Closed(_)) => return,
+            Ok(own) => match own {
+                Some(OwnAnswer::Malformed) => {
+                    add(&counters.malformed);
+                    exception(function, ILLEGAL_VALUE)
                 }
-            }
+                Some(OwnAnswer::NotCarried(code)) => {
+                    add(&counters.not_carried);
+                    let reply = exception(function, code);
+                    if PassPdu::new(pdu).is_ok_and(|pass| pass.writes()) {
+                        audit_write(peer, mbap.unit, pdu, Some(&reply), None);
+                    }
+                    reply
+                }
+                None => {
+                    let (reply, answer) = oneshot::channel();
+                    let request = GatewayRequest {
+                        client: peer,
+                        unit: mbap.unit,
+                        pdu: pdu.to_vec(),
+                        reply,
+                    };
+                    match queue.try_send(request) {
+                        Ok(()) => {
+                            add(&counters.requests);
+                            match answer.await {
+                                Ok(Some(reply)) => reply,
+                                // A broadcast: nothing goes back.
+                                Ok(None) => {
+                                    place.idle();
+                                    continue;
+                                }
+                                Err(_) => return,
+                            }
+                        }
+                        Err(TrySendError::Full(_)) => {
+                            add(&counters.busy);
+                            exception(function, BUSY)
+                        }
+                        Err(TrySendError::Closed(_)) => return,
+                    }
+                }
+            },
         };
         let header = Header {
             transaction: mbap.transaction,

@@ -23,6 +23,7 @@ mod handle;
 mod line;
 mod link;
 mod measurement;
+mod measurement_unit;
 mod measuring;
 mod policy;
 pub mod schedule;

@@ -28,6 +28,9 @@ pub struct MeasurementEvent {
     pub judgement: Option<Judgement>,
     /// Its statistics after this value, where it keeps them.
     pub stats: Option<Summary>,
+    /// Its judgement counts after this value (lowest first: ll, lo, go, hi, hh) since start
+    /// or the last reset, where it has limits.
+    pub counts: Option<[u64; 5]>,
     /// When the value was computed.
     pub time: SystemTime,
 }
@@ -77,12 +80,13 @@ impl Serialize for Estimate<'_> {
 /// The JSON of a measurement's value, the contract of every output: `measurement`, `value`
 /// (a quantity, or `null` with `reason`), `inputs` (by `device.register`: each a quantity or
 /// `null`), `skew_us`, `judgement` (`ll`, `lo`, `go`, `hi`, `hh`, or `null`), `stats`
-/// (`count`, `mean`, `sd`, `min`, `max`, `range` as quantities, `cp`, `cpk`), `time` (RFC
-/// 3339).
+/// (`count`, `mean`, `sd`, `min`, `max`, `range` as quantities, `cp`, `cpk`), `counts` (the
+/// judgement counts by name, `{"ll": 0, "lo": 0, "go": 12, "hi": 1, "hh": 0}`, or `null`
+/// without limits), `time` (RFC 3339).
 impl Serialize for MeasurementEvent {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         let unit = &*self.unit;
-        let mut fields = serializer.serialize_struct("Measurement", 8)?;
+        let mut fields = serializer.serialize_struct("Measurement", 9)?;
         fields.serialize_field("measurement", &*self.measurement)?;
         match &self.value {
             Ok(value) => {
@@ -106,6 +110,7 @@ impl Serialize for MeasurementEvent {
             Err(_) => -6,
         };
         fields.serialize_field("stats", &self.stats.map(|s| Stats(s, exponent, unit)))?;
+        fields.serialize_field("counts", &self.counts.map(Counts))?;
         fields.serialize_field("time", &rfc3339(self.time))?;
         fields.end()
     }
@@ -122,6 +127,19 @@ impl Serialize for Inputs<'_> {
                 Some(value) => map.serialize_entry(name, &Quantity(value, &input.unit))?,
                 None => map.serialize_entry(name, &None::<()>)?,
             }
+        }
+        map.end()
+    }
+}
+
+/// Judgement counts by the judgements' names.
+struct Counts([u64; 5]);
+
+impl Serialize for Counts {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut map = serializer.serialize_map(Some(5))?;
+        for (judgement, count) in Judgement::ALL.iter().zip(self.0) {
+            map.serialize_entry(judgement.name(), &count)?;
         }
         map.end()
     }

@@ -110,10 +110,15 @@ pub(crate) async fn follow(
             _ => continue,
         };
         for (index, reading) in readings {
-            let outcomes = measuring.live().take(index, reading);
-            for outcome in outcomes {
-                let event =
+            // Each value's counts taken under the same lock: the counts after that value.
+            let mut live = measuring.live();
+            let outcomes = live.take(index, reading);
+            let counts: Vec<_> = outcomes.iter().map(|o| live.counts(o.formula)).collect();
+            drop(live);
+            for (outcome, counts) in outcomes.into_iter().zip(counts) {
+                let mut event =
                     measurement_event(outcome, &measuring.names, &units, &measuring.formulas);
+                event.counts = counts;
                 // No receiver: nobody listens now, which is no error.
                 let _ = sender.send(Event::Measurement(Arc::new(event)));
             }
@@ -146,6 +151,7 @@ fn measurement_event(
         skew: outcome.skew,
         judgement: outcome.judgement,
         stats: outcome.stats,
+        counts: None,
         time: SystemTime::now(),
     }
 }

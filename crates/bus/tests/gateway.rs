@@ -24,14 +24,16 @@ fn start(text: &str) -> Running {
     Bus::new(file).start().expect("the gateway listens")
 }
 
+/// A new client of the gateway of line `rs485`.
+async fn connect(running: &Running) -> TcpStream {
+    TcpStream::connect(running.gateway_address("rs485").unwrap())
+        .await
+        .unwrap()
+}
+
 /// Sends one request and reads its whole reply frame.
 async fn ask(stream: &mut TcpStream, transaction: u16, unit: u8, pdu: &[u8]) -> Vec<u8> {
-    let mut frame = transaction.to_be_bytes().to_vec();
-    frame.extend_from_slice(&[0, 0]);
-    frame.extend_from_slice(&(pdu.len() as u16 + 1).to_be_bytes());
-    frame.push(unit);
-    frame.extend_from_slice(pdu);
-    stream.write_all(&frame).await.unwrap();
+    send(stream, transaction, unit, pdu).await;
     let mut header = [0u8; 7];
     tokio::time::timeout(Duration::from_secs(5), stream.read_exact(&mut header))
         .await
@@ -62,9 +64,7 @@ async fn a_client_reads_the_devices_through_the_gateway_while_the_bus_polls() {
     let head = running.simulator("head").unwrap();
     let power = optobus_p_series::DEVICE.register("light_power").unwrap();
     head.set("light_power", &[425]).unwrap();
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     let [high, low] = power.address.to_be_bytes();
     for transaction in 0..20u16 {
         let reply = ask(&mut client, transaction, 1, &[0x03, high, low, 0x00, 0x01]).await;
@@ -89,9 +89,7 @@ async fn writes_are_refused_unless_the_file_allows_them_and_then_checked_against
     let running = start(BUS);
     let head = running.simulator("head").unwrap();
     let before = head.peek(Table::Holding, power.address);
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     let reply = ask(&mut client, 7, 1, &[0x06, high, low, 0x00, 0x64]).await;
     assert_eq!(&reply[7..], &[0x86, 0x01]);
     assert_eq!(head.peek(Table::Holding, power.address), before);
@@ -103,9 +101,7 @@ async fn writes_are_refused_unless_the_file_allows_them_and_then_checked_against
         .replace("slave: 1,", "slave: 1, writable: [light_power],");
     let running = start(&no_polls);
     let head = running.simulator("head").unwrap();
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     // 100.1 % is beyond the light power's range: exception 03, and it never reached the line.
     let before = head.peek(Table::Holding, power.address);
     let reply = ask(&mut client, 8, 1, &[0x06, high, low, 0x03, 0xE9]).await;
@@ -132,9 +128,7 @@ async fn writes_are_refused_unless_the_file_allows_them_and_then_checked_against
 async fn a_silent_device_gives_exception_0b_and_an_unframable_function_01() {
     let running = start(BUS);
     running.simulator("confocal").unwrap().set_silent(true);
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     let reply = ask(&mut client, 1, 2, &[0x04, 0x00, 0x00, 0x00, 0x01]).await;
     assert_eq!(&reply[6..], &[2, 0x84, 0x0B]);
     // FC08 (diagnostics): its reply's length cannot be told on an RTU line.
@@ -155,9 +149,7 @@ devices:
   - { name: range, model: lc-rs, slave: 1, timeout: 100ms }
 ",
     );
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     // An undefined address: LC-RS answers with a byte count of 2 and its own 16-bit code
     // 0001 (register address error, table 2), `83 02 00 01`, where others send `83 02`.
     let reply = ask(&mut client, 4, 1, &[0x03, 0x7F, 0x00, 0x00, 0x01]).await;
@@ -231,27 +223,24 @@ devices:
     for _ in 0..8 {
         silent.push(TcpStream::connect(address).await.unwrap());
     }
-    // A ninth client is served: the client idle the longest (the first) made room.
-    let mut ninth = TcpStream::connect(address).await.unwrap();
+    // A ninth client is served: the client idle the longest (the first) made room; and a
+    // tenth, for which the second silent one makes room.
     let (read, value) = light_power_read();
-    let reply = ask(&mut ninth, 9, 1, &read).await;
-    assert_eq!(reply, [&[0, 9, 0, 0, 0, 5, 1][..], &value].concat());
-    assert!(
-        closed(&mut silent[0]).await,
-        "the first silent client is closed"
-    );
-    let counts = running.gateway_counts("rs485").unwrap();
-    assert_eq!((counts.evicted, counts.refused), (1, 0), "{counts:?}");
-    // And again with the second silent one.
-    let mut tenth = TcpStream::connect(address).await.unwrap();
-    let reply = ask(&mut tenth, 10, 1, &read).await;
-    assert_eq!(reply, [&[0, 10, 0, 0, 0, 5, 1][..], &value].concat());
-    assert!(
-        closed(&mut silent[1]).await,
-        "the second silent client is closed"
-    );
-    let counts = running.gateway_counts("rs485").unwrap();
-    assert_eq!((counts.evicted, counts.refused), (2, 0), "{counts:?}");
+    // Kept connected, so that each newcomer finds the limit reached.
+    let mut newcomers = Vec::new();
+    for (evicted, transaction) in [(1u64, 9u8), (2, 10)] {
+        let mut newcomer = TcpStream::connect(address).await.unwrap();
+        let reply = ask(&mut newcomer, u16::from(transaction), 1, &read).await;
+        newcomers.push(newcomer);
+        assert_eq!(
+            reply,
+            [&[0, transaction, 0, 0, 0, 5, 1][..], &value].concat()
+        );
+        let oldest = &mut silent[evicted as usize - 1];
+        assert!(closed(oldest).await, "silent client {evicted} is closed");
+        let counts = running.gateway_counts("rs485").unwrap();
+        assert_eq!((counts.evicted, counts.refused), (evicted, 0), "{counts:?}");
+    }
 }
 
 #[tokio::test]
@@ -287,9 +276,7 @@ async fn malformed_gateway_requests_are_answered_without_the_line() {
         .replace(", poll: [{ read: measurements }]", "")
         .replace("slave: 1,", "slave: 1, writable: [light_power],");
     let running = start(&no_polls);
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     // (unit, request PDU, reply PDU)
     let refused: &[(u8, &[u8], &[u8])] = &[
         // The 2-byte FC03 of issue 28, and an FC03 a byte too long.
@@ -492,7 +479,10 @@ fn p_series_words(simulator: &optobus_simulator::Simulator, name: &str) -> Optio
     simulator.peek(Table::Holding, register.address)
 }
 
-const WRITABLE_GATEWAY: &str = "
+/// A simulated line behind a gateway that writes; its devices follow.
+macro_rules! writable_line {
+    () => {
+        "
 lines:
   - name: rs485
     simulated: true
@@ -500,17 +490,32 @@ lines:
     any_format: true
     gateway: { listen: 127.0.0.1:0, clients: 2, writes: true }
 devices:
-  - { name: head, model: p-series, slave: 1, timeout: 50ms, writable: [light_power] }
+"
+    };
+}
+
+/// A head that lists the light power as writable and a confocal, behind a gateway that
+/// writes.
+const WRITABLE_GATEWAY: &str = concat!(
+    writable_line!(),
+    "  - { name: head, model: p-series, slave: 1, timeout: 50ms, writable: [light_power] }
   - { name: confocal, model: ccs, slave: 2, timeout: 50ms }
-";
+"
+);
+
+/// Two heads that both list the light power as writable, behind a gateway that writes.
+const TWO_HEADS: &str = concat!(
+    writable_line!(),
+    "  - { name: top, model: p-series, slave: 1, timeout: 50ms, writable: [light_power] }
+  - { name: bottom, model: p-series, slave: 2, timeout: 50ms, writable: [light_power] }
+"
+);
 
 #[tokio::test]
 async fn the_gateway_with_writes_writes_only_what_the_bus_file_lists() {
     let running = start(WRITABLE_GATEWAY);
     let head = running.simulator("head").unwrap();
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     let names = [
         "slave_address",
         "save_parameters",
@@ -555,9 +560,7 @@ async fn the_gateway_with_writes_writes_only_what_the_bus_file_lists() {
     let running =
         start(&WRITABLE_GATEWAY.replace("[light_power]", "[light_power, reset_sampled_data]"));
     let head = running.simulator("head").unwrap();
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     let reply = ask(&mut client, 1, 1, &write_p_series("sampled_data_reset", 1)).await;
     assert_eq!(reply[7..], write_p_series("sampled_data_reset", 1)[..]);
     let reply = ask(&mut client, 2, 1, &write_p_series("save_parameters", 1)).await;
@@ -588,9 +591,7 @@ async fn a_broadcast_write_goes_out_only_where_every_device_lists_it_and_takes_t
         head.peek(Table::Holding, 2),
         confocal.peek(Table::Holding, 2),
     );
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     let reply = ask(&mut client, 1, 0, &[0x06, 0x00, 0x02, 0x02, 0x58]).await;
     assert_eq!(&reply[6..], &[0x00, 0x86, 0x01], "the confocal refuses it");
     let after = (
@@ -601,23 +602,10 @@ async fn a_broadcast_write_goes_out_only_where_every_device_lists_it_and_takes_t
     drop(running);
 
     // Two heads that both list the light power: one broadcast, both set, no reply.
-    let heads = "
-lines:
-  - name: rs485
-    simulated: true
-    baud: 115200
-    any_format: true
-    gateway: { listen: 127.0.0.1:0, clients: 2, writes: true }
-devices:
-  - { name: top, model: p-series, slave: 1, timeout: 50ms, writable: [light_power] }
-  - { name: bottom, model: p-series, slave: 2, timeout: 50ms, writable: [light_power] }
-";
-    let running = start(heads);
+    let running = start(TWO_HEADS);
     let top = running.simulator("top").unwrap();
     let bottom = running.simulator("bottom").unwrap();
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     // Out of range for both (100.1 %): exception 03, nothing sent.
     let reply = ask(&mut client, 2, 0, &write_p_series("light_power", 1001)).await;
     assert_eq!(&reply[7..], &[0x86, 0x03]);
@@ -644,9 +632,7 @@ async fn a_read_only_gateway_refuses_reads_that_change_the_device() {
     let distance = optobus_p_series::DEVICE.register("distance_1").unwrap();
     let [d_high, d_low] = distance.address.to_be_bytes();
     let running = start(&WRITABLE_GATEWAY.replace(", writes: true", ""));
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     // Issue 29: FC04 of the buffer page (input 0x12) turns the page: not allowed, 01; a read
     // that covers it from below too.
     let reply = ask(&mut client, 1, 1, &page_read).await;
@@ -663,9 +649,7 @@ async fn a_read_only_gateway_refuses_reads_that_change_the_device() {
 
     // Where writes pass and the buffer's lock and unlock are listed, the page may be read.
     let running = start(&WRITABLE_GATEWAY.replace("[light_power]", "[lock_buffer, unlock_buffer]"));
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     let reply = ask(&mut client, 1, 1, &page_read).await;
     assert_eq!(&reply[7..9], &[0x04, 0x04]);
 }
@@ -673,9 +657,7 @@ async fn a_read_only_gateway_refuses_reads_that_change_the_device() {
 #[tokio::test]
 async fn a_read_of_unit_0_is_answered_at_once_with_exception_01() {
     let running = start(WRITABLE_GATEWAY);
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     let (read, _) = light_power_read();
     let reply = ask(&mut client, 1, 0, &read).await;
     assert_eq!(&reply[6..], &[0x00, 0x83, 0x01]);
@@ -687,9 +669,7 @@ async fn a_unit_id_no_device_has_is_answered_0b_without_the_line() {
     // mbpoll said "Connection timed out"); the bus file says who is on the line.
     let no_polls = BUS.replace(", poll: [{ read: measurements }]", "");
     let running = start(&no_polls);
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     for (transaction, unit) in [(1u16, 99u8), (2, 3), (3, 247)] {
         let reply = ask(
             &mut client,
@@ -731,9 +711,7 @@ async fn every_write_a_device_took_is_told_as_written_with_its_registers_and_who
     let running = start(WRITABLE_GATEWAY);
     let mut events = running.subscribe();
     let head = running.simulator("head").unwrap();
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     let told = |written: &Written| {
         let names: Vec<&str> = written.registers.iter().map(|r| r.name).collect();
         (written.source.device.to_string(), names, written.by)
@@ -773,28 +751,14 @@ async fn every_write_a_device_took_is_told_as_written_with_its_registers_and_who
 
 #[tokio::test]
 async fn a_broadcast_write_is_told_as_written_for_every_device_of_the_line() {
-    let running = start(
-        "
-lines:
-  - name: rs485
-    simulated: true
-    baud: 115200
-    any_format: true
-    gateway: { listen: 127.0.0.1:0, clients: 2, writes: true }
-devices:
-  - { name: top, model: p-series, slave: 1, timeout: 50ms, writable: [light_power] }
-  - { name: bottom, model: p-series, slave: 2, timeout: 50ms, writable: [light_power] }
-",
-    );
+    let running = start(TWO_HEADS);
     let mut events = running.subscribe();
     let told = |written: &Written| {
         let names: Vec<&str> = written.registers.iter().map(|r| r.name).collect();
         (written.source.device.to_string(), names, written.by)
     };
     // Through the gateway, unit 0: nothing comes back, both devices are told.
-    let mut client = TcpStream::connect(running.gateway_address("rs485").unwrap())
-        .await
-        .unwrap();
+    let mut client = connect(&running).await;
     send(&mut client, 1, 0, &write_p_series("light_power", 600)).await;
     for device in ["top", "bottom"] {
         let written = next_written(&mut events).await;

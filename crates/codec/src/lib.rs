@@ -16,6 +16,7 @@ mod line;
 pub mod passthrough;
 mod pdu;
 pub mod rtu;
+pub mod server;
 pub mod tcp;
 pub mod value;
 

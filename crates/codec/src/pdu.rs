@@ -125,14 +125,14 @@ impl WriteValue {
         }
     }
 
-    fn write_to(self, out: &mut [u8]) {
+    pub(crate) fn write_to(self, out: &mut [u8]) {
         match self {
             Self::Word(value) => out[..2].copy_from_slice(&value.to_be_bytes()),
             Self::DoubleWord(value) => out[..4].copy_from_slice(&value.to_be_bytes()),
         }
     }
 
-    fn read_from(width: PayloadWidth, data: &[u8]) -> Self {
+    pub(crate) fn read_from(width: PayloadWidth, data: &[u8]) -> Self {
         match width {
             PayloadWidth::Two => Self::Word(u16::from_be_bytes([data[0], data[1]])),
             PayloadWidth::Four => {
@@ -186,29 +186,6 @@ impl Request {
             Self::Read { count, .. } => 2 + 2 * *count as usize,
             Self::Write { .. } => self.pdu_len(),
         }
-    }
-
-    /// Parses a request PDU whose length is already known to be right for its function.
-    pub(crate) fn parse_pdu(pdu: &[u8], width: PayloadWidth) -> Self {
-        match ReadFunction::from_code(pdu[0]) {
-            Some(function) => Self::Read {
-                function,
-                address: u16::from_be_bytes([pdu[1], pdu[2]]),
-                count: u16::from_be_bytes([pdu[3], pdu[4]]),
-            },
-            None => {
-                let (address, value) = Self::parse_write(pdu, width);
-                Self::Write { address, value }
-            }
-        }
-    }
-
-    /// Parses the address and value of an FC06 PDU of the right length.
-    pub(crate) fn parse_write(pdu: &[u8], width: PayloadWidth) -> (u16, WriteValue) {
-        (
-            u16::from_be_bytes([pdu[1], pdu[2]]),
-            WriteValue::read_from(width, &pdu[3..]),
-        )
     }
 }
 
@@ -363,37 +340,6 @@ impl Response<'_> {
     }
 }
 
-impl OutgoingPdu for Response<'_> {
-    fn check(&self) -> Result<(), EncodeError> {
-        match self {
-            Self::Read { words, .. } if words.len() > usize::from(MAX_READ_WORDS) => {
-                Err(EncodeError::TooManyWords { words: words.len() })
-            }
-            _ => Ok(()),
-        }
-    }
-
-    fn write_pdu(&self, out: &mut [u8]) {
-        out[0] = self.function_code();
-        match *self {
-            Self::Read { words, .. } => {
-                let data = words.as_bytes();
-                // `check` bounds the data to 250 bytes.
-                out[1] = data.len() as u8;
-                out[2..2 + data.len()].copy_from_slice(data);
-            }
-            Self::Write { address, value } => {
-                out[1..3].copy_from_slice(&address.to_be_bytes());
-                value.write_to(&mut out[3..]);
-            }
-        }
-    }
-
-    fn pdu_len(&self) -> usize {
-        Response::pdu_len(self)
-    }
-}
-
 /// An exception code from a device's error reply.
 ///
 /// Standard devices send one byte; LC-RS sends a 16-bit code, so the code is kept as `u16`.
@@ -466,49 +412,6 @@ impl ExceptionShape {
                 received: pdu[1],
             }),
             Self::CountedWord => Ok(ExceptionCode(u16::from_be_bytes([pdu[2], pdu[3]]))),
-        }
-    }
-}
-
-/// An exception reply's PDU: the request's function code with the exception bit, and the
-/// device's code in the device's shape.
-pub(crate) struct ExceptionPdu {
-    pub(crate) function: u8,
-    pub(crate) code: ExceptionCode,
-    pub(crate) shape: ExceptionShape,
-}
-
-impl ExceptionPdu {
-    pub(crate) const fn new(function: u8, code: ExceptionCode, shape: ExceptionShape) -> Self {
-        Self {
-            function,
-            code,
-            shape,
-        }
-    }
-}
-
-impl OutgoingPdu for ExceptionPdu {
-    fn check(&self) -> Result<(), EncodeError> {
-        match self.shape {
-            ExceptionShape::Standard if self.code.0 > 0xFF => {
-                Err(EncodeError::CodeTooWide { code: self.code })
-            }
-            _ => Ok(()),
-        }
-    }
-
-    fn pdu_len(&self) -> usize {
-        self.shape.pdu_len()
-    }
-
-    fn write_pdu(&self, out: &mut [u8]) {
-        let fc = self.function | EXCEPTION_BIT;
-        let [high, low] = self.code.0.to_be_bytes();
-        match self.shape {
-            // `check` bounds the code to one byte.
-            ExceptionShape::Standard => out[..2].copy_from_slice(&[fc, low]),
-            ExceptionShape::CountedWord => out[..4].copy_from_slice(&[fc, 2, high, low]),
         }
     }
 }

@@ -7,10 +7,11 @@
 
 use crate::crc::{crc16, is_valid_frame};
 use crate::pdu::{
-    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionPdu, ExceptionShape, FrameShape,
-    OutgoingPdu, ReadFunction, Request, Response, Words, EXCEPTION_BIT, MAX_SLAVE,
-    READ_REQUEST_PDU_LEN, WRITE_SINGLE,
+    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, OutgoingPdu,
+    ReadFunction, Request, Response, Words, EXCEPTION_BIT, MAX_SLAVE, READ_REQUEST_PDU_LEN,
+    WRITE_SINGLE,
 };
+use crate::server::ExceptionPdu;
 
 /// The longest RTU frame Modbus allows.
 pub const MAX_FRAME_LEN: usize = 256;

@@ -5,10 +5,11 @@
 //! incremental and shape-driven, and errors are typed.
 
 use crate::pdu::{
-    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionPdu, ExceptionShape, FrameShape,
-    OutgoingPdu, Request, Response, READ_REQUEST_PDU_LEN, WRITE_SINGLE,
+    DecodeError, Decoded, EncodeError, ExceptionCode, ExceptionShape, FrameShape, OutgoingPdu,
+    Request, Response, READ_REQUEST_PDU_LEN, WRITE_SINGLE,
 };
 use crate::rtu::{need, parse_reply, reply_pdu_len, ReplyLength};
+use crate::server::ExceptionPdu;
 
 /// Bytes of the MBAP header, unit id included.
 pub const HEADER_LEN: usize = 7;

@@ -1,6 +1,7 @@
 //! Property tests of the CRC, the frame codecs and the value codecs.
 
 use optobus_codec::crc::{crc16, crc16_bitwise, is_valid_frame};
+use optobus_codec::server::{self, ServerRequest};
 use optobus_codec::value::{
     join_i32, join_u32, split_i32, split_u32, u32_writes, BitField, BytePair, Fixed, Scale,
     WordOrder, WriteOrder,
@@ -534,4 +535,123 @@ proptest! {
             prop_assert!(passed.bytes().len() <= 253);
         }
     }
+}
+
+/// A request a server serves, and the frame shape it is parsed with (FC06 of four bytes
+/// where the shape says so).
+fn server_request() -> impl Strategy<Value = (Vec<u8>, Vec<u16>)> {
+    // (the request's PDU as a client encodes it, the four-byte FC06 addresses)
+    prop_oneof![
+        (read_function(), any::<u16>(), 1..=MAX_READ_WORDS).prop_map(
+            |(function, address, count)| {
+                let request = ServerRequest::Read {
+                    function,
+                    address,
+                    count,
+                };
+                (pdu_of(&request), vec![])
+            }
+        ),
+        (any::<u16>(), write_value()).prop_map(|(address, value)| {
+            let request = ServerRequest::WriteSingle { address, value };
+            let wide = match value {
+                WriteValue::DoubleWord(_) => vec![address],
+                WriteValue::Word(_) => vec![],
+            };
+            (pdu_of(&request), wide)
+        }),
+        (
+            any::<u16>(),
+            proptest::collection::vec(any::<u8>(), 1..=123).prop_map(|bytes| {
+                bytes
+                    .iter()
+                    .flat_map(|b| [*b, b.wrapping_mul(7)])
+                    .collect::<Vec<u8>>()
+            })
+        )
+            .prop_map(|(address, data)| {
+                let words = Words::from_bytes(&data).unwrap();
+                let request = ServerRequest::WriteMultiple { address, words };
+                (pdu_of(&request), vec![])
+            }),
+    ]
+}
+
+fn pdu_of(request: &ServerRequest<'_>) -> Vec<u8> {
+    let mut out = [0u8; 256];
+    let len = request
+        .encode(&mut out)
+        .expect("a request in range encodes");
+    out[..len].to_vec()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(DECODER_CASES))]
+
+    /// Any bytes: the server's parser never panics, and what it takes is exactly the bytes a
+    /// client would send for that request; what it refuses gets 01 or 03.
+    #[test]
+    fn any_bytes_parse_as_a_server_request_or_its_exception(
+        pdu in proptest::collection::vec(any::<u8>(), 0..300),
+        wide in any::<u16>(),
+    ) {
+        let wide = [wide];
+        for shape in [FrameShape::STANDARD, FrameShape { four_byte_writes: &wide, ..FrameShape::STANDARD }] {
+            match server::parse_request(&pdu, &shape) {
+                Ok(request) => prop_assert_eq!(pdu_of(&request), pdu.clone()),
+                Err(refused) => {
+                    let code = refused.exception();
+                    prop_assert!(code == ExceptionCode::ILLEGAL_FUNCTION || code == ExceptionCode::ILLEGAL_DATA_VALUE);
+                }
+            }
+        }
+    }
+
+    /// parse(encode(request)) == request, for every request a server serves.
+    #[test]
+    fn a_server_request_parses_back_from_its_encoding((pdu, wide) in server_request()) {
+        let shape = FrameShape { four_byte_writes: &wide, ..FrameShape::STANDARD };
+        let request = server::parse_request(&pdu, &shape).expect("a client's request parses");
+        prop_assert_eq!(pdu_of(&request), pdu);
+    }
+}
+
+#[test]
+fn malformed_server_requests_are_answered_03_and_others_01() {
+    fn parse(pdu: &[u8]) -> Result<ServerRequest<'_>, server::RequestError> {
+        server::parse_request(pdu, &FrameShape::STANDARD)
+    }
+    let code = |pdu: &[u8]| parse(pdu).unwrap_err().exception();
+    for malformed in [
+        &[][..],
+        &[0x03, 0x00, 0x00, 0x00],                   // short
+        &[0x04, 0x00, 0x00, 0x00, 0x01, 0x00],       // long
+        &[0x03, 0x00, 0x00, 0x00, 0x00],             // 0 registers
+        &[0x04, 0x00, 0x00, 0x00, 126],              // 126 registers
+        &[0x06, 0x00, 0x01, 0x00],                   // short write
+        &[0x10, 0x00, 0x00, 0x00, 0x01, 0x04, 0, 1], // byte count 4 for 1 register
+        &[0x10, 0x00, 0x00, 0x00, 0x02, 0x04, 0, 1], // 2 bytes of 4
+        &[0x10, 0x00, 0x00, 0x00, 124, 248],         // 124 registers
+        &[0x10, 0x00, 0x00],
+    ] {
+        assert_eq!(
+            code(malformed),
+            ExceptionCode::ILLEGAL_DATA_VALUE,
+            "{malformed:02X?}"
+        );
+    }
+    assert_eq!(code(&[0x01, 0, 0, 0, 1]), ExceptionCode::ILLEGAL_FUNCTION);
+    assert_eq!(code(&[0x83, 0x02]), ExceptionCode::ILLEGAL_FUNCTION);
+    assert_eq!(
+        parse(&[0x10, 0x00, 0x05, 0x00, 0x02, 0x04, 0x00, 0x0A, 0x01, 0x02]),
+        Ok(ServerRequest::WriteMultiple {
+            address: 5,
+            words: Words::from_bytes(&[0x00, 0x0A, 0x01, 0x02]).unwrap()
+        })
+    );
+    let mut out = [0; 8];
+    let len = server::encode_exception(&mut out, 0x10, ExceptionCode(2), ExceptionShape::Standard)
+        .unwrap();
+    assert_eq!(&out[..len], &[0x90, 0x02]);
+    assert_eq!(server::exception_pdu(0x04, 0x0B), [0x84, 0x0B]);
 }

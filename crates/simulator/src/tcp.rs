@@ -11,7 +11,8 @@
 use std::io;
 use std::net::SocketAddr;
 
-use optobus_codec::{tcp, DecodeError, Decoded};
+use optobus_codec::server::{self, RequestError, ServerRequest, WRITE_MULTIPLE};
+use optobus_codec::{tcp, DecodeError, ExceptionCode, ExceptionShape, Request, EXCEPTION_BIT};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, ToSocketAddrs};
 use tokio::task::{JoinHandle, JoinSet};
@@ -152,7 +153,10 @@ impl Simulator {
 }
 
 /// Serves Modbus TCP on one connection until the peer closes it, each request answered by
-/// the device `who` picks for its unit id.
+/// the device `who` picks for its unit id. The codec's server framing reads each request: the
+/// MBAP header, then the PDU as a typed request ([`server::parse_request`], with the device's
+/// frame shape); a function the device does not take is answered by its own rules, a request
+/// malformed for its function with exception 03, before the device's registers see it.
 async fn serve_stream<IO>(who: Answerer<'_>, mut stream: IO) -> io::Result<()>
 where
     IO: AsyncRead + AsyncWrite + Unpin,
@@ -160,72 +164,74 @@ where
     let mut pending: Vec<u8> = Vec::with_capacity(tcp::MAX_FRAME_LEN);
     let mut chunk = [0u8; tcp::MAX_FRAME_LEN];
     loop {
-        // The unit id (MBAP byte 6) says who decodes the frame.
-        while let Some(&unit) = pending.get(6) {
-            let Some((sim, slave)) = who.pick(unit) else {
-                // No device at that unit id: the frame is skipped whole and answered 0B.
-                let Some(len) = tcp::frame_len(&pending).filter(|&l| l <= tcp::MAX_FRAME_LEN)
-                else {
-                    return Ok(());
-                };
-                if pending.len() < len {
-                    break;
-                }
-                let header = header_of(&pending);
-                let function = pending.get(7).copied().unwrap_or(0) & 0x7F;
-                pending.drain(..len);
+        while let Some(mbap) = tcp::Mbap::parse(&pending) {
+            let len = mbap.frame_len();
+            match mbap.check() {
+                Ok(()) => {}
+                // Another protocol's frame is skipped by its length, if it has a length.
+                Err(DecodeError::BadProtocolId { .. }) if len <= tcp::MAX_FRAME_LEN => {}
+                // The stream cannot be framed any more.
+                Err(_) => return Ok(()),
+            }
+            if pending.len() < len {
+                break;
+            }
+            let header = tcp::Header {
+                transaction: mbap.transaction,
+                unit: mbap.unit,
+            };
+            let frame: Vec<u8> = pending.drain(..len).collect();
+            if mbap.check().is_err() {
+                continue;
+            }
+            // `check` holds a length of at least the unit id and a function code.
+            let pdu = &frame[tcp::HEADER_LEN..];
+            let Some((sim, slave)) = who.pick(mbap.unit) else {
+                // No device at that unit id: answered 0B, as a gateway does.
                 let reply = Reply::Exception {
-                    function,
-                    code: optobus_codec::ExceptionCode(TARGET_FAILED),
+                    function: pdu[0] & !EXCEPTION_BIT,
+                    code: ExceptionCode(TARGET_FAILED),
                 };
-                if let Some(bytes) = reply.encode(
-                    Envelope::Tcp(header),
-                    optobus_codec::ExceptionShape::Standard,
-                ) {
+                if let Some(bytes) = reply.encode(Envelope::Tcp(header), ExceptionShape::Standard) {
                     stream.write_all(&bytes).await?;
                 }
                 continue;
             };
             let shape = sim.device().frame_shape;
-            match tcp::decode_request(&pending, &shape) {
-                Ok(Decoded::NeedMore { .. }) => break,
-                Ok(Decoded::Frame { frame, consumed }) => {
-                    pending.drain(..consumed.min(pending.len()));
-                    let reply = sim.respond(slave, Incoming::Request(&frame.pdu));
-                    if let Some(bytes) = reply.encode(Envelope::Tcp(frame.header), shape.exception)
-                    {
-                        if !sim.send_tcp(&mut stream, bytes).await? {
-                            return Ok(());
-                        }
-                    }
-                }
-                Err(DecodeError::UnsupportedFunction { function }) => {
-                    let Some(len) = tcp::frame_len(&pending) else {
-                        break;
+            let request;
+            let reply = match server::parse_request(pdu, &shape) {
+                Ok(ServerRequest::Read {
+                    function,
+                    address,
+                    count,
+                }) => {
+                    request = Request::Read {
+                        function,
+                        address,
+                        count,
                     };
-                    if pending.len() < len {
-                        break;
-                    }
-                    let header = header_of(&pending);
-                    pending.drain(..len);
-                    let reply = sim.respond(slave, Incoming::Unsupported(function));
-                    if let Some(bytes) = reply.encode(Envelope::Tcp(header), shape.exception) {
-                        if !sim.send_tcp(&mut stream, bytes).await? {
-                            return Ok(());
-                        }
-                    }
+                    sim.respond(slave, Incoming::Request(&request))
                 }
-                Err(DecodeError::BadProtocolId { .. }) => {
-                    match tcp::frame_len(&pending).filter(|&len| len <= tcp::MAX_FRAME_LEN) {
-                        Some(len) if pending.len() >= len => {
-                            pending.drain(..len);
-                        }
-                        Some(_) => break,
-                        None => return Ok(()),
-                    }
+                Ok(ServerRequest::WriteSingle { address, value }) => {
+                    request = Request::Write { address, value };
+                    sim.respond(slave, Incoming::Request(&request))
                 }
-                // The stream cannot be framed any more.
-                Err(_) => return Ok(()),
+                // The devices served write one register at a time: FC16 is theirs to refuse.
+                Ok(ServerRequest::WriteMultiple { .. }) => {
+                    sim.respond(slave, Incoming::Unsupported(WRITE_MULTIPLE))
+                }
+                Err(RequestError::Unsupported { function }) => {
+                    sim.respond(slave, Incoming::Unsupported(function))
+                }
+                Err(malformed) => Reply::Exception {
+                    function: malformed.function(),
+                    code: malformed.exception(),
+                },
+            };
+            if let Some(bytes) = reply.encode(Envelope::Tcp(header), shape.exception) {
+                if !sim.send_tcp(&mut stream, bytes).await? {
+                    return Ok(());
+                }
             }
         }
         let read = stream.read(&mut chunk).await?;
@@ -253,15 +259,5 @@ impl Simulator {
             return Ok(false);
         }
         Ok(true)
-    }
-}
-
-fn header_of(frame: &[u8]) -> tcp::Header {
-    match frame {
-        [t0, t1, _, _, _, _, unit, ..] => tcp::Header {
-            transaction: u16::from_be_bytes([*t0, *t1]),
-            unit: *unit,
-        },
-        _ => tcp::Header::default(),
     }
 }

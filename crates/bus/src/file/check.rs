@@ -77,6 +77,26 @@ pub(super) fn check(parsed: &mut Parsed) -> Vec<Diagnostic> {
         let Some(line) = device.line.and_then(|i| lines.get(i)) else {
             continue;
         };
+        // The measurements' virtual unit answers its unit id itself: a device there could
+        // never be reached through the gateway.
+        if let (Some((unit, span)), Some(slave)) = (line.measurements_unit, device.slave) {
+            if unit == slave {
+                problems.push(
+                    Diagnostic::at_span(
+                        "measurements-unit-clash",
+                        span,
+                        format!(
+                            "the gateway of line `{}` answers unit {unit} with the measurements, \
+                             but device `{}` is slave {unit}",
+                            line.name.as_deref().unwrap_or("?"),
+                            device.name.as_deref().unwrap_or("?"),
+                        ),
+                    )
+                    .also_at(device.slave_span, "the device's slave")
+                    .help("give `measurements_unit` a unit id no device of the line has (default 255)"),
+                );
+            }
+        }
         if let (Some(span), Some(port)) = (device.faults, &line.port) {
             if *port != Port::Simulated {
                 problems.push(

@@ -81,12 +81,15 @@ pub struct GatewayConfig {
     /// Whether writes pass (Modbus TCP carries no credentials, so they are off by default);
     /// writes to the bus's devices are checked against their specs first.
     pub writes: bool,
+    /// The unit id at which the bus file's measurements are input registers (the map is in
+    /// the crate's README); a unit id of no device of the line.
+    pub measurements_unit: u8,
 }
 
 impl GatewayConfig {
     /// A gateway listening on `listen` with the defaults a bus file's `gateway: ADDRESS`
     /// gets: [`DEFAULT_GATEWAY_CLIENTS`] clients, as many requests queued, idle after
-    /// [`DEFAULT_GATEWAY_IDLE`], no writes.
+    /// [`DEFAULT_GATEWAY_IDLE`], no writes, the measurements at [`DEFAULT_MEASUREMENTS_UNIT`].
     pub fn new(listen: SocketAddr) -> Self {
         Self {
             listen,
@@ -94,9 +97,14 @@ impl GatewayConfig {
             queue: DEFAULT_GATEWAY_CLIENTS,
             idle: DEFAULT_GATEWAY_IDLE,
             writes: false,
+            measurements_unit: DEFAULT_MEASUREMENTS_UNIT,
         }
     }
 }
+
+/// The unit id of the measurements' virtual unit unless the file says otherwise: 255, which
+/// Modbus TCP gives the server itself and no RTU device can have (slaves are 1 to 247).
+pub const DEFAULT_MEASUREMENTS_UNIT: u8 = 255;
 
 /// Clients a gateway serves at once unless the file says otherwise.
 pub const DEFAULT_GATEWAY_CLIENTS: usize = 8;

@@ -15,7 +15,7 @@ use super::reader::{
 };
 use super::{
     BusFile, DeviceConfig, GatewayConfig, LineConfig, PollConfig, Port, Writable,
-    DEFAULT_GATEWAY_CLIENTS, DEFAULT_GATEWAY_IDLE,
+    DEFAULT_GATEWAY_CLIENTS, DEFAULT_GATEWAY_IDLE, DEFAULT_MEASUREMENTS_UNIT,
 };
 
 /// The Modbus serial-line specification's turnaround delay after a broadcast.
@@ -35,7 +35,14 @@ pub(super) const LINE_KEYS: &[&str] = &[
     "broadcast_turnaround",
     "gateway",
 ];
-pub(super) const GATEWAY_KEYS: &[&str] = &["listen", "clients", "queue", "idle", "writes"];
+pub(super) const GATEWAY_KEYS: &[&str] = &[
+    "listen",
+    "clients",
+    "queue",
+    "idle",
+    "writes",
+    "measurements_unit",
+];
 pub(super) const PORT_KEYS: &[&str] = &["serial", "tcp", "rtu_over_tcp", "simulated"];
 pub(super) const DEVICE_KEYS: &[&str] = &[
     "name",
@@ -104,6 +111,9 @@ pub(super) struct LineSeen {
     pub(super) format_given: bool,
     /// Its gateway's address and where it is written, if it reads.
     pub(super) gateway: Option<(std::net::SocketAddr, Span)>,
+    /// Its gateway's measurements unit id and where it is given (or the gateway, for the
+    /// default), if it reads.
+    pub(super) measurements_unit: Option<(u8, Span)>,
 }
 
 pub(super) struct DeviceSeen {
@@ -291,12 +301,16 @@ impl Reader<'_> {
             format_given,
             gateway: gateway
                 .as_ref()
-                .and_then(|g| g.as_ref().map(|(g, span)| (g.listen, *span))),
+                .and_then(|g| g.as_ref().map(|(g, span, _)| (g.listen, *span))),
+            measurements_unit: gateway.as_ref().and_then(|g| {
+                g.as_ref()
+                    .map(|(g, _, unit_span)| (g.measurements_unit, *unit_span))
+            }),
         };
         let line = (|| {
             let (name, (port, port_span)) = (name?, port?);
             let gateway = gateway?;
-            if let (Port::Tcp(_), Some((_, span))) = (&port, &gateway) {
+            if let (Port::Tcp(_), Some((_, span, _))) = (&port, &gateway) {
                 self.error(
                     *span,
                     format!("line `{name}` is Modbus TCP already: a gateway serves RTU lines"),
@@ -321,15 +335,17 @@ impl Reader<'_> {
                 format: port.is_rtu().then_some(format),
                 port,
                 broadcast_turnaround: broadcast_turnaround?,
-                gateway: gateway.map(|(g, _)| g),
+                gateway: gateway.map(|(g, ..)| g),
             })
         })();
         Some((line, seen))
     }
 
     /// `gateway: ADDRESS` or
-    /// `gateway: { listen: ADDRESS, clients: N, queue: N, idle: DURATION, writes: BOOL }`.
-    fn gateway(&mut self, node: &Node) -> Option<(GatewayConfig, Span)> {
+    /// `gateway: { listen: ADDRESS, clients: N, queue: N, idle: DURATION, writes: BOOL,
+    /// measurements_unit: N }`; with where `listen` and `measurements_unit` are written (the
+    /// gateway's place for the default unit).
+    fn gateway(&mut self, node: &Node) -> Option<(GatewayConfig, Span, Span)> {
         let (listen_node, pairs) = match &node.value {
             Value::Mapping(_) => {
                 let pairs = self.mapping(node, "`gateway`", GATEWAY_KEYS)?;
@@ -380,6 +396,14 @@ impl Reader<'_> {
             Some(v) => self.boolean(v, "`writes`"),
             None => Some(false),
         };
+        // Unit 0 broadcasts: no client could read it.
+        let (measurements_unit, unit_span) = match get("measurements_unit") {
+            Some(v) => (
+                self.number::<u8>(v, "`measurements_unit`", (1, 255)),
+                v.span,
+            ),
+            None => (Some(DEFAULT_MEASUREMENTS_UNIT), node.span),
+        };
         Some((
             GatewayConfig {
                 listen,
@@ -387,8 +411,10 @@ impl Reader<'_> {
                 queue: queue?,
                 idle: idle?,
                 writes: writes?,
+                measurements_unit: measurements_unit?,
             },
             listen_node.span,
+            unit_span,
         ))
     }
 
