@@ -5,10 +5,10 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
+use optobus_chart::{check_out, draw, Series};
 use optobus_device::{BufferInfo, DeviceInfo, RegisterInfo};
 use optobus_driver::{BufferTiming, Core, Encode, Fixed};
 
-use crate::chart::{check_out, draw, Series};
 use crate::connect::{DeviceArgs, Global};
 use crate::error::{driver_error, CliError};
 use crate::log::note;
