@@ -14,7 +14,7 @@ mod reader;
 
 pub use measurements::Measurements;
 pub use outputs::{HttpConfig, MetricsConfig, MqttConfig, Outputs, SecretSource, StateEvery};
-pub use pick::LinePickError;
+pub use pick::{GatewayMoveError, LinePickError};
 pub use read_device::{resolve, writable};
 
 use std::net::SocketAddr;
