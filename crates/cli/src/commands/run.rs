@@ -295,20 +295,7 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     } else {
         Outlet::start("optobus-stdout", STDOUT_LINES, Stdout::Lines)
     };
-    let stop = async {
-        let ctrl_c = tokio::signal::ctrl_c();
-        match args.duration {
-            Some(duration) => {
-                tokio::select! {
-                    _ = ctrl_c => {},
-                    () = tokio::time::sleep(duration) => {},
-                }
-            }
-            None => {
-                let _ = ctrl_c.await;
-            }
-        }
-    };
+    let stop = inputs::until_stopped(args.duration);
     let mut redraw_at = tokio::time::Instant::now();
     let take = |event: Event| {
         match &event {
