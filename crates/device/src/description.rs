@@ -154,20 +154,6 @@ pub struct TcpInfo {
     pub default_ip: Option<[u8; 4]>,
 }
 
-/// One address per word, or per field.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[cfg_attr(
-    feature = "serde",
-    derive(serde::Deserialize, serde::Serialize),
-    serde(rename_all = "snake_case")
-)]
-pub enum Addressing {
-    /// Standard: one address per 16-bit word.
-    Word,
-    /// One address per field, whatever its width (the rangefinder).
-    Field,
-}
-
 /// How 32-bit values are written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(

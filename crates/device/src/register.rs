@@ -1,10 +1,9 @@
 //! The register types: tables, access, value kinds (scalars, codes, fields, repeat copies),
-//! roles and reserved ranges, and the register facts every side looks up the same way.
+//! roles, reserved ranges and how addresses count (per word or per field), and the register
+//! facts every side looks up the same way.
 
 use optobus_codec::value::{Scale, WordOrder, WriteOrder};
 use optobus_codec::ReadFunction;
-
-use crate::description::Addressing;
 
 /// A register table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -394,6 +393,20 @@ pub struct RepeatCopy {
     pub number: u8,
     /// The member's name, shared by every copy (`exposure_time`).
     pub member: &'static str,
+}
+
+/// One address per word, or per field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Deserialize, serde::Serialize),
+    serde(rename_all = "snake_case")
+)]
+pub enum Addressing {
+    /// Standard: one address per 16-bit word.
+    Word,
+    /// One address per field, whatever its width (the rangefinder).
+    Field,
 }
 
 /// An address range the device reserves.
