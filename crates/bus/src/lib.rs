@@ -37,8 +37,9 @@ pub use event::{
     rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample, Writer, Written,
 };
 pub use file::{
-    BusFile, DeviceConfig, HttpConfig, LineConfig, LinePickError, LoadError, MetricsConfig,
-    MqttConfig, Outputs, PollConfig, Port, Rejected, SecretSource, StateEvery, Writable,
+    BusFile, DeviceConfig, GatewayMoveError, HttpConfig, LineConfig, LinePickError, LoadError,
+    MetricsConfig, MqttConfig, Outputs, PollConfig, Port, Rejected, SecretSource, StateEvery,
+    Writable,
 };
 pub use follow::Follower;
 pub use gateway::GatewayCounts;

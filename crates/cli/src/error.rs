@@ -176,3 +176,16 @@ pub(crate) fn driver_error(error: optobus_driver::Error, register: Option<&str>)
 pub(crate) fn transport_error(error: WireError, subject: &str) -> CliError {
     driver_error(optobus_driver::Error::Transport(error), Some(subject))
 }
+
+/// A chart's file name is refused before anything is read or sent; drawing it is the system's
+/// failure.
+impl From<optobus_chart::ChartError> for CliError {
+    fn from(error: optobus_chart::ChartError) -> Self {
+        match error {
+            optobus_chart::ChartError::NotSvgOrPng { .. } => {
+                Self::new(error.to_string()).hint("name the output file `….svg` or `….png`")
+            }
+            optobus_chart::ChartError::Draw { .. } => Self::failed(error.to_string()),
+        }
+    }
+}

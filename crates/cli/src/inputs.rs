@@ -50,13 +50,26 @@ impl DurationBound {
 pub(crate) const TIMEOUT: DurationBound = DurationBound::up_to_a_day("--timeout", MS);
 /// `watch --interval`.
 pub(crate) const INTERVAL: DurationBound = DurationBound::up_to_a_day("--interval", MS);
-/// `buffer --wait`.
 /// `optobus ui --every`.
 pub(crate) const EVERY: DurationBound = DurationBound::up_to_a_day("--every", MS);
-
+/// `buffer --wait`.
 pub(crate) const WAIT: DurationBound = DurationBound::up_to_a_day("--wait", Duration::ZERO);
-/// `simulate --duration`.
+/// `--duration` of `simulate`, `run`, `ui` and `record`.
 pub(crate) const RUN_FOR: DurationBound = DurationBound::up_to_a_day("--duration", Duration::ZERO);
+
+/// Waits until `--duration` (`duration`) has passed, or Ctrl-C; without a duration, Ctrl-C.
+pub(crate) async fn until_stopped(duration: Option<Duration>) {
+    let run_for = async {
+        match duration {
+            Some(duration) => tokio::time::sleep(duration).await,
+            None => std::future::pending().await,
+        }
+    };
+    tokio::select! {
+        _ = tokio::signal::ctrl_c() => {}
+        () = run_for => {}
+    }
+}
 /// `simulate --turnaround`: the emulated device's reaction time; zero answers at once.
 pub(crate) const TURNAROUND: DurationBound =
     DurationBound::up_to_a_day("--turnaround", Duration::ZERO);
@@ -122,7 +135,6 @@ pub(crate) fn parse_slave(text: &str) -> Result<u8, CliError> {
     Err(CliError::new(why).hint("use 1 to 247, or 0 to broadcast a write"))
 }
 
-/// `--parity`.
 /// `--sim-speed`: how fast the built-in simulator answers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub(crate) enum SimSpeed {
@@ -133,6 +145,7 @@ pub(crate) enum SimSpeed {
     Full,
 }
 
+/// `--parity`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub(crate) enum ParityArg {
     /// No parity bit.

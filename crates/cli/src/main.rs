@@ -5,7 +5,6 @@
 #![forbid(unsafe_code)]
 
 mod bus_file;
-mod chart;
 mod commands;
 mod connect;
 mod error;

@@ -10,11 +10,7 @@ use serde_json::{Map, Value as Json};
 use optobus_inspect::Value;
 
 /// The local time of day with its offset, for people: `14:23:54.822 +01:00`.
-pub(crate) fn time_of_day() -> String {
-    jiff::ZonedDateTime::now()
-        .strftime("%H:%M:%S%.3f %:z")
-        .to_string()
-}
+pub(crate) use optobus_service::journal::time_of_day;
 
 /// Now for scripts and recordings, RFC 3339 with the date, microseconds and the local
 /// offset: `2026-11-23T14:23:54.822153+01:00`.

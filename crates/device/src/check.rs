@@ -3,7 +3,7 @@
 
 use core::fmt;
 
-use crate::description::{CodeInfo, FieldInfo, RegisterInfo, ValueKind};
+use crate::register::{CodeInfo, FieldInfo, RegisterInfo, ValueKind};
 
 /// Why a raw value may not be written to a register (or to a field of a packed one).
 #[derive(Clone, Copy, Debug, PartialEq)]

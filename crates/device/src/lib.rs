@@ -11,6 +11,7 @@
 mod check;
 mod description;
 mod duration;
+mod register;
 mod words;
 
 pub use check::Invalid;
@@ -18,4 +19,5 @@ pub use description::*;
 pub use duration::parse_duration;
 pub use optobus_codec::value::{Scale, WordOrder, WriteOrder};
 pub use optobus_codec::{ExceptionShape, FrameShape, Parity, ReadFunction};
+pub use register::*;
 pub use words::RawWords;

@@ -4,7 +4,7 @@ use core::ops::Deref;
 
 use optobus_codec::value::{join_u32, split_u32};
 
-use crate::description::RegisterInfo;
+use crate::register::RegisterInfo;
 
 /// The words of a one- or two-word raw value, in address order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

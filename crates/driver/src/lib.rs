@@ -28,6 +28,7 @@
 mod address;
 pub mod array_serde;
 mod buffer;
+mod buffer_request;
 #[cfg(feature = "serde")]
 pub mod code_serde;
 mod connect;
@@ -44,6 +45,7 @@ pub mod units;
 
 pub use crate::address::{address_change, AddressChange};
 pub use crate::buffer::{BufferTiming, DownloadProgress};
+pub use crate::buffer_request::{BufferRefusal, BufferRequest, BufferSource};
 #[cfg(feature = "tcp")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tcp")))]
 pub use crate::connect::tcp_config;

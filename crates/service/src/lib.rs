@@ -6,11 +6,13 @@
 //!
 //! It also holds what such a run is made of and nothing below it owns: the
 //! [recording format](mod@recording) (writer and reader side by side), the [demo bus](mod@demo),
-//! the MQTT publisher's counts as Prometheus series ([`mqtt_metrics`]), and the bounded,
-//! counted queue towards a slow writer ([`outlet`]).
+//! the MQTT publisher's counts as Prometheus series ([`mqtt_metrics`]), the bounded,
+//! counted queue towards a slow writer ([`outlet`]), and the lines a run tells its operator
+//! ([`journal`]).
 #![forbid(unsafe_code)]
 
 pub mod demo;
+pub mod journal;
 pub mod mqtt_metrics;
 pub mod outlet;
 mod output;

@@ -9,12 +9,13 @@ mod measurements;
 pub mod outputs;
 mod pick;
 mod read;
+mod read_device;
 mod reader;
 
 pub use measurements::Measurements;
 pub use outputs::{HttpConfig, MetricsConfig, MqttConfig, Outputs, SecretSource, StateEvery};
-pub use pick::LinePickError;
-pub use read::{resolve, writable};
+pub use pick::{GatewayMoveError, LinePickError};
+pub use read_device::{resolve, writable};
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};

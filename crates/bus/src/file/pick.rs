@@ -1,6 +1,9 @@
-//! Which line of a bus file a tool serves or uses when the user names none.
+//! Which line of a bus file a tool serves or uses when the user names none, and which
+//! line's gateway a tool moves to another address.
 
-use super::{BusFile, Port};
+use std::net::SocketAddr;
+
+use super::{BusFile, GatewayConfig, LineConfig, Port};
 
 /// Why no line of a bus file was picked.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -58,5 +61,79 @@ impl BusFile {
             (_, Some(only), None) => Ok(only),
             _ => Err(LinePickError::Several { lines: lines() }),
         }
+    }
+}
+
+/// Why a gateway could not be moved to another address: which gateway is meant must be plain.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum GatewayMoveError {
+    /// No line has a gateway, and no RTU line could get one (a Modbus TCP line needs none).
+    NoRtuLine,
+    /// No line has a gateway, and several RTU lines could get one.
+    SeveralRtuLines {
+        /// Their names, in order.
+        lines: Vec<String>,
+    },
+    /// Several lines have gateways.
+    SeveralGateways {
+        /// Their names, in order.
+        lines: Vec<String>,
+    },
+}
+
+impl std::fmt::Display for GatewayMoveError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let names = |lines: &[String]| {
+            let names: Vec<String> = lines.iter().map(|l| format!("`{l}`")).collect();
+            names.join(", ")
+        };
+        match self {
+            Self::NoRtuLine => write!(f, "the bus file has no RTU line for a gateway to serve"),
+            Self::SeveralRtuLines { lines } => write!(
+                f,
+                "which line should it serve? The bus file has RTU lines {}",
+                names(lines)
+            ),
+            Self::SeveralGateways { lines } => write!(
+                f,
+                "lines {} of the bus file have gateways, and it moves one",
+                names(lines)
+            ),
+        }
+    }
+}
+
+impl std::error::Error for GatewayMoveError {}
+
+impl BusFile {
+    /// Makes the file's one gateway listen at `address` instead; a file without one gets a
+    /// read-only gateway there on its one RTU line. Several gateways, or several RTU lines
+    /// and no gateway, are refused: which one is meant must be plain.
+    pub fn move_gateway(&mut self, address: SocketAddr) -> Result<(), GatewayMoveError> {
+        let names = |lines: &[&LineConfig]| lines.iter().map(|l| l.name.clone()).collect();
+        let with_gateway: Vec<&LineConfig> =
+            self.lines.iter().filter(|l| l.gateway.is_some()).collect();
+        let rtu: Vec<&LineConfig> = self.lines.iter().filter(|l| l.port.is_rtu()).collect();
+        let line = match (with_gateway.as_slice(), rtu.as_slice()) {
+            ([one], _) | ([], [one]) => one.name.clone(),
+            ([], []) => return Err(GatewayMoveError::NoRtuLine),
+            ([], several) => {
+                return Err(GatewayMoveError::SeveralRtuLines {
+                    lines: names(several),
+                })
+            }
+            (several, _) => {
+                return Err(GatewayMoveError::SeveralGateways {
+                    lines: names(several),
+                })
+            }
+        };
+        if let Some(line) = self.lines.iter_mut().find(|l| l.name == line) {
+            match line.gateway.as_mut() {
+                Some(gateway) => gateway.listen = address,
+                None => line.gateway = Some(GatewayConfig::new(address)),
+            }
+        }
+        Ok(())
     }
 }

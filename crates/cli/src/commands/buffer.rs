@@ -5,10 +5,10 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
-use optobus_device::{BufferInfo, DeviceInfo, RegisterInfo};
-use optobus_driver::{BufferTiming, Core, Encode, Fixed};
+use optobus_chart::{check_out, draw, Series};
+use optobus_device::{DeviceInfo, RegisterInfo};
+use optobus_driver::{BufferRefusal, BufferRequest, BufferTiming, Core, Encode, Fixed};
 
-use crate::chart::{check_out, draw, Series};
 use crate::connect::{DeviceArgs, Global};
 use crate::error::{driver_error, CliError};
 use crate::log::note;
@@ -38,33 +38,22 @@ pub(crate) struct BufferArgs {
     pub(crate) device: DeviceArgs,
 }
 
-/// What is buffered: the source register's code chosen, by raw value and name.
-struct Source {
-    code: u32,
-    name: String,
-}
-
 /// Buffers `--count` values of `--source`, downloads them and writes CSV (or JSON).
 pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliError> {
     let device = global.device()?;
-    let buffer = device.buffer.ok_or_else(|| {
-        let with: Vec<String> = models::all()
-            .iter()
-            .filter(|d| d.buffer.is_some())
-            .map(|d| models::name(d))
-            .collect();
-        CliError::new(format!(
-            "`buffer` downloads a model's data buffer; {} has no data buffer",
-            crate::models::name(device)
-        ))
-        .hint(format!("use --model {}", with.join(" or --model ")))
-    })?;
+    if device.buffer.is_none() {
+        return Err(refused(device, args.count, BufferRefusal::NoBuffer));
+    }
     if let Some(path) = &args.plot {
         check_out(path)?;
     }
     let (count, wait) = (args.count, args.wait);
-    let values_register = input_count(device, buffer, count)?;
-    let source = input_source(device, buffer, args.source.as_deref())?;
+    let parse = |register: &'static RegisterInfo, text: &str| {
+        Ok::<_, CliError>(register.raw(&optobus_inspect::parse_value(register, text)?))
+    };
+    let request = BufferRequest::check(device, count, args.source.as_deref(), parse)
+        .map_err(|refusal| refused(device, count, refusal))?;
+    let (buffer, values_register, source) = (request.buffer, request.values, request.source);
     let slave = global.answering_slave(device, "buffer")?;
     global.check_line(device)?;
     let link = link::open(device, slave, &global.target).await?;
@@ -172,67 +161,26 @@ fn time_axis(timing: Option<BufferTiming>, count: usize) -> (String, impl Fn(usi
     (label, x)
 }
 
-/// The model as the manual names it: its title up to any parenthesis.
-fn short_title(device: &DeviceInfo) -> &'static str {
-    device
-        .title
-        .split(" (")
-        .next()
-        .unwrap_or(device.title)
-        .trim()
-}
-
-/// Checks `count` against the values the buffer hands out, before anything is opened or sent;
-/// gives the register the values are read from.
-fn input_count(
-    device: &'static DeviceInfo,
-    buffer: &BufferInfo,
-    count: u32,
-) -> Result<&'static RegisterInfo, CliError> {
-    let most = buffer.most;
-    if !(1..=most).contains(&count) {
-        return Err(CliError::new(format!(
-            "--count {count}: the {} buffers 1 to {most} values for reading out",
-            short_title(device)
-        )));
+/// A buffered read-out refused before anything was opened or sent, said with its option.
+fn refused(device: &DeviceInfo, count: u32, refusal: BufferRefusal<CliError>) -> CliError {
+    match refusal {
+        BufferRefusal::NoBuffer => {
+            let with: Vec<String> = models::all()
+                .iter()
+                .filter(|d| d.buffer.is_some())
+                .map(|d| models::name(d))
+                .collect();
+            CliError::new(format!(
+                "`buffer` downloads a model's data buffer; {} has no data buffer",
+                models::name(device)
+            ))
+            .hint(format!("use --model {}", with.join(" or --model ")))
+        }
+        BufferRefusal::Count { .. } => CliError::new(format!("--count {count}: {refusal}")),
+        BufferRefusal::OneKindOnly { .. } => CliError::new(format!("--source: {refusal}")),
+        BufferRefusal::Source(error) => error,
+        BufferRefusal::NotInSpec(_) | BufferRefusal::NoCodes(_) => {
+            CliError::new(refusal.to_string())
+        }
     }
-    device
-        .members(buffer.values)
-        .next()
-        .ok_or_else(|| CliError::new(format!("the spec has no `{}`", buffer.values)))
-}
-
-/// The code `source` names (default: the source register's first code), checked before
-/// anything is opened or sent; `None` for a buffer without a source register.
-fn input_source(
-    device: &'static DeviceInfo,
-    buffer: &BufferInfo,
-    source: Option<&str>,
-) -> Result<Option<Source>, CliError> {
-    let Some(name) = buffer.source else {
-        return match source {
-            Some(_) => Err(CliError::new(format!(
-                "--source: the {} buffers one kind of value only",
-                short_title(device)
-            ))),
-            None => Ok(None),
-        };
-    };
-    let register = device
-        .register(name)
-        .ok_or_else(|| CliError::new(format!("the spec has no `{name}`")))?;
-    let code = match source {
-        Some(text) => register.raw(&optobus_inspect::parse_value(register, text)?),
-        None => register
-            .codes
-            .first()
-            .map(|c| c.code)
-            .ok_or_else(|| CliError::new(format!("`{name}` has no codes to choose from")))?,
-    };
-    let name = register
-        .codes
-        .iter()
-        .find(|c| c.code == code)
-        .map_or_else(|| code.to_string(), |c| c.name.to_owned());
-    Ok(Some(Source { code, name }))
 }

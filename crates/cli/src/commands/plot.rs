@@ -6,9 +6,9 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use optobus_chart::{check_out, draw, Series};
 use optobus_service::recording::{self, ReadRefused};
 
-use crate::chart::{check_out, draw, Series};
 use crate::error::CliError;
 use crate::log::note;
 

@@ -10,9 +10,9 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Args;
-use optobus_bus::file::GatewayConfig;
 use optobus_bus::{
-    BusFile, Event, Follower, Health, HttpConfig, LineConfig, MetricsConfig, MqttConfig, Sample,
+    BusFile, Event, Follower, GatewayMoveError, Health, HttpConfig, MetricsConfig, MqttConfig,
+    Sample,
 };
 use optobus_device::RegisterInfo;
 use optobus_inspect::Value;
@@ -102,51 +102,23 @@ fn command_line_outputs(bus: &mut BusFile, args: &RunArgs) -> Result<(), CliErro
     Ok(())
 }
 
-/// `--gateway ADDRESS`: the bus file's one gateway listens there instead; a file without one
-/// gets a read-only gateway there on its one RTU line (a Modbus TCP line needs none). Which
-/// gateway is meant must be plain: several are refused.
+/// `--gateway ADDRESS`: the bus file's one gateway listens there instead (or its one RTU
+/// line gets a read-only one); which gateway is meant must be plain.
 fn move_gateway(bus: &mut BusFile, address: SocketAddr) -> Result<(), CliError> {
-    let names = |lines: &[&LineConfig]| {
-        let names: Vec<String> = lines.iter().map(|l| format!("`{}`", l.name)).collect();
-        names.join(", ")
-    };
-    let with_gateway: Vec<&LineConfig> = bus.lines.iter().filter(|l| l.gateway.is_some()).collect();
-    let rtu: Vec<&LineConfig> = bus.lines.iter().filter(|l| l.port.is_rtu()).collect();
-    let refusal = match (with_gateway.as_slice(), rtu.as_slice()) {
-        ([_], _) | ([], [_]) => None,
-        ([], []) => Some(
-            CliError::new("--gateway: the bus file has no RTU line for a gateway to serve")
-                .hint("other masters reach the devices of a Modbus TCP line directly"),
-        ),
-        ([], several) => Some(
-            CliError::new(format!(
-                "--gateway: which line should it serve? The bus file has RTU lines {}",
-                names(several)
-            ))
-            .hint("give `gateway: ADDRESS` under that line in the bus file"),
-        ),
-        (several, _) => Some(
-            CliError::new(format!(
-                "--gateway: lines {} of the bus file have gateways, and it moves one",
-                names(several)
-            ))
-            .hint("give each its address in the bus file"),
-        ),
-    };
-    if let Some(refusal) = refusal {
-        return Err(refusal);
-    }
-    let line = match with_gateway.first().or(rtu.first()) {
-        Some(line) => line.name.clone(),
-        None => return Ok(()),
-    };
-    if let Some(line) = bus.lines.iter_mut().find(|l| l.name == line) {
-        match line.gateway.as_mut() {
-            Some(gateway) => gateway.listen = address,
-            None => line.gateway = Some(GatewayConfig::new(address)),
+    bus.move_gateway(address).map_err(|error| {
+        let refused = CliError::new(format!("--gateway: {error}"));
+        match error {
+            GatewayMoveError::NoRtuLine => {
+                refused.hint("other masters reach the devices of a Modbus TCP line directly")
+            }
+            GatewayMoveError::SeveralRtuLines { .. } => {
+                refused.hint("give `gateway: ADDRESS` under that line in the bus file")
+            }
+            GatewayMoveError::SeveralGateways { .. } => {
+                refused.hint("give each its address in the bus file")
+            }
         }
-    }
-    Ok(())
+    })
 }
 
 /// The latest values and health of each device as text blocks, for the terminal (the
@@ -323,20 +295,7 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     } else {
         Outlet::start("optobus-stdout", STDOUT_LINES, Stdout::Lines)
     };
-    let stop = async {
-        let ctrl_c = tokio::signal::ctrl_c();
-        match args.duration {
-            Some(duration) => {
-                tokio::select! {
-                    _ = ctrl_c => {},
-                    () = tokio::time::sleep(duration) => {},
-                }
-            }
-            None => {
-                let _ = ctrl_c.await;
-            }
-        }
-    };
+    let stop = inputs::until_stopped(args.duration);
     let mut redraw_at = tokio::time::Instant::now();
     let take = |event: Event| {
         match &event {

@@ -108,19 +108,6 @@ fn log_exchange(exchange: &Exchange<'_>) {
     note!("{} {exchange}", crate::render::time_of_day());
 }
 
-/// Waits for `--duration` or Ctrl-C.
-async fn until_stopped(duration: Option<Duration>) {
-    match duration {
-        Some(duration) => tokio::select! {
-            () = tokio::time::sleep(duration) => {}
-            _ = tokio::signal::ctrl_c() => {}
-        },
-        None => {
-            let _ = tokio::signal::ctrl_c().await;
-        }
-    }
-}
-
 /// `--line-timing`'s description for the log.
 fn timed_text(line: Option<&Line>, args: &SimulateArgs) -> String {
     line.map(|line| {
@@ -188,7 +175,7 @@ async fn serve_one(global: &Global, args: &SimulateArgs) -> Result<(), CliError>
         crate::models::name(device)
     );
     let _ = std::io::Write::flush(&mut std::io::stdout());
-    until_stopped(args.duration).await;
+    inputs::until_stopped(args.duration).await;
     drop(server);
     if let (Some(faults), Some(stats)) = (&faults, sim.fault_stats()) {
         note!("optobus: {}", stats.summary(faults));
@@ -394,7 +381,7 @@ async fn serve_line_of(
         who.join(", ")
     );
     let _ = std::io::Write::flush(&mut std::io::stdout());
-    until_stopped(args.duration).await;
+    inputs::until_stopped(args.duration).await;
     drop(server);
     for summary in served.fault_summaries() {
         note!("optobus: {summary}");

@@ -97,16 +97,7 @@ pub(crate) async fn run(global: &Global, args: &UiArgs) -> Result<(), CliError> 
     .await
     .map_err(|e| CliError::failed(e.to_string()))?;
     crate::render::print(service.console_url().unwrap_or_default());
-    let stop = async {
-        match args.duration {
-            Some(duration) => tokio::time::sleep(duration).await,
-            None => std::future::pending().await,
-        }
-    };
-    tokio::select! {
-        _ = tokio::signal::ctrl_c() => {}
-        () = stop => {}
-    }
+    inputs::until_stopped(args.duration).await;
     service
         .stop()
         .await

@@ -2,19 +2,51 @@
 //! axis, with the units on the axes; a gap where a reading was invalid. PNG text is drawn with
 //! DejaVu Sans, carried in the binary, so a chart looks the same on a machine without fonts.
 
-use std::path::Path;
+use std::fmt;
+use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::error::CliError;
-
 /// One plotted column: its label (with unit) and its points; `None` is a gap.
-pub(crate) struct Series {
-    pub(crate) label: String,
-    pub(crate) points: Vec<(f64, Option<f64>)>,
+#[derive(Clone, Debug, PartialEq)]
+pub struct Series {
+    /// The y axis label, with the unit (`distance [mm]`).
+    pub label: String,
+    /// The points, x then y; a `None` y is an invalid reading, drawn as a gap.
+    pub points: Vec<(f64, Option<f64>)>,
 }
+
+/// Why a chart was not drawn.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ChartError {
+    /// The output file's extension is neither `.svg` nor `.png`.
+    NotSvgOrPng {
+        /// The output file.
+        path: PathBuf,
+    },
+    /// Drawing or writing the chart failed.
+    Draw {
+        /// The output file.
+        path: PathBuf,
+        /// What failed.
+        reason: String,
+    },
+}
+
+impl fmt::Display for ChartError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NotSvgOrPng { path } => {
+                write!(f, "{}: charts are written as SVG or PNG", path.display())
+            }
+            Self::Draw { path, reason } => write!(f, "cannot draw {}: {reason}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for ChartError {}
 
 /// Height of one panel in pixels.
 const PANEL_HEIGHT: u32 = 260;
@@ -121,29 +153,30 @@ enum Format {
 }
 
 /// `out`'s format: checked before anything is read or sent.
-fn format_of(out: &Path) -> Result<Format, CliError> {
+fn format_of(out: &Path) -> Result<Format, ChartError> {
     let extension = out.extension().and_then(|e| e.to_str()).unwrap_or("");
     match extension.to_ascii_lowercase().as_str() {
         "svg" => Ok(Format::Svg),
         "png" => Ok(Format::Png),
-        _ => Err(CliError::new(format!(
-            "{}: charts are written as SVG or PNG",
-            out.display()
-        ))
-        .hint("name the output file `….svg` or `….png`")),
+        _ => Err(ChartError::NotSvgOrPng {
+            path: out.to_owned(),
+        }),
     }
 }
 
 /// `out` names an SVG or PNG file: checked before anything is read or sent.
-pub(crate) fn check_out(out: &Path) -> Result<(), CliError> {
+pub fn check_out(out: &Path) -> Result<(), ChartError> {
     format_of(out).map(|_| ())
 }
 
 /// Draws `series` over `x_label` into `out`, SVG or PNG by its extension.
-pub(crate) fn draw(out: &Path, x_label: &str, series: &[Series]) -> Result<(), CliError> {
+pub fn draw(out: &Path, x_label: &str, series: &[Series]) -> Result<(), ChartError> {
     let count = u32::try_from(series.len()).unwrap_or(u32::MAX).max(1);
     let size = (WIDTH, PANEL_HEIGHT.saturating_mul(count));
-    let failed = |e: String| CliError::failed(format!("cannot draw {}: {e}", out.display()));
+    let failed = |reason: String| ChartError::Draw {
+        path: out.to_owned(),
+        reason,
+    };
     match format_of(out)? {
         Format::Svg => panels(
             SVGBackend::new(out, size).into_drawing_area(),
