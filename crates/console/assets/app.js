@@ -293,8 +293,14 @@ function showMeasurement(m) {
   parts.badge.className = "badge" + (m.judgement ? " judgement-" + m.judgement : "");
   parts.facts.textContent = `skew ${(m.skew_us / 1000).toFixed(2)} ms · ${clock(m.time)}`;
   // The value's own decimals for what is in its unit; three more for the spread.
-  const places = m.value === null ? 3 : (m.value.split(".")[1] || "").length;
-  const stats = m.stats || {};
+  // An event without statistics leaves the last ones shown.
+  if (m.stats) showStats(parts, m.stats, m.value === null ? 3 : (m.value.split(".")[1] || "").length, unit);
+  addPoint("measurement:" + m.measurement, m.time, m.number);
+}
+
+// The statistics as the bus computed them: in the unit to the value's decimals (one more for
+// the mean and the spread), Cp and Cpk to two.
+function showStats(parts, stats, places, unit) {
   const text = {
     count: stats.count ?? "",
     mean: stats.mean === undefined ? "" : stats.mean.toFixed(places + 1) + unit,
@@ -306,7 +312,6 @@ function showMeasurement(m) {
     cpk: stats.cpk == null ? "—" : stats.cpk.toFixed(2),
   };
   for (const [name, cell] of parts.stats) cell.textContent = text[name];
-  addPoint("measurement:" + m.measurement, m.time, m.number);
 }
 
 async function loadMeasurements() {
