@@ -263,6 +263,13 @@ impl Bus {
             };
             tasks.push(tokio::spawn(task.run()));
         }
+        let measurements = &self.file.measurements;
+        let limits = (measurements.plan.formulas.iter())
+            .zip(&measurements.settings)
+            .filter_map(|(formula, settings)| {
+                Some((Arc::from(formula.name.as_str()), settings.limits?))
+            })
+            .collect();
         Ok(Running {
             handle: Handle {
                 lines: job_queues.into(),
@@ -271,6 +278,7 @@ impl Bus {
                 devices: entries.into(),
                 frames: line_frames.into(),
                 measuring,
+                limits,
             },
             events: self.events,
             gateways,

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
 use optobus_driver::{BufferTiming, Encode, Fixed};
 use optobus_inspect::Value;
+use optobus_measure::Limits;
 use tokio::sync::{mpsc, oneshot};
 
 use crate::event::DeviceId;
@@ -168,12 +169,24 @@ pub struct Handle {
     pub(crate) frames: Arc<[Arc<LineFrames>]>,
     /// The bus file's measurements, where it has any.
     pub(crate) measuring: Option<Arc<Measuring>>,
+    /// Each measurement's limits, by name, where it has limits: what outputs draw its values
+    /// against.
+    pub(crate) limits: Arc<[(Arc<str>, Limits)]>,
 }
 
 impl Handle {
     /// The bus file's measurements, by name with their unit, in the order they are computed.
     pub fn measurements(&self) -> Vec<(&str, &str)> {
         self.measuring.iter().flat_map(|m| m.names()).collect()
+    }
+
+    /// The limits of measurement `name`, in its unit, as the bus file gives them; `None` for a
+    /// measurement without limits, or none of that name.
+    pub fn measurement_limits(&self, name: &str) -> Option<&Limits> {
+        self.limits
+            .iter()
+            .find(|(measurement, _)| &**measurement == name)
+            .map(|(_, limits)| limits)
     }
 
     /// The judgement counts of measurement `name` since the bus started or the counts were

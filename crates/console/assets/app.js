@@ -8,8 +8,9 @@ const CHART_STEP_MS = 100; // at most one chart point per 100 ms per value
 const state = {
   devices: [], // from /api/devices
   cards: new Map(), // device name -> card parts
-  series: new Map(), // "device/register" -> [[time, number], ...]
+  series: new Map(), // "device/register" or "measurement:name" -> [[time, number], ...]
   dirty: new Set(), // charts to redraw
+  measurements: new Map(), // measurement name -> card parts
   detail: null, // the device shown in detail
   map: null, // its register map
 };
@@ -119,7 +120,7 @@ function showValue(parts, sample, name, label, text, number, kind) {
   let row = parts.values.get(name);
   if (!row) {
     const value = el("td", { class: "num", data: { value: key } });
-    const chart = el("canvas", { class: "spark", width: 240, height: 56 });
+    const chart = svgEl("svg", { class: "spark", "data-chart": key });
     row = { value, chart };
     parts.values.set(name, row);
     parts.rows.append(el("tr", { class: kind || "", data: { row: name } }, el("td", { class: "name" }, label), value, el("td", {}, chart)));
@@ -127,44 +128,218 @@ function showValue(parts, sample, name, label, text, number, kind) {
   row.value.textContent = text;
   // Live samples are current; /api/values says so of the last ones.
   markCurrent(row, sample.current !== false);
-  if (typeof number === "number") {
-    let points = state.series.get(key);
-    if (!points) state.series.set(key, (points = []));
-    const last = points[points.length - 1];
-    if (!last || sample.time - last[0] >= CHART_STEP_MS) points.push([sample.time, number]);
-    else last[1] = number;
-    while (points.length && points[0][0] < sample.time - CHART_MS) points.shift();
-    state.dirty.add(key);
+  if (typeof number === "number") addPoint(key, sample.time, number);
+}
+
+// A point of a chart's series: at most one per CHART_STEP_MS (the latest stands), the last
+// CHART_MS kept.
+function addPoint(key, time, number) {
+  let points = state.series.get(key);
+  if (!points) state.series.set(key, (points = []));
+  const last = points[points.length - 1];
+  if (!last || time - last[0] >= CHART_STEP_MS) points.push([time, number]);
+  else last[1] = number;
+  while (points.length && points[0][0] < time - CHART_MS) points.shift();
+  state.dirty.add(key);
+}
+
+const SVG = "http://www.w3.org/2000/svg";
+
+function svgEl(tag, attributes, text) {
+  const node = document.createElementNS(SVG, tag);
+  for (const [key, value] of Object.entries(attributes || {})) node.setAttribute(key, value);
+  if (text !== undefined) node.textContent = text;
+  return node;
+}
+
+// As many decimals as tell apart values `span` apart.
+function decimalsFor(span) {
+  if (!(span > 0)) return 2;
+  return Math.min(6, Math.max(0, 1 - Math.floor(Math.log10(span))));
+}
+
+// The local clock time of `time` (ms since 1970): 14:05:09.
+function clock(time) {
+  return new Date(time).toTimeString().slice(0, 8);
+}
+
+// Draws `points` ([time, number or null], oldest first) into the <svg> `box`, `width` ×
+// `height`: the values' line (broken where a value is missing), a value axis labelled in
+// `unit`, a time axis of clock times (`left`: room for the value labels), and each of `limits` (ll, lo, hi, hh) as a line.
+function plot(box, points, { width, height, unit, limits, left }) {
+  const right = 26, top = 8, bottom = 18;
+  box.setAttribute("viewBox", `0 0 ${width} ${height}`);
+  box.setAttribute("width", width);
+  box.setAttribute("height", height);
+  const given = Object.entries(limits || {}).filter(([, v]) => typeof v === "number");
+  const numbers = points.map((p) => p[1]).filter((y) => typeof y === "number");
+  const parts = [];
+  if (!points.length || (!numbers.length && !given.length)) {
+    box.replaceChildren();
+    return;
   }
+  let min = Math.min(...numbers, ...given.map((l) => l[1]));
+  let max = Math.max(...numbers, ...given.map((l) => l[1]));
+  const pad = (max - min) * 0.08 || Math.abs(max) * 0.01 || 1;
+  min -= pad;
+  max += pad;
+  const end = points[points.length - 1][0];
+  // Up to the last minutes; a younger series fills the chart.
+  const shown = Math.min(CHART_MS, Math.max(end - points[0][0], 1000));
+  const start = end - shown;
+  const x = (t) => left + (width - left - right) * (t - start) / shown;
+  const y = (v) => top + (height - top - bottom) * (max - v) / (max - min);
+  // Axes: three values, three clock times.
+  const decimals = decimalsFor(max - min);
+  parts.push(svgEl("line", { class: "axis", x1: left, y1: top, x2: left, y2: height - bottom }));
+  parts.push(svgEl("line", { class: "axis", x1: left, y1: height - bottom, x2: width - right, y2: height - bottom }));
+  for (const v of [max - pad, (min + max) / 2, min + pad]) {
+    parts.push(svgEl("line", { class: "grid", x1: left, y1: y(v), x2: width - right, y2: y(v) }));
+    parts.push(svgEl("text", { class: "axis-label", "data-axis": "value", x: left - 4, y: y(v) + 3, "text-anchor": "end" },
+      v.toFixed(decimals) + (unit ? " " + unit : "")));
+  }
+  // Three clock times where they fit, else the first and the last.
+  const ticks = width >= 300 ? [[start, "start"], [start + shown / 2, "middle"], [end, "end"]] : [[start, "start"], [end, "end"]];
+  ticks.forEach(([t, anchor]) => {
+    parts.push(svgEl("text", { class: "axis-label", "data-axis": "time", x: x(t), y: height - 4, "text-anchor": anchor }, clock(t)));
+  });
+  for (const [name, v] of given) {
+    parts.push(svgEl("line", { class: "limit limit-" + name, "data-limit": name, x1: left, y1: y(v), x2: width - right, y2: y(v) }));
+    parts.push(svgEl("text", { class: "limit-label", x: width - right + 2, y: y(v) + 3 }, name.toUpperCase()));
+  }
+  let path = "";
+  let pen = false;
+  for (const [t, v] of points) {
+    if (typeof v !== "number" || t < start) { pen = false; continue; }
+    path += `${pen ? "L" : "M"}${x(t).toFixed(1)},${y(v).toFixed(1)}`;
+    pen = true;
+  }
+  parts.push(svgEl("path", { class: "values", d: path }));
+  box.replaceChildren(...parts);
 }
 
 function draw() {
   for (const key of state.dirty) {
+    const points = state.series.get(key);
+    if (!points || !points.length) continue;
+    if (key.startsWith("measurement:")) {
+      const parts = state.measurements.get(key.slice("measurement:".length));
+      if (parts) plot(parts.chart, points, { width: 440, height: 200, unit: parts.unit, limits: parts.limits, left: 64 });
+      continue;
+    }
     const [device, register] = key.split("/");
     const row = state.cards.get(device)?.values.get(register);
-    const points = state.series.get(key);
-    if (!row || !points || !points.length) continue;
-    const canvas = row.chart;
-    const g = canvas.getContext("2d");
-    g.clearRect(0, 0, canvas.width, canvas.height);
-    let min = Infinity, max = -Infinity;
-    for (const [, y] of points) { if (y < min) min = y; if (y > max) max = y; }
-    const span = max - min || 1;
-    const end = points[points.length - 1][0];
-    // Up to the last minutes; a younger series fills the chart.
-    const shown = Math.min(CHART_MS, Math.max(end - points[0][0], 1000));
-    g.strokeStyle = "#0969da";
-    g.lineWidth = 2;
-    g.beginPath();
-    points.forEach(([t, y], i) => {
-      const x = canvas.width * (1 - (end - t) / shown);
-      const h = canvas.height - 4 - (canvas.height - 8) * (y - min) / span;
-      if (i === 0) g.moveTo(x, h); else g.lineTo(x, h);
-    });
-    g.stroke();
+    if (row) plot(row.chart, points, { width: 190, height: 64, unit: "", left: 40 });
   }
   state.dirty.clear();
   requestAnimationFrame(draw);
+}
+
+// ---- measurements ----
+
+// A judgement as the page marks it: its text (readable without colour) and its class.
+const JUDGEMENTS = {
+  ll: "LL ▼▼", lo: "LO ▼", go: "GO ✓", hi: "HI ▲", hh: "HH ▲▲",
+};
+
+// A limit as the bus file wrote it: 10.2, not its nearest binary fraction.
+function limitText(value) {
+  return String(Number(value.toPrecision(12)));
+}
+
+function measurementCard(m) {
+  const value = el("span", { class: "measurement-value", data: { measurementValue: m.measurement } });
+  const badge = el("span", { class: "badge", data: { badge: m.measurement } });
+  const reason = el("div", { class: "reason" });
+  const facts = el("div", { class: "facts" });
+  const chart = svgEl("svg", { class: "measurement-chart", "data-chart": "measurement:" + m.measurement });
+  const stats = new Map();
+  const statRow = (name, label) => {
+    const cell = el("td", { class: "num", data: { stat: name } });
+    stats.set(name, cell);
+    return el("tr", {}, el("th", {}, label), cell);
+  };
+  const table = el("table", { class: "stats" }, el("tbody", {},
+    statRow("count", "n"), statRow("mean", "mean"), statRow("sd", "sd"), statRow("min", "min"),
+    statRow("max", "max"), statRow("range", "range"), statRow("cp", "Cp"), statRow("cpk", "Cpk")));
+  const counts = el("div", { class: "facts", data: { counts: m.measurement } });
+  const limits = m.limits
+    ? Object.entries(m.limits).filter(([, v]) => v !== null).map(([k, v]) => `${k.toUpperCase()} ${limitText(v)} ${m.unit}`).join(" · ")
+    : "no limits";
+  const node = el("article", { class: "card measurement", data: { measurement: m.measurement } },
+    el("h2", {}, el("span", {}, m.measurement), badge),
+    el("div", { class: "reading" }, value),
+    reason,
+    el("div", { class: "facts" }, limits),
+    facts,
+    el("div", { class: "measurement-body" }, chart, table),
+    counts);
+  return { node, value, badge, reason, facts, chart, stats, counts, unit: m.unit, limits: m.limits };
+}
+
+function showCounts(parts, counts) {
+  if (!counts) { parts.counts.textContent = ""; return; }
+  const ng = counts.ll + counts.lo + counts.hi + counts.hh;
+  parts.counts.textContent = `OK ${counts.go} · NG ${ng} (LL ${counts.ll}, LO ${counts.lo}, HI ${counts.hi}, HH ${counts.hh})`;
+}
+
+function showMeasurement(m) {
+  const parts = state.measurements.get(m.measurement);
+  if (!parts) return;
+  const unit = m.unit ? " " + m.unit : "";
+  parts.value.textContent = m.value === null ? "—" : m.value + unit;
+  parts.reason.textContent = m.value === null ? m.reason || "" : "";
+  parts.badge.textContent = m.judgement ? JUDGEMENTS[m.judgement] : "";
+  parts.badge.className = "badge" + (m.judgement ? " judgement-" + m.judgement : "");
+  parts.facts.textContent = `skew ${(m.skew_us / 1000).toFixed(2)} ms · ${clock(m.time)}`;
+  // The value's own decimals for what is in its unit; three more for the spread.
+  // An event without statistics leaves the last ones shown.
+  if (m.stats) showStats(parts, m.stats, m.value === null ? 3 : (m.value.split(".")[1] || "").length, unit);
+  addPoint("measurement:" + m.measurement, m.time, m.number);
+}
+
+// The statistics as the bus computed them: in the unit to the value's decimals (one more for
+// the mean and the spread), Cp and Cpk to two.
+function showStats(parts, stats, places, unit) {
+  const text = {
+    count: stats.count ?? "",
+    mean: stats.mean === undefined ? "" : stats.mean.toFixed(places + 1) + unit,
+    sd: stats.sd == null ? "—" : stats.sd.toFixed(places + 1) + unit,
+    min: stats.min === undefined ? "" : stats.min.toFixed(places) + unit,
+    max: stats.max === undefined ? "" : stats.max.toFixed(places) + unit,
+    range: stats.range === undefined ? "" : stats.range.toFixed(places) + unit,
+    cp: stats.cp == null ? "—" : stats.cp.toFixed(2),
+    cpk: stats.cpk == null ? "—" : stats.cpk.toFixed(2),
+  };
+  for (const [name, cell] of parts.stats) cell.textContent = text[name];
+}
+
+async function loadMeasurements() {
+  const { measurements } = await api("/api/measurements");
+  const box = document.getElementById("measurements");
+  box.hidden = measurements.length === 0;
+  box.replaceChildren();
+  state.measurements.clear();
+  for (const m of measurements) {
+    const parts = measurementCard(m);
+    state.measurements.set(m.measurement, parts);
+    box.append(parts.node);
+    const key = "measurement:" + m.measurement;
+    state.series.set(key, m.history.slice());
+    state.dirty.add(key);
+    if (m.latest) showMeasurement(m.latest);
+    showCounts(parts, m.counts);
+  }
+}
+
+// The OK/NG counts, which the stream does not carry: read again every few seconds.
+async function refreshCounts() {
+  if (!state.measurements.size) return;
+  const { measurements } = await api("/api/measurements");
+  for (const m of measurements) {
+    const parts = state.measurements.get(m.measurement);
+    if (parts) showCounts(parts, m.counts);
+  }
 }
 
 function showLines(lines) {
@@ -189,6 +364,7 @@ async function load() {
   }
   for (const samples of Object.values(values)) samples.forEach(showSample);
   showLines(devices.lines);
+  await loadMeasurements();
 }
 
 function connect() {
@@ -209,6 +385,7 @@ function connect() {
     batch.samples.forEach(showSample);
     batch.health.forEach(showHealth);
     if (batch.lines.length) showLines(batch.lines);
+    batch.measurements.forEach(showMeasurement);
   };
   source.addEventListener("dropped", (message) => note(`the page fell behind: ${message.data} batches skipped`));
 }
@@ -389,5 +566,6 @@ document.addEventListener("DOMContentLoaded", () => {
   document.getElementById("buffer-read").addEventListener("click", () => readBuffer().catch((e) => note(e.message)));
   document.getElementById("buffer-csv").addEventListener("click", () => save(`${state.detail}-buffer.csv`, bufferCsv));
   connect();
+  setInterval(() => refreshCounts().catch((e) => note(e.message)), 2000);
   requestAnimationFrame(draw);
 });

@@ -15,8 +15,8 @@ use optobus_inspect::{did_you_mean, hex};
 
 use crate::error::ApiError;
 use crate::reply::{
-    unix_ms, Connections, DeviceJson, DeviceMap, Devices, FrameJson, LatestSample, RegisterValue,
-    Status, Values,
+    unix_ms, Connections, DeviceJson, DeviceMap, Devices, FrameJson, LatestSample,
+    MeasurementState, Measurements, RegisterValue, Status, Values,
 };
 use crate::state::Shared;
 use crate::{guard, map, page, stream, write, BODY_LIMIT};
@@ -28,6 +28,7 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
         .route("/style.css", get(page::style))
         .route("/api/devices", get(devices))
         .route("/api/values", get(values))
+        .route("/api/measurements", get(measurements))
         .route("/api/status", get(status))
         .route("/api/stream", get(stream::stream))
         .route("/api/devices/{device}", get(device_map))
@@ -92,6 +93,26 @@ async fn values(State(shared): State<Arc<Shared>>) -> Response {
         })
         .collect();
     Json(Values(devices)).into_response()
+}
+
+/// `GET /api/measurements`: each of the bus file's measurements with its limits, latest value,
+/// recent values and judgement counts, as the bus computed them.
+async fn measurements(State(shared): State<Arc<Shared>>) -> Response {
+    let board = shared.board();
+    let measurements = board
+        .measurements
+        .iter()
+        .map(|m| MeasurementState {
+            measurement: &m.name,
+            unit: &m.unit,
+            limits: m.limits,
+            latest: m.latest.as_ref(),
+            history: m.history.iter().copied().collect(),
+            counts: shared.handle.judgement_counts(&m.name).map(Into::into),
+        })
+        .collect();
+    // Sent while the board is held: the reply borrows from it.
+    Json(Measurements { measurements }).into_response()
 }
 
 /// `GET /api/status`: the live stream's clients and what was dropped, the console's requests

@@ -1,10 +1,11 @@
-//! What the live stream sends: one batch of samples, health changes and line statistics every
+//! What the live stream sends: one batch of samples, health changes, line statistics and
+//! measurements every
 //! [`BATCH_EVERY`].
 
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::reply::{BatchJson, HealthJson, LineJson, SampleJson};
+use crate::reply::{BatchJson, HealthJson, LineJson, MeasurementJson, SampleJson};
 
 /// How often a batch is sent.
 pub const BATCH_EVERY: Duration = Duration::from_millis(100);
@@ -32,13 +33,24 @@ impl Batch {
             }
             Entry::Health(health) => batch.health.push(health),
             Entry::Line(line) => batch.lines.push(line),
+            Entry::Measurement(measurement) => {
+                if batch.measurements.len() == BATCH_LIMIT {
+                    batch.measurements.remove(0);
+                    batch.overflow += 1;
+                }
+                batch.measurements.push(measurement);
+            }
         }
     }
 
     /// The batch as JSON text, if anything happened; it starts again empty.
     pub(crate) fn take(&mut self) -> Option<Arc<str>> {
         let batch = &self.0;
-        if batch.samples.is_empty() && batch.health.is_empty() && batch.lines.is_empty() {
+        if batch.samples.is_empty()
+            && batch.health.is_empty()
+            && batch.lines.is_empty()
+            && batch.measurements.is_empty()
+        {
             return None;
         }
         let batch = std::mem::take(&mut self.0);
@@ -52,4 +64,5 @@ pub(crate) enum Entry {
     Sample(SampleJson),
     Health(HealthJson),
     Line(LineJson),
+    Measurement(MeasurementJson),
 }

@@ -10,6 +10,7 @@
 //! |---|---|
 //! | `GET /` | the page |
 //! | `GET /api/devices` | the devices with their health and errors, and the lines' statistics |
+//! | `GET /api/measurements` | the bus file's measurements: each with its unit, limits, latest value (exact text, number, reason, judgement, skew, statistics), its last 600 values and its judgement counts |
 //! | `GET /api/values` | the latest value of every register polled, per device: its `text`, JSON `value`, `number` for charts, and for a packed or record register its `fields` (name, unit, text, number each, in the spec's order; the page shows a row per field); `current` is false once the device is down |
 //! | `GET /api/devices/{device}` | the device's register map, commands and groups, from its spec |
 //! | `GET /api/devices/{device}/frames` | its recent frames: direction, hex, time, reply delay |
@@ -17,7 +18,7 @@
 //! | `POST /api/devices/{device}/set` | `{"register": "light_power", "value": "12.5 %"}`: set as `optobus set` does, if the bus file's `writable` lists it; the value read back. A JSON number (`"value": 12.5`) is taken as the text written, never through a float |
 //! | `POST /api/devices/{device}/do` | `{"command": "zero_position_1"}`: run as `optobus do` does, if listed (a drastic one only when named there) |
 //! | `POST /api/devices/{device}/buffer` | its data buffer read out (if `writable` lists the buffer's lock and unlock), as CSV: `index,time_s,value_UNIT` |
-//! | `GET /api/stream` | server-sent events: a batch of samples, health and line statistics every 100 ms |
+//! | `GET /api/stream` | server-sent events: a batch of samples, health, line statistics and measurement values every 100 ms |
 //! | `GET /api/status` | the stream's clients and the batches dropped for slow ones, requests refused as busy, the listener's connections |
 //!
 //! Safe by default: it listens on 127.0.0.1; against DNS rebinding it answers only requests

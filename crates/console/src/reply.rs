@@ -4,9 +4,10 @@
 use std::sync::Arc;
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use optobus_bus::{ErrorCounts, Health, LineStats, Sample};
+use optobus_bus::{ErrorCounts, Health, LineStats, MeasurementEvent, Sample};
 use optobus_device::{FieldInfo, RegisterInfo, ValueKind};
 use optobus_inspect::Value;
+use optobus_measure::{Judgement, Limits, Summary};
 use serde::ser::{Serialize, SerializeMap, Serializer};
 
 /// A sample as the page takes it: its text as the tool shows it, its JSON value, a number for
@@ -257,6 +258,7 @@ pub(crate) struct BatchJson {
     pub(crate) samples: Vec<SampleJson>,
     pub(crate) health: Vec<HealthJson>,
     pub(crate) lines: Vec<LineJson>,
+    pub(crate) measurements: Vec<MeasurementJson>,
     /// Samples dropped because the batch was full.
     pub(crate) overflow: u64,
 }
@@ -316,4 +318,138 @@ pub(crate) struct CommandJson {
 pub(crate) struct GroupJson {
     pub(crate) name: &'static str,
     pub(crate) registers: &'static [&'static str],
+}
+
+/// A measurement's value as the page takes it (one of the bus's `measurements:`): its exact
+/// text and a number for the chart, or why it has none; its judgement, skew and statistics as
+/// the bus computed them.
+#[derive(Clone, Debug, serde::Serialize)]
+pub(crate) struct MeasurementJson {
+    measurement: Arc<str>,
+    /// Empty for a plain number.
+    unit: Arc<str>,
+    /// The exact value (`10.061630`); `null` when it has none.
+    value: Option<String>,
+    number: Option<f64>,
+    /// Why it has no value.
+    reason: Option<String>,
+    /// `ll`, `lo`, `go`, `hi`, `hh`; `null` without limits or value.
+    judgement: Option<&'static str>,
+    skew_us: u64,
+    stats: Option<StatsJson>,
+    /// Milliseconds since 1970.
+    time: f64,
+}
+
+impl MeasurementJson {
+    pub(crate) fn new(event: &MeasurementEvent) -> Self {
+        let (value, number, reason) = match &event.value {
+            Ok(value) => (Some(value.to_string()), Some(value.to_f64()), None),
+            Err(reason) => (None, None, Some(reason.clone())),
+        };
+        Self {
+            measurement: Arc::clone(&event.measurement),
+            unit: Arc::clone(&event.unit),
+            value,
+            number,
+            reason,
+            judgement: event.judgement.map(Judgement::name),
+            skew_us: u64::try_from(event.skew.as_micros()).unwrap_or(u64::MAX),
+            stats: event.stats.map(StatsJson::from),
+            time: unix_ms(event.time),
+        }
+    }
+
+    /// Its time and number, for a chart.
+    pub(crate) fn point(&self) -> (f64, Option<f64>) {
+        (self.time, self.number)
+    }
+}
+
+/// A measurement's rolling statistics, in its unit, as the bus computed them.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub(crate) struct StatsJson {
+    count: usize,
+    mean: f64,
+    /// `null` below two values.
+    sd: Option<f64>,
+    min: f64,
+    max: f64,
+    range: f64,
+    /// `null` without both `lo` and `hi`, or without spread.
+    cp: Option<f64>,
+    cpk: Option<f64>,
+}
+
+impl From<Summary> for StatsJson {
+    fn from(summary: Summary) -> Self {
+        Self {
+            count: summary.count,
+            mean: summary.mean,
+            sd: summary.sd,
+            min: summary.min,
+            max: summary.max,
+            range: summary.range,
+            cp: summary.cp,
+            cpk: summary.cpk,
+        }
+    }
+}
+
+/// A measurement's limits, in its unit, each `null` where not given: what its chart draws.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub(crate) struct LimitsJson {
+    ll: Option<f64>,
+    lo: Option<f64>,
+    hi: Option<f64>,
+    hh: Option<f64>,
+}
+
+impl From<&Limits> for LimitsJson {
+    fn from(limits: &Limits) -> Self {
+        let number = |limit: Option<optobus_measure::Decimal>| limit.map(|l| l.to_f64());
+        Self {
+            ll: number(limits.ll),
+            lo: number(limits.lo),
+            hi: number(limits.hi),
+            hh: number(limits.hh),
+        }
+    }
+}
+
+/// A measurement in `GET /api/measurements`: its limits, latest value, recent values (oldest
+/// first, `[time, number or null]`) and judgement counts since start or reset.
+#[derive(Debug, serde::Serialize)]
+pub(crate) struct MeasurementState<'a> {
+    pub(crate) measurement: &'a str,
+    pub(crate) unit: &'a str,
+    /// `null` for a measurement without limits.
+    pub(crate) limits: Option<LimitsJson>,
+    /// `null` before its first value.
+    pub(crate) latest: Option<&'a MeasurementJson>,
+    pub(crate) history: Vec<(f64, Option<f64>)>,
+    /// `ll`, `lo`, `go`, `hi`, `hh`; `null` without limits.
+    pub(crate) counts: Option<JudgementCounts>,
+}
+
+/// How often each judgement was given (OK is `go`, the rest NG).
+#[derive(Debug, serde::Serialize)]
+pub(crate) struct JudgementCounts {
+    ll: u64,
+    lo: u64,
+    go: u64,
+    hi: u64,
+    hh: u64,
+}
+
+impl From<[u64; 5]> for JudgementCounts {
+    fn from([ll, lo, go, hi, hh]: [u64; 5]) -> Self {
+        Self { ll, lo, go, hi, hh }
+    }
+}
+
+/// `GET /api/measurements`, in the order the bus computes them.
+#[derive(Debug, serde::Serialize)]
+pub(crate) struct Measurements<'a> {
+    pub(crate) measurements: Vec<MeasurementState<'a>>,
 }

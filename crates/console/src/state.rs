@@ -1,6 +1,6 @@
 //! What the console knows of the bus: the latest value of every register polled, each
-//! device's health and each line's statistics, kept up to date from the bus's events by one
-//! task, which also gathers them into the live stream's batches and hands each batch to every
+//! device's health, each line's statistics and each measurement's recent values, kept up to
+//! date from the bus's events by one task, which also gathers them into the live stream's batches and hands each batch to every
 //! client's own bounded queue (a full queue loses its oldest batch then, counted).
 
 use std::collections::{HashMap, VecDeque};
@@ -13,7 +13,11 @@ use tokio::sync::{broadcast, watch, Notify};
 
 use crate::batch::{Batch, Entry, BATCH_EVERY, BATCH_QUEUE};
 use crate::guard::Guard;
-use crate::reply::{HealthJson, LineJson, SampleJson};
+use crate::reply::{HealthJson, LimitsJson, LineJson, MeasurementJson, SampleJson};
+
+/// The recent values kept per measurement for its chart (the page keeps its own from then
+/// on); the oldest goes beyond.
+pub(crate) const MEASUREMENT_HISTORY: usize = 600;
 
 /// Everything the handlers share.
 #[derive(Debug)]
@@ -103,6 +107,19 @@ pub(crate) struct Board {
     pub(crate) devices: Vec<DeviceState>,
     /// Each line's latest statistics, as the stream sends them.
     pub(crate) lines: Vec<(Arc<str>, LineJson)>,
+    /// The bus file's measurements, in the order the bus computes them.
+    pub(crate) measurements: Vec<MeasurementState>,
+}
+
+/// A measurement's latest value and its recent ones.
+#[derive(Debug)]
+pub(crate) struct MeasurementState {
+    pub(crate) name: String,
+    pub(crate) unit: String,
+    pub(crate) limits: Option<LimitsJson>,
+    pub(crate) latest: Option<MeasurementJson>,
+    /// At most [`MEASUREMENT_HISTORY`], oldest first: time (ms since 1970) and number.
+    pub(crate) history: VecDeque<(f64, Option<f64>)>,
 }
 
 impl DeviceState {
@@ -130,12 +147,24 @@ impl Shared {
                 values: HashMap::new(),
             })
             .collect();
+        let measurements = handle
+            .measurements()
+            .into_iter()
+            .map(|(name, unit)| MeasurementState {
+                name: name.to_owned(),
+                unit: unit.to_owned(),
+                limits: handle.measurement_limits(name).map(LimitsJson::from),
+                latest: None,
+                history: VecDeque::new(),
+            })
+            .collect();
         Self {
             handle,
             guard: Arc::new(guard),
             board: Mutex::new(Board {
                 devices,
                 lines: Vec::new(),
+                measurements,
             }),
             clients: Mutex::new(Vec::new()),
             dropped: AtomicU64::new(0),
@@ -215,8 +244,19 @@ impl Board {
                 device.reason.clone_from(reason);
                 Some(Entry::Health(device.health_json()))
             }
-            // Shown by the console with issue 32's outputs; not yet.
-            Event::Measurement(_) => None,
+            Event::Measurement(event) => {
+                let json = MeasurementJson::new(event);
+                let state = self
+                    .measurements
+                    .iter_mut()
+                    .find(|m| *m.name == *event.measurement)?;
+                if state.history.len() == MEASUREMENT_HISTORY {
+                    state.history.pop_front();
+                }
+                state.history.push_back(json.point());
+                state.latest = Some(json.clone());
+                Some(Entry::Measurement(json))
+            }
             Event::Line(stats) => {
                 let json = LineJson::new(stats);
                 match self.lines.iter_mut().find(|(line, _)| *line == stats.line) {

@@ -3,7 +3,8 @@
 //! change live, a record register's fields are rows of their own inside its card, an
 //! out-of-range edit shows the server's refusal and leaves the simulator's
 //! register as it was, a drastic command asks before it acts, a screenshot is written, and
-//! the page's stream reconnects by itself when the server comes back after a stop.
+//! the page's stream reconnects by itself when the server comes back after a stop; a
+//! measurement shows its value, judgement badge, chart with limits and axes, and statistics.
 //!
 //! `.ci/run` installs `chromium` and `chromium-driver` and sets `OPTOBUS_REQUIRE_INTEROP=1`, so
 //! there a missing browser fails the test; elsewhere it says it was skipped.
@@ -29,6 +30,13 @@ devices:
   - { name: head, model: p-series, slave: 1, timeout: 50ms, writable: [light_power, save_parameters], poll: [{ read: measurements, every: 50ms }] }
   - { name: confocal, model: ccs, slave: 2, timeout: 50ms, poll: [{ read: measurements, every: 100ms }] }
   - { name: ranger, model: rangefinder, slave: 3, timeout: 50ms, poll: [{ read: measurements, every: 100ms }] }
+  - { name: bottom, model: p-series, slave: 4, timeout: 50ms, poll: [{ read: distance_1, every: 50ms }] }
+measurements:
+  - name: gap
+    expr: 20mm - head.distance_1 - bottom.distance_1
+    limits: { ll: 9.9mm, lo: 10mm, hi: 10.2mm, hh: 10.3mm }
+    stats: 200
+    max_skew: 1s
 ";
 
 /// chromedriver on a free port, ended when dropped.
@@ -341,6 +349,116 @@ async fn a_drastic_command_asks_before_it_acts(client: &Client, running: &Runnin
     assert!(wrote_command(running, "save_parameters"));
 }
 
+/// The texts of the elements at `css`.
+async fn texts(client: &Client, css: &str) -> Vec<String> {
+    let found = client
+        .execute(
+            "return [...document.querySelectorAll(arguments[0])].map((e) => e.textContent);",
+            vec![json!(css)],
+        )
+        .await
+        .unwrap();
+    serde_json::from_value(found).unwrap()
+}
+
+/// Whether `text` is a clock time, `14:05:09`.
+fn is_clock(text: &str) -> bool {
+    let bytes = text.as_bytes();
+    bytes.len() == 8
+        && bytes.iter().enumerate().all(|(i, b)| {
+            if i == 2 || i == 5 {
+                *b == b':'
+            } else {
+                b.is_ascii_digit()
+            }
+        })
+}
+
+/// Issue 32, point 5: a measurement shows its value with its unit, its judgement as a badge
+/// (a colour and a text), a chart with its limits and axes (values in its unit, clock times),
+/// and its statistics; the devices' charts have axes and a time scale too. Then a screenshot
+/// of it (`OPTOBUS_UPDATE_SCREENSHOT=1`: `docs/measurements.png`, which the README shows).
+async fn a_measurement_shows_its_value_badge_limits_axes_and_statistics(client: &Client) {
+    let value = until_text(client, "[data-measurement-value='gap']", |t| {
+        t.ends_with(" mm")
+    })
+    .await;
+    let number: f64 = value.trim_end_matches(" mm").parse().expect("a number");
+    assert!((9.0..11.0).contains(&number), "{value}");
+    let badge = until_text(client, "[data-badge='gap']", |t| !t.is_empty()).await;
+    assert!(
+        ["LL ▼▼", "LO ▼", "GO ✓", "HI ▲", "HH ▲▲"].contains(&badge.as_str()),
+        "{badge}"
+    );
+    let class = class_of(client, "[data-badge='gap']").await;
+    assert!(class.contains("judgement-"), "{class}");
+    // Enough values for a line and three clock times apart.
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    let chart = "[data-chart='measurement:gap']";
+    let limits = client
+        .execute(
+            "return [...document.querySelectorAll(arguments[0] + ' [data-limit]')]
+                 .map((l) => l.dataset.limit);",
+            vec![json!(chart)],
+        )
+        .await
+        .unwrap();
+    assert_eq!(limits, json!(["ll", "lo", "hi", "hh"]));
+    let times = texts(client, &format!("{chart} [data-axis='time']")).await;
+    assert_eq!(times.len(), 3, "{times:?}");
+    assert!(times.iter().all(|t| is_clock(t)), "{times:?}");
+    let values = texts(client, &format!("{chart} [data-axis='value']")).await;
+    assert_eq!(values.len(), 3, "{values:?}");
+    assert!(values.iter().all(|v| v.ends_with(" mm")), "{values:?}");
+    let path = texts(client, &format!("{chart} path.values")).await;
+    assert_eq!(path.len(), 1);
+    // The statistics as the bus computed them.
+    let stat = |name: &str| format!("[data-measurement='gap'] [data-stat='{name}']");
+    let count = until_text(client, &stat("count"), |t| t.parse::<u64>().is_ok()).await;
+    assert!(count.parse::<u64>().unwrap() >= 1);
+    for name in ["mean", "min", "max", "range"] {
+        let text = text_of(client, &stat(name)).await;
+        assert!(text.ends_with(" mm"), "{name}: {text}");
+    }
+    let cpk = text_of(client, &stat("cpk")).await;
+    assert!(cpk == "—" || cpk.parse::<f64>().is_ok(), "{cpk}");
+    let counts = until_text(client, "[data-counts='gap']", |t| t.starts_with("OK ")).await;
+    assert!(counts.contains("NG "), "{counts}");
+    // A device's chart: a time scale and a value axis too.
+    let device = "[data-chart='head/distance_1']";
+    let times = texts(client, &format!("{device} [data-axis='time']")).await;
+    assert!(
+        times.len() >= 2 && times.iter().all(|t| is_clock(t)),
+        "{times:?}"
+    );
+    assert_eq!(
+        texts(client, &format!("{device} [data-axis='value']"))
+            .await
+            .len(),
+        3
+    );
+
+    client
+        .execute("window.scrollTo(0, 0)", vec![])
+        .await
+        .unwrap();
+    // Taken while it has a value (the simulator's heads now and then read invalid).
+    until_text(client, "[data-measurement-value='gap']", |t| {
+        t.ends_with(" mm")
+    })
+    .await;
+    let png = client.screenshot().await.unwrap();
+    assert_eq!(png[..8], *b"\x89PNG\r\n\x1a\n");
+    let artifact = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("measurements.png");
+    std::fs::write(&artifact, &png).unwrap();
+    eprintln!("screenshot: {}", artifact.display());
+    if std::env::var_os("OPTOBUS_UPDATE_SCREENSHOT").is_some() {
+        let docs = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs");
+        std::fs::create_dir_all(&docs).unwrap();
+        std::fs::write(docs.join("measurements.png"), &png).unwrap();
+    }
+}
+
 async fn a_screenshot_is_written(client: &Client) {
     client
         .find(Locator::Css("button[data-tab='registers']"))
@@ -397,6 +515,7 @@ async fn the_page_in_a_real_browser() {
     assert_eq!(client.title().await.unwrap(), "optobus console");
     values_change_live(&client).await;
     point_5_a_records_fields_are_rows_of_their_own_inside_its_card(&client).await;
+    a_measurement_shows_its_value_badge_limits_axes_and_statistics(&client).await;
     let errors = console_errors(&client).await;
     assert!(errors.is_empty(), "the page logged errors: {errors:?}");
     an_out_of_range_edit_shows_the_refusal_and_changes_nothing(&client, &running).await;

@@ -26,6 +26,8 @@ use serde_json::{json, Map, Value as Json};
 
 use crate::topics::Topics;
 
+pub mod measurements;
+
 /// What a device said about itself, for its Home Assistant device block.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 #[non_exhaustive]
@@ -47,8 +49,8 @@ impl Identity {
     }
 }
 
-/// The discovery configurations of every polled register of every device of `file`, as
-/// (topic, payload), for a publisher with `client_id` and topic `prefix`.
+/// The discovery configurations of every polled register of every device of `file`, and of
+/// its measurements (see [`measurements`]), as (topic, payload), for a publisher with `client_id` and topic `prefix`.
 pub fn configurations(
     file: &BusFile,
     discovery_prefix: &str,
@@ -146,6 +148,12 @@ pub fn configurations_with(
             ));
         }
     }
+    configurations.extend(measurements::configurations(
+        file,
+        discovery_prefix,
+        client_id,
+        prefix,
+    ));
     configurations
 }
 

@@ -27,6 +27,7 @@
 #![forbid(unsafe_code)]
 
 pub mod discovery;
+mod homeassistant;
 mod outbox;
 mod payload;
 mod publisher;

@@ -1,15 +1,11 @@
 //! The publisher: a task that turns bus events into messages, one that hands them to the MQTT
 //! client, and one that drives the connection (reconnecting with backoff).
 
-use std::collections::{BTreeSet, HashMap};
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use optobus_bus::{
-    BusFile, Event, Follower, Handle, Health, JobError, MqttConfig, Source, Writer, Written,
-};
-use optobus_device::{RegisterInfo, Role};
-use optobus_inspect::Value;
+use optobus_bus::{BusFile, Event, Follower, Handle, Health, MqttConfig, Source, Writer};
 use rumqttc::{
     AsyncClient, ConnectionError, Event as MqttEvent, EventLoop, LastWill, MqttOptions, Outgoing,
     Packet, QoS, StateError, TlsConfiguration, Transport,
@@ -18,9 +14,10 @@ use tokio::sync::broadcast;
 use tokio::sync::{mpsc, Notify};
 use tokio::task::JoinHandle;
 
-use crate::discovery::{self, Identity};
+use crate::discovery::{self, measurements};
+use crate::homeassistant::{refresh, states_due, Discovery, Reads, Rereads};
 use crate::outbox::{Counts, Kind, Message, Outbox, MAX_PACKET};
-use crate::payload::{read_json, sample_json};
+use crate::payload::sample_json;
 use crate::secret::{Secret, SecretError};
 use crate::state::States;
 use crate::topics::Topics;
@@ -62,135 +59,40 @@ impl std::error::Error for StartError {}
 
 /// A device as the publisher follows it.
 #[derive(Debug)]
-struct DeviceState {
-    name: String,
+pub(crate) struct DeviceState {
+    pub(crate) name: String,
     /// `None` before its first sample or health event.
-    online: Option<bool>,
+    pub(crate) online: Option<bool>,
 }
 
-/// Home Assistant discovery: what its configurations are made of, and the configurations.
-#[derive(Debug)]
-struct Discovery {
-    /// Home Assistant's status topic (`<discovery prefix>/status`).
-    status: String,
-    prefix: String,
-    client_id: String,
-    file: BusFile,
-    /// What devices said about themselves (read once at start).
-    identities: Mutex<HashMap<String, Identity>>,
-    configs: Mutex<Vec<Message>>,
-}
-
-impl Discovery {
-    fn configs(&self) -> Vec<Message> {
-        lock(&self.configs).clone()
-    }
-
-    /// Makes the configurations again, for the publisher's topic `prefix`.
-    fn make(&self, prefix: &str) {
-        let identities = lock(&self.identities).clone();
-        let configs = discovery::configurations_with(
-            &self.file,
-            &self.prefix,
-            &self.client_id,
-            prefix,
-            &identities,
-        )
-        .into_iter()
-        .map(|(topic, payload)| announce(topic, payload.to_string()))
-        .collect();
-        *lock(&self.configs) = configs;
-    }
-}
-
-fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+pub(crate) fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
     mutex
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 #[derive(Debug)]
-struct Shared {
-    outbox: Mutex<Outbox>,
-    wake: Notify,
-    devices: Mutex<Vec<DeviceState>>,
-    topics: Topics,
-    qos: QoS,
+pub(crate) struct Shared {
+    pub(crate) outbox: Mutex<Outbox>,
+    pub(crate) wake: Notify,
+    pub(crate) devices: Mutex<Vec<DeviceState>>,
+    pub(crate) topics: Topics,
+    pub(crate) qos: QoS,
     /// Home Assistant discovery, when on.
-    discovery: Option<Discovery>,
+    pub(crate) discovery: Option<Discovery>,
     /// The state topics Home Assistant reads, when it is on.
-    states: Option<Mutex<States>>,
+    pub(crate) states: Option<Mutex<States>>,
     /// Set by [`Publisher::stop`]: the connection's end is ours, nothing to warn about.
-    stopping: std::sync::atomic::AtomicBool,
+    pub(crate) stopping: std::sync::atomic::AtomicBool,
     /// Set when [`Publisher::stop`] begins: every device is announced `offline`, and no
     /// later sample or health event announces one `online` again.
-    closing: std::sync::atomic::AtomicBool,
+    pub(crate) closing: std::sync::atomic::AtomicBool,
     /// The controls another path wrote, to be read again at once.
-    rereads: Rereads,
-}
-
-/// The controls whose state is read again as soon as another path (the console, the gateway,
-/// the program's handle) has written them: each at most once however often it was written
-/// meanwhile, by the one task that reads the states.
-#[derive(Debug, Default)]
-struct Rereads {
-    /// Each device's controls with a state read from the device.
-    controls: Vec<(String, Vec<&'static RegisterInfo>)>,
-    /// Which of them are due (device, control), each once.
-    due: Mutex<BTreeSet<(usize, usize)>>,
-    /// Wakes the reading task.
-    wake: Notify,
-}
-
-impl Rereads {
-    fn new(reads: &[Reads]) -> Self {
-        Self {
-            controls: reads
-                .iter()
-                .map(|reads| (reads.device.clone(), reads.controls.clone()))
-                .collect(),
-            ..Self::default()
-        }
-    }
-
-    /// Marks the controls `written` covers as due; how many were due already.
-    fn written(&self, written: &Written) -> u64 {
-        let Some(device) = self
-            .controls
-            .iter()
-            .position(|(name, _)| *name == *written.source.device)
-        else {
-            return 0;
-        };
-        let controls = &self.controls[device].1;
-        let mut due = lock(&self.due);
-        let mut coalesced = 0;
-        let mut added = false;
-        for register in &written.registers {
-            let Some(control) = controls.iter().position(|c| std::ptr::eq(*c, *register)) else {
-                continue;
-            };
-            if due.insert((device, control)) {
-                added = true;
-            } else {
-                coalesced += 1;
-            }
-        }
-        drop(due);
-        if added {
-            self.wake.notify_one();
-        }
-        coalesced
-    }
-
-    /// The controls due now, taken.
-    fn take(&self) -> BTreeSet<(usize, usize)> {
-        std::mem::take(&mut *lock(&self.due))
-    }
+    pub(crate) rereads: Rereads,
 }
 
 impl Shared {
-    fn outbox(&self) -> MutexGuard<'_, Outbox> {
+    pub(crate) fn outbox(&self) -> MutexGuard<'_, Outbox> {
         lock(&self.outbox)
     }
 
@@ -202,51 +104,7 @@ impl Shared {
         counts
     }
 
-    /// A sample of `register` of `device` for its state topic, if it has one: published now
-    /// or when its interval is over.
-    fn state_sample(&self, device: &str, register: &str, payload: &[u8]) {
-        let Some(states) = &self.states else { return };
-        let topic = self.topics.state(device, register);
-        let now = tokio::time::Instant::now();
-        let message = lock(states).offer(&topic, payload.to_vec(), now);
-        if let Some(message) = message {
-            self.push(message);
-        }
-    }
-
-    /// A value read on purpose for state topic `topic`: published now.
-    fn state_now(&self, topic: &str, payload: Vec<u8>) {
-        let Some(states) = &self.states else { return };
-        let message = lock(states).now(topic, payload, tokio::time::Instant::now());
-        if let Some(message) = message {
-            self.push(message);
-        }
-    }
-
-    /// Whether the bus has given up on `device` for now.
-    fn offline(&self, device: &str) -> bool {
-        lock(&self.devices)
-            .iter()
-            .any(|d| d.name == device && d.online == Some(false))
-    }
-
-    /// `device` said what its register of `role` holds: its entities' device block carries it
-    /// from now.
-    fn identified(&self, device: &str, role: Role, text: String) {
-        let Some(discovery) = &self.discovery else {
-            return;
-        };
-        lock(&discovery.identities)
-            .entry(device.to_owned())
-            .or_default()
-            .set(role, text);
-        discovery.make(self.topics.prefix());
-        for config in discovery.configs() {
-            self.push(config);
-        }
-    }
-
-    fn push(&self, message: Message) {
+    pub(crate) fn push(&self, message: Message) {
         self.outbox().push(message);
         self.wake.notify_one();
     }
@@ -648,126 +506,6 @@ async fn write(mut waiting: mpsc::Receiver<Write>, handle: Handle, shared: Arc<S
     }
 }
 
-/// A device's registers read for the state topics.
-#[derive(Debug)]
-struct Reads {
-    device: String,
-    /// The registers that name the device (firmware version, serial number), until each has
-    /// been read once.
-    identity: Vec<(Role, &'static RegisterInfo)>,
-    /// The controls Home Assistant shows, read at start and at each refresh.
-    controls: Vec<&'static RegisterInfo>,
-}
-
-/// Reads the controls' values for their state topics at start and every `every`, and what
-/// names each device (its registers with a role: firmware version, serial number) once, through `handle` (as MQTT: the line serves them in turn
-/// with its polls, in its bounded queue for MQTT). One read at a time; a device the bus has
-/// given up on is left for the next round, and so is the rest of a device after a failure or
-/// a busy refusal (counted).
-///
-/// Between rounds it reads at once the controls another path wrote (see [`Rereads`]); a
-/// write during a round waits for the round's end.
-async fn refresh(handle: Handle, shared: Arc<Shared>, mut reads: Vec<Reads>, every: Duration) {
-    let mut rounds = tokio::time::interval(every);
-    rounds.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    loop {
-        // Neither starves the other: select takes either when both are ready.
-        tokio::select! {
-            () = shared.rereads.wake.notified() => {
-                reread(&handle, &shared).await;
-                continue;
-            }
-            _ = rounds.tick() => {}
-        }
-        for device in &mut reads {
-            if shared.offline(&device.device) {
-                continue;
-            }
-            // Each is read until it has been once (an invalid reading is tried again).
-            let mut failed = false;
-            for (role, register) in std::mem::take(&mut device.identity) {
-                if !failed {
-                    match read_for_state(&handle, &shared, &device.device, register).await {
-                        Some(Value::Invalid) => {}
-                        Some(value) => {
-                            shared.identified(&device.device, role, value.to_string());
-                            continue;
-                        }
-                        None => failed = true,
-                    }
-                }
-                device.identity.push((role, register));
-            }
-            if failed {
-                continue;
-            }
-            for register in &device.controls {
-                let Some(value) = read_for_state(&handle, &shared, &device.device, register).await
-                else {
-                    break;
-                };
-                shared.state_now(
-                    &shared.topics.state(&device.device, register.name),
-                    read_json(&value),
-                );
-            }
-        }
-    }
-}
-
-/// Reads the controls other paths wrote since the last time, once each, and publishes their
-/// states. One that fails waits for the next round (counted as any state read).
-async fn reread(handle: &Handle, shared: &Shared) {
-    for (device, control) in shared.rereads.take() {
-        let (name, controls) = &shared.rereads.controls[device];
-        let register = controls[control];
-        if shared.offline(name) {
-            continue;
-        }
-        shared.outbox().counts.state_reads_after_writes += 1;
-        if let Some(value) = read_for_state(handle, shared, name, register).await {
-            shared.state_now(&shared.topics.state(name, register.name), read_json(&value));
-        }
-    }
-}
-
-/// Reads `register` of `device` for a state topic, counting how it went.
-async fn read_for_state(
-    handle: &Handle,
-    shared: &Shared,
-    device: &str,
-    register: &'static RegisterInfo,
-) -> Option<Value> {
-    let result = handle.read_checked(device, register).await;
-    let mut outbox = shared.outbox();
-    outbox.counts.state_reads += 1;
-    match result {
-        Ok(value) => Some(value),
-        Err(JobError::Busy { .. }) => {
-            outbox.counts.state_reads_busy += 1;
-            None
-        }
-        Err(_) => {
-            outbox.counts.state_reads_failed += 1;
-            None
-        }
-    }
-}
-
-/// Publishes the samples that waited for their state topic's interval to be over.
-async fn states_due(shared: Arc<Shared>, tick: Duration) {
-    let Some(states) = &shared.states else { return };
-    let mut ticks = tokio::time::interval(tick);
-    ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    loop {
-        ticks.tick().await;
-        let due = lock(states).due(tokio::time::Instant::now());
-        for message in due {
-            shared.push(message);
-        }
-    }
-}
-
 /// Messages from the queue to the client, in order. A message is marked in flight and handed
 /// to the client's channel under the outbox's lock, so that a broken
 /// connection (which empties that channel under the same lock) never finds one in the channel
@@ -825,6 +563,11 @@ async fn drive(
                 let mut subscriptions = Vec::new();
                 if let Some(discovery) = &shared.discovery {
                     subscriptions.push(discovery.status.clone());
+                    // What a former run announced for measurements this file has not.
+                    subscriptions.push(measurements::filter(
+                        &discovery.prefix,
+                        &discovery.client_id,
+                    ));
                 }
                 if writes.is_some() {
                     subscriptions.extend(shared.topics.write_filters());
@@ -937,6 +680,14 @@ fn incoming(
                 shared.wake.notify_one();
             }
             return;
+        }
+        if !payload.is_empty() && retained {
+            let current: Vec<String> = discovery.configs().into_iter().map(|c| c.topic).collect();
+            if measurements::is_stale(topic, &discovery.prefix, &discovery.client_id, &current) {
+                // A measurement gone from the bus file: its entities go from Home Assistant.
+                shared.push(announce(topic.to_owned(), Vec::new()));
+                return;
+            }
         }
     }
     let Some(queue) = writes else {

@@ -58,7 +58,8 @@ fn counted(count: u64, noun: &str) -> String {
 /// What a service runs besides the bus file's own outputs.
 #[derive(Clone, Default)]
 pub struct Options {
-    /// A CSV per device into this folder (the [recording format](mod@recording)).
+    /// A CSV per device, and per measurement of the bus file, into this folder (the
+    /// [recording format](mod@recording)).
     pub record: Option<PathBuf>,
 }
 

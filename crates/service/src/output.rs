@@ -8,14 +8,12 @@ use std::pin::Pin;
 use std::sync::Arc;
 use std::time::Duration;
 
-use optobus_bus::{
-    BusFile, Event, Follower, HttpConfig, MetricsConfig, MqttConfig, Running, Sample,
-};
+use optobus_bus::{BusFile, Event, Follower, HttpConfig, MetricsConfig, MqttConfig, Running};
 use tokio::sync::{broadcast, oneshot};
 use tokio::task::JoinHandle;
 
 use crate::outlet::Outlet;
-use crate::recording::Recorder;
+use crate::recording::{Recorded, Recorder};
 use crate::{counted, Say, ServiceError};
 
 /// What every output starts from.
@@ -177,14 +175,14 @@ impl Output for Console {
     }
 }
 
-/// A CSV per device ([`Recorder`]), written on a thread of its own.
+/// A CSV per device and per measurement ([`Recorder`]), written on a thread of its own.
 pub struct Record {
     stop: oneshot::Sender<()>,
     /// The follow's task: it gives the outlet back, and the events it missed.
     follow: JoinHandle<(RecorderOutlet, u64)>,
 }
 
-type RecorderOutlet = Outlet<Arc<Sample>, Recorder>;
+type RecorderOutlet = Outlet<Recorded, Recorder>;
 
 impl Record {
     /// Creates the folder `dir` and a CSV per device in it, and follows the bus.
@@ -201,10 +199,13 @@ impl Record {
             let mut missed = 0;
             Follower::new(events, |count| missed += count)
                 .until(stopped, |event| {
-                    if let Event::Sample(sample) = event {
-                        if outlet.push(sample).first_drop() {
-                            say("optobus: --record is not keeping up: dropping its oldest samples");
-                        }
+                    let item = match event {
+                        Event::Sample(sample) => Recorded::Sample(sample),
+                        Event::Measurement(value) => Recorded::Measurement(value),
+                        _ => return,
+                    };
+                    if outlet.push(item).first_drop() {
+                        say("optobus: --record is not keeping up: dropping its oldest samples");
                     }
                 })
                 .await;

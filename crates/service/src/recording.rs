@@ -14,6 +14,17 @@
 //!   anything else (an address, a version); an empty cell is a column the row did not read
 //!   (another poll's, or a read that failed).
 //!
+//! With measurements in the bus file (`measurements:`), `optobus run --record DIR` also writes
+//! a CSV per measurement beside the devices', `DIR/<measurement>.measurement.csv`, a row per
+//! value, in the same form (so [`read`] and `optobus plot` take it as they are):
+//! - `time` (when the value was computed) and `elapsed [s]`, as above;
+//! - `<measurement> [unit]`: the value's exact number in its unit, `NaN` when it has none;
+//! - `judgement`: `ll`, `lo`, `go`, `hi` or `hh`, empty without limits or value;
+//! - `skew [us]`: microseconds between its first and its last input's request;
+//! - `reason`: why it has no value (quoted), empty when it has one;
+//! - a column per input, `device.register [unit]`: the value it was computed from, `NaN` when
+//!   the input had none.
+//!
 //! [`read`] reads it back (and a buffer download, `index,value`) as numeric series.
 
 use std::collections::HashMap;
@@ -23,7 +34,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::SystemTime;
 
-use optobus_bus::{BusFile, Sample};
+use optobus_bus::{BusFile, MeasurementEvent, Sample};
 use optobus_device::{FieldInfo, RegisterInfo, ValueKind};
 use optobus_inspect::Value;
 use optobus_spec::source::{open_limited, size_text, ReadError};
@@ -162,6 +173,8 @@ fn write_failed(path: &Path, error: std::io::Error) -> ServiceError {
 pub struct Recorder {
     started: SystemTime,
     files: HashMap<String, DeviceCsv>,
+    /// Each measurement's CSV, and its inputs' names in the order of its columns.
+    measurements: HashMap<String, (RecordingFile, Vec<String>)>,
     /// The first write that failed: the recording stopped there.
     failed: Option<ServiceError>,
     /// Says the failure when it happens (the run goes on for its other outputs).
@@ -211,12 +224,75 @@ impl Recorder {
                 },
             );
         }
+        let mut measurements = HashMap::new();
+        let plan = &bus.measurements.plan;
+        for formula in &plan.formulas {
+            let inputs: Vec<String> = formula
+                .inputs
+                .iter()
+                .map(|&input| plan.inputs[input].to_string())
+                .collect();
+            let unit = (!formula.unit.name.is_empty()).then_some(formula.unit.name.as_str());
+            let mut header = vec![
+                self::header(&formula.name, unit),
+                "judgement".to_owned(),
+                "skew [us]".to_owned(),
+                "reason".to_owned(),
+            ];
+            for (input, name) in formula.inputs.iter().zip(&inputs) {
+                let input = &plan.inputs[*input];
+                let unit = bus
+                    .devices
+                    .iter()
+                    .find(|d| d.name == input.device)
+                    .and_then(|d| d.device.register(&input.register))
+                    .and_then(|r| r.unit);
+                header.push(self::header(name, unit));
+            }
+            let path = dir.join(format!("{}.measurement.csv", formula.name));
+            let file = RecordingFile::create(&path, &header)?;
+            measurements.insert(formula.name.clone(), (file, inputs));
+        }
         Ok(Self {
             started: SystemTime::now(),
             files,
+            measurements,
             failed: None,
             say,
         })
+    }
+
+    /// A row of a measurement's CSV (see the [format](self)).
+    fn add_measurement(&mut self, event: &MeasurementEvent) -> Result<(), ServiceError> {
+        let Some((file, inputs)) = self.measurements.get_mut(&*event.measurement) else {
+            return Ok(());
+        };
+        let quoted = |text: &str| format!("\"{}\"", text.replace('"', "\"\""));
+        let (value, reason) = match &event.value {
+            Ok(value) => (value.to_string(), String::new()),
+            Err(reason) => (INVALID_CELL.to_owned(), quoted(reason)),
+        };
+        let mut cells = vec![
+            value,
+            event
+                .judgement
+                .map(|j| j.name().to_owned())
+                .unwrap_or_default(),
+            event.skew.as_micros().to_string(),
+            reason,
+        ];
+        for name in inputs.iter() {
+            let input = event.inputs.iter().find(|i| *i.name == **name);
+            cells.push(match input.and_then(|i| i.value) {
+                Some(value) => value.to_string(),
+                None => INVALID_CELL.to_owned(),
+            });
+        }
+        let elapsed = (event.time)
+            .duration_since(self.started)
+            .unwrap_or_default()
+            .as_secs_f64();
+        file.row(event.time, elapsed, &cells)
     }
 
     fn add(&mut self, sample: &Sample) -> Result<(), ServiceError> {
@@ -252,17 +328,33 @@ impl Recorder {
             csv.flush_row(self.started)?;
             csv.file.flush()?;
         }
+        for (file, _) in self.measurements.values_mut() {
+            file.flush()?;
+        }
         Ok(())
     }
 }
 
-impl Sink<Arc<Sample>> for Recorder {
-    fn write(&mut self, samples: Vec<Arc<Sample>>, _: u64) {
+/// What a recording takes from the bus: a sample, or a measurement's value.
+#[derive(Clone, Debug)]
+pub enum Recorded {
+    /// A register's sample, for its device's CSV.
+    Sample(Arc<Sample>),
+    /// A measurement's value, for its CSV.
+    Measurement(Arc<MeasurementEvent>),
+}
+
+impl Sink<Recorded> for Recorder {
+    fn write(&mut self, items: Vec<Recorded>, _: u64) {
         if self.failed.is_some() {
             return;
         }
-        for sample in samples {
-            if let Err(error) = self.add(&sample) {
+        for item in items {
+            let written = match &item {
+                Recorded::Sample(sample) => self.add(sample),
+                Recorded::Measurement(event) => self.add_measurement(event),
+            };
+            if let Err(error) = written {
                 // Said now (the run goes on for its other outputs), and again at the end.
                 (self.say)(&format!("optobus: --record stopped: {error}"));
                 self.failed = Some(error);

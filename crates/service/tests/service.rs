@@ -136,3 +136,108 @@ fn the_recording_format_is_written_and_read_back_by_one_module() {
     ));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A decimal's text (`10.061630`) in millionths, exactly.
+fn millionths(text: &str) -> i64 {
+    let (whole, fraction) = text.split_once('.').unwrap_or((text, ""));
+    assert!(fraction.len() <= 6, "{text}");
+    let negative = whole.starts_with('-');
+    let whole: i64 = whole.trim_start_matches('-').parse().unwrap();
+    let fraction: i64 = format!("{fraction:0<6}").parse().unwrap();
+    let magnitude = whole * 1_000_000 + fraction;
+    if negative {
+        -magnitude
+    } else {
+        magnitude
+    }
+}
+
+#[tokio::test]
+async fn a_recording_has_a_csv_per_measurement_with_its_value_judgement_skew_and_inputs() {
+    let dir = scratch("measurements");
+    let text = "
+lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
+devices:
+  - { name: top, model: p-series, slave: 1, timeout: 200ms, poll: [{ read: distance_1, every: 20ms }] }
+  - { name: bottom, model: p-series, slave: 2, timeout: 200ms, poll: [{ read: distance_1, every: 20ms }] }
+measurements:
+  - name: gap
+    expr: 20mm - top.distance_1 - bottom.distance_1
+    limits: { lo: 9.9mm, hi: 10.1mm }
+    max_skew: 1s
+";
+    let file = BusFile::parse(
+        "bus.yaml",
+        text,
+        ".".as_ref(),
+        &Catalogue::new([&optobus_p_series::DEVICE]),
+    )
+    .unwrap_or_else(|e| panic!("{}", e.render()));
+    let (say, _) = heard();
+    let options = Options {
+        record: Some(dir.clone()),
+    };
+    let mut service = Service::start(file, options, say).await.expect("starts");
+    let events = service.events().expect("the caller's subscription");
+    let mut values = 0;
+    let (enough, mut enough_rx) = tokio::sync::watch::channel(false);
+    let stop = async move {
+        let _ = tokio::time::timeout(Duration::from_secs(60), enough_rx.wait_for(|e| *e)).await;
+    };
+    Follower::new(events, |_| {})
+        .until(stop, |event| {
+            if let Event::Measurement(_) = event {
+                values += 1;
+                if values >= 5 {
+                    let _ = enough.send(true);
+                }
+            }
+        })
+        .await;
+    service.stop().await.expect("a clean stop");
+    assert!(values >= 5);
+
+    let path = dir.join("gap.measurement.csv");
+    let mut reader = csv::Reader::from_path(&path).expect("the measurement's CSV");
+    let headers: Vec<String> = reader.headers().unwrap().iter().map(String::from).collect();
+    assert_eq!(
+        headers,
+        [
+            "time",
+            "elapsed [s]",
+            "gap [mm]",
+            "judgement",
+            "skew [us]",
+            "reason",
+            "top.distance_1 [mm]",
+            "bottom.distance_1 [mm]"
+        ]
+    );
+    let mut valid = 0;
+    for row in reader.records() {
+        let row = row.unwrap();
+        let (gap, judgement, skew, reason) = (&row[2], &row[3], &row[4], &row[5]);
+        assert!(skew.parse::<u64>().is_ok(), "{row:?}");
+        if gap == recording::INVALID_CELL {
+            assert!(!reason.is_empty() && judgement.is_empty(), "{row:?}");
+            continue;
+        }
+        valid += 1;
+        assert!(reason.is_empty(), "{row:?}");
+        assert!(["lo", "go", "hi"].contains(&judgement), "{row:?}");
+        // The value is the exact arithmetic of the inputs on its row.
+        assert_eq!(
+            millionths(gap),
+            20_000_000 - millionths(&row[6]) - millionths(&row[7]),
+            "{row:?}"
+        );
+    }
+    assert!(valid >= 1, "no valid value recorded");
+    // `optobus plot`'s reader takes it as it is: the value and the inputs as series.
+    let read = recording::read(&path).expect("reads back");
+    assert_eq!(read.x_label, "elapsed [s]");
+    let labels: Vec<&str> = read.columns.iter().map(|c| c.label.as_str()).collect();
+    assert!(labels.contains(&"gap [mm]"), "{labels:?}");
+    assert!(labels.contains(&"top.distance_1 [mm]"), "{labels:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

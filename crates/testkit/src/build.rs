@@ -111,6 +111,15 @@ pub const PYMODBUS: Peer = Peer {
     package: "pip install pymodbus, or Debian package python3-pymodbus",
 };
 
+/// Jinja2, the template engine Home Assistant renders a discovery's `value_template` with.
+pub const JINJA2: Peer = Peer {
+    cfg: "peer_jinja2",
+    program: "python3",
+    python_module: Some("jinja2"),
+    name: "Jinja2 (python3)",
+    package: "pip install jinja2, or Debian package python3-jinja2",
+};
+
 /// `program`'s path: itself if it has a folder, else the first executable of that name in a
 /// folder of `path`; else the folders to watch (those of `path`, or `program`'s own).
 fn find_program(program: &str, path: &OsStr) -> Result<PathBuf, Vec<PathBuf>> {
