@@ -270,7 +270,10 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             })
             .await;
             match polled {
-                None => return Ok(discarded),
+                None => {
+                    self.give_up_read().await;
+                    return Ok(discarded);
+                }
                 Some(Ok(())) if buf.filled().is_empty() => return Err(Error::Closed),
                 Some(Ok(())) => {
                     frames::discarded(buf.filled());
@@ -280,6 +283,18 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                 Some(Err(error)) => return Err(error.into()),
             }
         }
+    }
+
+    /// Tells the stream that no read waits any more, by a read with no room (the transport's
+    /// serial port then leaves tokio's reactor, so bytes arriving unread wake nobody; other
+    /// streams read nothing), whatever it answers.
+    async fn give_up_read(&mut self) {
+        let stream = &mut self.stream;
+        poll_fn(|cx| {
+            let _ = Pin::new(&mut *stream).poll_read(cx, &mut ReadBuf::new(&mut []));
+            Poll::Ready(())
+        })
+        .await;
     }
 
     /// Discards input until the line has been quiet for the recovery time of the transaction
@@ -403,7 +418,8 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         let Some(shortest) = turnaround.shortest() else {
             return ReplyWait::AsItComes;
         };
-        let whole = sent + shortest + self.config.transmit_time(reply_len);
+        let on_line = self.config.transmit_time(reply_len);
+        let whole = deadline_from(sent, shortest.saturating_add(on_line));
         let (wake, wait) = if turnaround.probe_due() {
             let early = self.config.transmit_time(PROBE_EARLY);
             (whole.checked_sub(early).unwrap_or(whole), ReplyWait::Probe)
