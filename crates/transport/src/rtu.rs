@@ -37,8 +37,8 @@ const REPLY_HEADER: usize = 3;
 /// reply slower than it costs a few wakes more, never a wrong or lost reply).
 const TURNAROUND_SAMPLES: usize = 8;
 
-/// Every this many replies slept through, a device's turnaround is measured again: the client
-/// wakes `PROBE_EARLY` characters before the reply can be whole and reads its last bytes as
+/// Every this many replies slept through (each one until 8 are measured), a device's
+/// turnaround is measured again: the client wakes `PROBE_EARLY` characters before the reply can be whole and reads its last bytes as
 /// they come, so a turnaround that has become shorter is learned (a reply found whole at
 /// once was whole earlier than the client looked, which says nothing about how much earlier).
 const PROBE_EVERY: u32 = 8;
@@ -153,10 +153,12 @@ impl Turnaround {
         self.slept = 0;
     }
 
-    /// Whether the next reply slept through is a probe, and counts it.
+    /// Whether the next reply slept through is a probe, and counts it: until the device's
+    /// last `TURNAROUND_SAMPLES` replies are measured each one is (a measurement read after
+    /// a late wake is too long, so one alone is a poor guess), then every `PROBE_EVERY`th.
     fn probe_due(&mut self) -> bool {
         self.slept += 1;
-        self.slept >= PROBE_EVERY
+        self.len < TURNAROUND_SAMPLES || self.slept >= PROBE_EVERY
     }
 }
 
@@ -270,10 +272,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             })
             .await;
             match polled {
-                None => {
-                    self.give_up_read().await;
-                    return Ok(discarded);
-                }
+                None => return Ok(discarded),
                 Some(Ok(())) if buf.filled().is_empty() => return Err(Error::Closed),
                 Some(Ok(())) => {
                     frames::discarded(buf.filled());
@@ -401,7 +400,8 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
     /// Sleeps through the reply of `reply_len` bytes to a request whose last byte leaves at
     /// `sent`, until it can be whole by the device's learned turnaround (a probe: a little
     /// before), so that it is read in one go: one wake instead of one for its first byte, one
-    /// for its header and one or two for its end. Nothing is slept without line timing or
+    /// for its header and one or two for its end. Only where turned on
+    /// ([`timing::set_sleep_through_replies`]); nothing is slept without line timing or
     /// before the device's first reply measured its turnaround. Waking too early costs only
     /// wakes: the reply is then read as it comes, as without this sleep.
     async fn sleep_through_reply(
@@ -426,6 +426,9 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         } else {
             (whole, ReplyWait::SleptThrough)
         };
+        // The look for stray bytes before the request left a read waiting: given up, so that
+        // the reply's bytes arriving meanwhile wake nobody.
+        self.give_up_read().await;
         self.timer.sleep_until(wake.min(deadline)).await;
         wait
     }
@@ -610,6 +613,10 @@ mod tests {
         }
         turnaround.record(micros(2_000));
         assert_eq!(turnaround.shortest(), Some(micros(2_000)));
+        // Until 8 are measured, each reply is a probe.
+        let mut young = Turnaround::default();
+        young.record(micros(400));
+        assert!(young.probe_due());
         let probes: Vec<bool> = (0..16).map(|_| turnaround.probe_due()).collect();
         assert_eq!(probes.iter().filter(|&&probe| probe).count(), 9);
         assert!(!probes[..7].contains(&true) && probes[7]);

@@ -1,14 +1,15 @@
-//! Issue 28, point 9: an RTU client on a timed line sleeps through a reply by its device's
-//! turnaround as learned from its last replies, and reads it in one go; a reply slower than
-//! that is still read whole and right. The device here hands its reply over a character at
-//! a time, as a line-timed pty or a UART without a FIFO does.
+//! Issue 28, point 9: an RTU client on a timed line, where turned on
+//! (`timing::set_sleep_through_replies`), sleeps through a reply by its device's turnaround
+//! as learned from its last replies, and reads it in one go; a reply slower than that is
+//! still read whole and right. The device here hands its reply over a character at a time,
+//! as a line-timed pty or a UART without a FIFO does.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use optobus_codec::{rtu, Decoded, ExceptionShape, FrameShape, Request, Response, Words};
-use optobus_transport::timing::sleep_until_precise;
+use optobus_transport::timing::{set_sleep_through_replies, sleep_until_precise};
 use optobus_transport::{
     Flow, LineFormat, Observe, ReadFunction, RtuClient, RtuConfig, Tap, Transport,
 };
@@ -90,6 +91,8 @@ type Client = RtuClient<Tap<DuplexStream, CountReads>>;
 /// A client on a timed device, the device's turnaround (to change), and the count of the
 /// client's reads that brought reply bytes.
 fn client_and_device(turnaround: Duration) -> (Client, Arc<Mutex<Duration>>, Arc<AtomicU64>) {
+    // Every test of this binary wants it; it is off by default.
+    set_sleep_through_replies(true);
     let (client_end, device_end) = tokio::io::duplex(1024);
     let turnaround = Arc::new(Mutex::new(turnaround));
     timed_device(device_end, Arc::clone(&turnaround));
