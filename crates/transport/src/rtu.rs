@@ -1,6 +1,5 @@
 //! Our own Modbus RTU client over any byte stream, built on `optobus-codec`.
 
-use std::collections::HashMap;
 use std::future::poll_fn;
 use std::pin::Pin;
 use std::task::Poll;
@@ -212,9 +211,9 @@ pub struct RtuClient<S> {
     last_request: Option<Instant>,
     /// The precise waits: t3.5 before each request, and a reply's time on the line.
     timer: PreciseTimer,
-    /// Each slave's turnaround as measured from its last replies (slave addresses are 0 to
-    /// 255, so the map stays small).
-    turnarounds: HashMap<u8, Turnaround>,
+    /// Each slave's turnaround as measured from its last replies (a line has a few devices,
+    /// at most 247).
+    turnarounds: Vec<(u8, Turnaround)>,
     buffer: Box<[u8; rtu::MAX_FRAME_LEN + 4]>,
 }
 
@@ -234,7 +233,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             unsettled: None,
             last_request: None,
             timer: PreciseTimer::new(),
-            turnarounds: HashMap::new(),
+            turnarounds: Vec::new(),
             buffer: Box::new([0; rtu::MAX_FRAME_LEN + 4]),
         }
     }
@@ -414,14 +413,14 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         if self.config.line.is_none() || !timing::sleeps_through_replies() {
             return ReplyWait::AsItComes;
         }
-        let turnaround = self.turnarounds.entry(slave).or_default();
+        let on_line = self.config.transmit_time(reply_len);
+        let early = self.config.transmit_time(PROBE_EARLY);
+        let turnaround = self.turnaround(slave);
         let Some(shortest) = turnaround.shortest() else {
             return ReplyWait::AsItComes;
         };
-        let on_line = self.config.transmit_time(reply_len);
         let whole = deadline_from(sent, shortest.saturating_add(on_line));
         let (wake, wait) = if turnaround.probe_due() {
-            let early = self.config.transmit_time(PROBE_EARLY);
             (whole.checked_sub(early).unwrap_or(whole), ReplyWait::Probe)
         } else {
             (whole, ReplyWait::SleptThrough)
@@ -439,10 +438,23 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
     fn learn_turnaround(&mut self, slave: u8, sent: Instant, len: usize, read: Instant) {
         let on_line = self.config.transmit_time(len);
         let turnaround = read.saturating_duration_since(sent).saturating_sub(on_line);
-        self.turnarounds
-            .entry(slave)
-            .or_default()
-            .record(turnaround);
+        self.turnaround(slave).record(turnaround);
+    }
+
+    /// What `slave`'s replies told of its turnaround so far.
+    fn turnaround(&mut self, slave: u8) -> &mut Turnaround {
+        let index = match self
+            .turnarounds
+            .iter()
+            .position(|(known, _)| *known == slave)
+        {
+            Some(index) => index,
+            None => {
+                self.turnarounds.push((slave, Turnaround::default()));
+                self.turnarounds.len() - 1
+            }
+        };
+        &mut self.turnarounds[index].1
     }
 
     /// Sends `frame` to `slave` and reads until `decode` takes a reply from the bytes received
