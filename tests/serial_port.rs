@@ -3,8 +3,10 @@
 #![cfg(target_os = "linux")]
 
 use std::path::PathBuf;
+use std::pin::Pin;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
+use std::task::Poll;
 use std::time::Duration;
 
 use optobus_codec::LineFormat;
@@ -12,7 +14,7 @@ use optobus_simulator::{Line, Reply, Simulator};
 use optobus_tests::generated::ccs;
 use optobus_tests::wire::{holding, rtu_frame, with_crc};
 use optobus_transport::SerialSettings;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt, ReadBuf};
 use tokio::sync::oneshot;
 use tokio::time::timeout;
 
@@ -94,6 +96,64 @@ fn bytes_arriving_unread_wake_nobody() {
             .unwrap();
         assert_eq!(reply.to_vec(), expected_reply(&simulator));
         // The sleep's own end wakes the thread once.
+        assert!(
+            while_unread < 10,
+            "the runtime's thread woke {while_unread} times while 125 bytes arrived unread"
+        );
+    });
+}
+
+/// Issue 28, point 9: a read that waited and was given up (the RTU client's look for stray
+/// bytes before a request finds none, then sleeps through the reply) takes the port out of the
+/// reactor once a read with no room says so, so the reply arriving a character at a time
+/// while the client sleeps wakes nobody; before, the port stayed in the reactor and the thread
+/// woke for each of the 125 characters.
+#[test]
+fn a_read_given_up_lets_bytes_arriving_unread_wake_nobody() {
+    let (path, simulator, _stop) = served_ccs();
+    let unparks = Arc::new(AtomicU64::new(0));
+    let counted = Arc::clone(&unparks);
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .on_thread_unpark(move || {
+            counted.fetch_add(1, Ordering::Relaxed);
+        })
+        .build()
+        .unwrap();
+    runtime.block_on(async {
+        let mut port = SerialSettings {
+            path: path.display().to_string(),
+            line: LineFormat::new(BAUD),
+        }
+        .open()
+        .expect("open the pty");
+        // Nothing to read: the read waits in the reactor; then it is given up.
+        let mut byte = [0; 1];
+        let waited = std::future::poll_fn(|cx| {
+            let mut buf = ReadBuf::new(&mut byte);
+            Poll::Ready(Pin::new(&mut port).poll_read(cx, &mut buf).is_pending())
+        })
+        .await;
+        assert!(waited, "a byte to read before any request");
+        std::future::poll_fn(|cx| {
+            let given_up = Pin::new(&mut port).poll_read(cx, &mut ReadBuf::new(&mut []));
+            Poll::Ready(given_up.is_ready())
+        })
+        .await;
+        port.write_all(&rtu_frame(1, &holding(0, 60)))
+            .await
+            .unwrap();
+        port.flush().await.unwrap();
+        let before = unparks.load(Ordering::Relaxed);
+        // The reply takes 130 ms to cross a 9600 baud line.
+        tokio::time::sleep(Duration::from_millis(600)).await;
+        let while_unread = unparks.load(Ordering::Relaxed) - before;
+        let mut reply = [0; 125];
+        timeout(Duration::from_secs(10), port.read_exact(&mut reply))
+            .await
+            .expect("the reply within 10 s")
+            .unwrap();
+        assert_eq!(reply.to_vec(), expected_reply(&simulator));
         assert!(
             while_unread < 10,
             "the runtime's thread woke {while_unread} times while 125 bytes arrived unread"

@@ -7,9 +7,12 @@
 //! wait out t3.5 and one serial stream (trials interleaved): the spinning wait on
 //! tokio-serial's stream, which the transport had first (the anchor); the timer thread (the
 //! default) on tokio-serial's stream, which stays in tokio's reactor and wakes the thread for
-//! every byte that arrives; the timer thread and a timerfd in tokio's reactor on the
-//! transport's `SerialStream` (the default), which is in the reactor only while a read waits.
-//! For each it prints the
+//! every byte that arrives; the timer thread, a timerfd per wait and the client's own timerfd
+//! on the transport's `SerialStream`, which is in the reactor only while a read waits, each
+//! awaiting a reply's first byte as it comes (the own timerfd is the default); then the own
+//! timerfd with each reply slept through by its device's learned turnaround and read in one
+//! go ("learned turnaround", `timing::set_sleep_through_replies`), and the same with the end of t3.5 left whole to the kernel's timer ("learned,
+//! no gap spin"). For each it prints the
 //! process's CPU time (user + system, every thread, `getrusage`) per transaction, counted
 //! between two of the line's statistics events, the transactions per second and their share
 //! of the line limit (characters both ways plus 2 t3.5 per transaction, over the time taken),
@@ -42,7 +45,9 @@ mod linux {
 
     use optobus_bus::Event;
     use optobus_codec::LineFormat;
-    use optobus_transport::timing::{set_precise_wait, PreciseWait};
+    use optobus_transport::timing::{
+        set_gap_spin, set_precise_wait, set_sleep_through_replies, PreciseWait,
+    };
     use optobus_transport::{Flow, SerialSettings, Tap};
 
     use super::common::{self, load, median, model_name, models};
@@ -62,17 +67,72 @@ mod linux {
         Transport,
     }
 
-    const WAYS: [(&str, PreciseWait, Port); 5] = [
-        ("spin, tokio-serial", PreciseWait::Spin, Port::TokioSerial),
+    /// How the RTU client waits for a reply and for the end of t3.5.
+    #[derive(Clone, Copy, PartialEq)]
+    enum Reply {
+        /// Its first byte awaited as it comes, the header and the rest slept through (the
+        /// default).
+        AsItComes,
+        /// Slept through by the device's learned turnaround and read in one go.
+        SleptThrough,
+        /// As `SleptThrough`, and the end of t3.5 left to the kernel's timer whole, not
+        /// watched on the clock for its last 40 µs.
+        SleptThroughNoGapSpin,
+    }
+
+    const WAYS: [(&str, PreciseWait, Port, Reply); 7] = [
+        (
+            "spin, tokio-serial",
+            PreciseWait::Spin,
+            Port::TokioSerial,
+            Reply::AsItComes,
+        ),
         (
             "timer thread, tokio-serial",
             PreciseWait::TimerThread,
             Port::TokioSerial,
+            Reply::AsItComes,
         ),
-        ("timer thread", PreciseWait::TimerThread, Port::Transport),
-        ("timerfd", PreciseWait::TimerFd, Port::Transport),
-        ("own timerfd", PreciseWait::OwnTimer, Port::Transport),
+        (
+            "timer thread",
+            PreciseWait::TimerThread,
+            Port::Transport,
+            Reply::AsItComes,
+        ),
+        (
+            "timerfd",
+            PreciseWait::TimerFd,
+            Port::Transport,
+            Reply::AsItComes,
+        ),
+        (
+            "own timerfd",
+            PreciseWait::OwnTimer,
+            Port::Transport,
+            Reply::AsItComes,
+        ),
+        (
+            "learned turnaround",
+            PreciseWait::OwnTimer,
+            Port::Transport,
+            Reply::SleptThrough,
+        ),
+        (
+            "learned, no gap spin",
+            PreciseWait::OwnTimer,
+            Port::Transport,
+            Reply::SleptThroughNoGapSpin,
+        ),
     ];
+
+    /// The way the others are compared with besides the first chosen: the default.
+    const BEFORE: &str = "own timerfd";
+
+    /// Sets how the RTU client awaits replies and t3.5.
+    fn set_reply(reply: Reply) {
+        set_sleep_through_replies(reply != Reply::AsItComes);
+        set_gap_spin(reply != Reply::SleptThroughNoGapSpin);
+    }
 
     /// The devices as a bus file writes them: every group of measurements, as fast as the
     /// line allows.
@@ -326,30 +386,49 @@ mod linux {
                         .as_deref()
                         .is_none_or(|only| only.split('|').any(|name| name == way))
             };
-            if !WAYS.iter().any(|(way, _, _)| chosen(way)) {
+            if !WAYS.iter().any(|(way, _, _, _)| chosen(way)) {
                 continue;
             }
             let simulator = Simulator::start(&binary, timed);
             let mut totals: Vec<Totals> = WAYS.iter().map(|_| Totals::default()).collect();
             for _ in 0..trials {
-                for ((name, way, port), totals) in WAYS.iter().zip(&mut totals) {
+                for ((name, way, port, reply), totals) in WAYS.iter().zip(&mut totals) {
                     if !chosen(name) {
                         continue;
                     }
                     set_precise_wait(*way);
+                    set_reply(*reply);
                     runtime.block_on(trial(&simulator, *port, totals));
                 }
             }
             set_precise_wait(PreciseWait::OwnTimer);
+            set_reply(Reply::AsItComes);
             let per = |count: f64, totals: &Totals| count / totals.transactions.max(1) as f64;
-            let anchor = per(totals[0].cpu.as_secs_f64() * 1e6, &totals[0]);
-            for ((name, _, _), totals) in WAYS.iter().zip(&totals) {
+            let cpu_of = |totals: &Totals| per(totals.cpu.as_secs_f64() * 1e6, totals);
+            // The anchor: the first way that ran (the spin unless ways were chosen).
+            let Some((anchor_name, anchor)) = WAYS
+                .iter()
+                .zip(&totals)
+                .find(|(_, totals)| totals.transactions > 0)
+                .map(|((name, _, _, _), totals)| (*name, cpu_of(totals)))
+            else {
+                continue;
+            };
+            let before = WAYS
+                .iter()
+                .zip(&totals)
+                .find(|((name, _, _, _), totals)| *name == BEFORE && totals.transactions > 0)
+                .map(|(_, totals)| cpu_of(totals));
+            for ((name, _, _, _), totals) in WAYS.iter().zip(&totals) {
                 if totals.transactions == 0 {
                     continue;
                 }
-                let cpu = per(totals.cpu.as_secs_f64() * 1e6, totals);
+                let cpu = cpu_of(totals);
+                let of_before = before
+                    .map(|before| format!(", {:.3} of {BEFORE}'s", cpu / before))
+                    .unwrap_or_default();
                 println!(
-                    "{line:<14} {name:<26} bus CPU {cpu:>6.1} µs a transaction ({:.3} of the spin's), {:>5.1} sleeps a transaction  {:>5.0} transactions/s  line limit ratio median {:.3}  errors {}  simulator CPU {:>6.1} µs a transaction  (load {})",
+                    "{line:<14} {name:<26} bus CPU {cpu:>6.1} µs a transaction ({:.3} of {anchor_name}'s{of_before}), {:>5.1} sleeps a transaction  {:>5.0} transactions/s  line limit ratio median {:.3}  errors {}  simulator CPU {:>6.1} µs a transaction  (load {})",
                     cpu / anchor,
                     per(totals.sleeps as f64, totals),
                     totals.transactions as f64 / totals.elapsed.as_secs_f64(),

@@ -17,7 +17,9 @@
 //! line without a phase plan would give these polls with the run's median transaction times
 //! (every poll first due at once, and first ticks packed back to back): what the bus's phase
 //! plan is measured against. Run with
-//! `cargo bench -p optobus-bus --bench jitter`.
+//! `cargo bench -p optobus-bus --bench jitter`; `OPTOBUS_SLEEP_THROUGH_REPLIES=1` makes the RTU
+//! client sleep through each reply by its device's learned turnaround
+//! (`timing::set_sleep_through_replies`, to compare).
 
 mod common;
 
@@ -251,6 +253,10 @@ async fn run(periods: [u64; 8], clock: &str) {
 }
 
 fn main() {
+    if std::env::var("OPTOBUS_SLEEP_THROUGH_REPLIES").is_ok_and(|on| on == "1") {
+        optobus_transport::timing::set_sleep_through_replies(true);
+        println!("replies slept through by learned turnarounds (OPTOBUS_SLEEP_THROUGH_REPLIES=1)");
+    }
     // Tokio's clock paused: time moves only when every task waits, so the line's byte timing
     // and the schedule are exact and the machine's load plays no part: what the schedule
     // itself does.

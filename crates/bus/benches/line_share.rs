@@ -1,8 +1,10 @@
 //! A saturated line: 8 devices of mixed families polled as fast as the line allows, on the
 //! byte-timed RS-485 emulator at 9600 and 115200 baud 8N1 (device turnaround 0).
 //!
-//! For the bus and, as the anchor, a bare loop of driver cores on one `RtuClient` reading the
-//! same groups in turn (trials interleaved), it prints each run's share of the line limit:
+//! For the bus, the bus with its RTU client sleeping through each reply by its device's
+//! learned turnaround ("learned", `timing::set_sleep_through_replies`) and, as
+//! the anchor, a bare loop of driver cores on one `RtuClient` reading the same groups in turn
+//! (trials interleaved), it prints each run's share of the line limit:
 //! the characters that crossed the line (counted on the client's stream) plus two t3.5 per
 //! transaction, over the time taken (target ≥ 0.97); the emulator's gap violations (t3.5 not
 //! kept, target 0); and each device's share of the polls against an equal share (target within
@@ -26,6 +28,7 @@ use optobus_bus::{Bus, BusFile, Catalogue, Event};
 use optobus_codec::LineFormat;
 use optobus_driver::{rtu_config, Core};
 use optobus_simulator::{Line, Simulator};
+use optobus_transport::timing::set_sleep_through_replies;
 use optobus_transport::{Flow, RtuClient, RtuConfig, Shared, Tap};
 
 /// The group each device polls.
@@ -210,9 +213,13 @@ fn main() {
     ] {
         let format = LineFormat::new(baud);
         let mut ours = Vec::new();
+        let mut learned = Vec::new();
         let mut anchor = Vec::new();
         for _ in 0..trials {
             ours.push(runtime.block_on(bus_run(format, duration)));
+            set_sleep_through_replies(true);
+            learned.push(runtime.block_on(bus_run(format, duration)));
+            set_sleep_through_replies(false);
             anchor.push(runtime.block_on(direct_run(format, duration)));
         }
         let report = |name: &str, runs: &[Run]| {
@@ -237,7 +244,12 @@ fn main() {
             ratio
         };
         let bus = report("bus", &ours);
+        let bus_learned = report("learned", &learned);
         let direct = report("direct", &anchor);
-        println!("{baud:>6} baud  bus / direct {:.3}", bus / direct);
+        println!(
+            "{baud:>6} baud  bus / direct {:.3}  learned / direct {:.3}",
+            bus / direct,
+            bus_learned / direct
+        );
     }
 }

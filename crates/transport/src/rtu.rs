@@ -14,7 +14,7 @@ use tokio::time::{timeout_at, Instant};
 
 use crate::error::Error;
 use crate::frames;
-use crate::timing::{deadline_from, PreciseTimer};
+use crate::timing::{self, deadline_from, PreciseTimer};
 use crate::transact::{Reply, Transact};
 use crate::transport::DEFAULT_TIMEOUT;
 
@@ -31,6 +31,19 @@ const REPLY_WAKE_MARGIN: Duration = Duration::from_micros(150);
 /// The first bytes of a reply, which tell its length whatever it is (slave, function, then
 /// a read's byte count, an echo's address or an exception's code).
 const REPLY_HEADER: usize = 3;
+
+/// A device's turnaround is the shortest of its last this many measured (a low quantile: a
+/// reply slower than it costs a few wakes more, never a wrong or lost reply).
+const TURNAROUND_SAMPLES: usize = 8;
+
+/// Every this many replies slept through (each one until 8 are measured), a device's
+/// turnaround is measured again: the client wakes `PROBE_EARLY` characters before the reply can be whole and reads its last bytes as
+/// they come, so a turnaround that has become shorter is learned (a reply found whole at
+/// once was whole earlier than the client looked, which says nothing about how much earlier).
+const PROBE_EVERY: u32 = 8;
+
+/// How many characters before its learned end a probing client wakes for a reply.
+const PROBE_EARLY: usize = 2;
 
 /// The longest quiet period recovery waits for by default, whatever the timeout.
 const MAX_DEFAULT_RECOVERY: Duration = Duration::from_secs(10);
@@ -114,6 +127,51 @@ impl RtuConfig {
     }
 }
 
+/// What a device's last replies tell of its turnaround: how long after its request's last
+/// byte left (plus the reply's own time on the line) its reply was in.
+#[derive(Clone, Debug, Default)]
+struct Turnaround {
+    /// The last measurements, `len` of them, the oldest at `next` once full.
+    samples: [Duration; TURNAROUND_SAMPLES],
+    len: usize,
+    next: usize,
+    /// Replies slept through since the last measurement.
+    slept: u32,
+}
+
+impl Turnaround {
+    /// The shortest of the last measurements; `None` before the first.
+    fn shortest(&self) -> Option<Duration> {
+        self.samples[..self.len].iter().min().copied()
+    }
+
+    fn record(&mut self, turnaround: Duration) {
+        self.samples[self.next] = turnaround;
+        self.next = (self.next + 1) % TURNAROUND_SAMPLES;
+        self.len = (self.len + 1).min(TURNAROUND_SAMPLES);
+        self.slept = 0;
+    }
+
+    /// Whether the next reply slept through is a probe, and counts it: until the device's
+    /// last `TURNAROUND_SAMPLES` replies are measured each one is (a measurement read after
+    /// a late wake is too long, so one alone is a poor guess), then every `PROBE_EVERY`th.
+    fn probe_due(&mut self) -> bool {
+        self.slept += 1;
+        self.len < TURNAROUND_SAMPLES || self.slept >= PROBE_EVERY
+    }
+}
+
+/// How the client waits for a reply.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ReplyWait {
+    /// Its first byte awaited as it comes (the turnaround is unknown).
+    AsItComes,
+    /// Slept through until it can be whole, by the device's learned turnaround.
+    SleptThrough,
+    /// Slept through until a little before that, to measure the turnaround again.
+    Probe,
+}
+
 /// The line state is unknown since `since`: the line must be quiet for `quiet` (the recovery
 /// of the transaction that left it so, which a late reply to it needs) before the next request.
 #[derive(Clone, Copy, Debug)]
@@ -153,6 +211,9 @@ pub struct RtuClient<S> {
     last_request: Option<Instant>,
     /// The precise waits: t3.5 before each request, and a reply's time on the line.
     timer: PreciseTimer,
+    /// Each slave's turnaround as measured from its last replies (a line has a few devices,
+    /// at most 247).
+    turnarounds: Vec<(u8, Turnaround)>,
     buffer: Box<[u8; rtu::MAX_FRAME_LEN + 4]>,
 }
 
@@ -172,6 +233,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             unsettled: None,
             last_request: None,
             timer: PreciseTimer::new(),
+            turnarounds: Vec::new(),
             buffer: Box::new([0; rtu::MAX_FRAME_LEN + 4]),
         }
     }
@@ -219,6 +281,18 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                 Some(Err(error)) => return Err(error.into()),
             }
         }
+    }
+
+    /// Tells the stream that no read waits any more, by a read with no room (the transport's
+    /// serial port then leaves tokio's reactor, so bytes arriving unread wake nobody; other
+    /// streams read nothing), whatever it answers.
+    async fn give_up_read(&mut self) {
+        let stream = &mut self.stream;
+        poll_fn(|cx| {
+            let _ = Pin::new(&mut *stream).poll_read(cx, &mut ReadBuf::new(&mut []));
+            Poll::Ready(())
+        })
+        .await;
     }
 
     /// Discards input until the line has been quiet for the recovery time of the transaction
@@ -275,7 +349,11 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         }
         if let Some(last) = self.last_activity {
             let gap_end = deadline_from(last, self.config.frame_gap());
-            self.timer.sleep_until_spinning(gap_end, GAP_SPIN).await;
+            if timing::gap_spins() {
+                self.timer.sleep_until_spinning(gap_end, GAP_SPIN).await;
+            } else {
+                self.timer.sleep_until(gap_end).await;
+            }
         }
         Ok(())
     }
@@ -285,7 +363,8 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         let mut frame = [0u8; rtu::MAX_FRAME_LEN];
         let len = rtu::encode_request(&mut frame, slave, &request).map_err(Error::Request)?;
         let exception = self.config.exception;
-        self.exchange(slave, &frame[..len], |buf| {
+        let reply_len = request.reply_pdu_len() + 3;
+        self.exchange(slave, &frame[..len], Some(reply_len), |buf| {
             rtu::decode_response(buf, slave, &request, exception).map(|d| d.map(Reply::from))
         })
         .await
@@ -303,18 +382,89 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
     ) -> Result<Option<Vec<u8>>, Error> {
         let mut frame = [0u8; rtu::MAX_FRAME_LEN];
         let len = passthrough::encode_rtu(&mut frame, slave, pdu).map_err(Error::Request)?;
-        self.exchange(slave, &frame[..len], |buf| {
+        // A register read's reply has the length its count asks for; other functions are
+        // awaited as they come.
+        let reply_len = match pdu.bytes() {
+            [0x03 | 0x04, _, _, high, low] => {
+                Some(5 + 2 * usize::from(u16::from_be_bytes([*high, *low])))
+            }
+            _ => None,
+        };
+        self.exchange(slave, &frame[..len], reply_len, |buf| {
             passthrough::decode_rtu_reply(buf, slave, pdu, shape).map(|d| d.map(<[u8]>::to_vec))
         })
         .await
     }
 
+    /// Sleeps through the reply of `reply_len` bytes to a request whose last byte leaves at
+    /// `sent`, until it can be whole by the device's learned turnaround (a probe: a little
+    /// before), so that it is read in one go: one wake instead of one for its first byte, one
+    /// for its header and one or two for its end. Only where turned on
+    /// ([`timing::set_sleep_through_replies`]); nothing is slept without line timing or
+    /// before the device's first reply measured its turnaround. Waking too early costs only
+    /// wakes: the reply is then read as it comes, as without this sleep.
+    async fn sleep_through_reply(
+        &mut self,
+        slave: u8,
+        sent: Instant,
+        reply_len: usize,
+        deadline: Instant,
+    ) -> ReplyWait {
+        if self.config.line.is_none() || !timing::sleeps_through_replies() {
+            return ReplyWait::AsItComes;
+        }
+        let on_line = self.config.transmit_time(reply_len);
+        let early = self.config.transmit_time(PROBE_EARLY);
+        let turnaround = self.turnaround(slave);
+        let Some(shortest) = turnaround.shortest() else {
+            return ReplyWait::AsItComes;
+        };
+        let whole = deadline_from(sent, shortest.saturating_add(on_line));
+        let (wake, wait) = if turnaround.probe_due() {
+            (whole.checked_sub(early).unwrap_or(whole), ReplyWait::Probe)
+        } else {
+            (whole, ReplyWait::SleptThrough)
+        };
+        // The look for stray bytes before the request left a read waiting: given up, so that
+        // the reply's bytes arriving meanwhile wake nobody.
+        self.give_up_read().await;
+        self.timer.sleep_until(wake.min(deadline)).await;
+        wait
+    }
+
+    /// Learns `slave`'s turnaround from a reply of `len` bytes whose last bytes were read at
+    /// `read` (at most a wake-up after they came, as they were awaited), its request sent at
+    /// `sent`.
+    fn learn_turnaround(&mut self, slave: u8, sent: Instant, len: usize, read: Instant) {
+        let on_line = self.config.transmit_time(len);
+        let turnaround = read.saturating_duration_since(sent).saturating_sub(on_line);
+        self.turnaround(slave).record(turnaround);
+    }
+
+    /// What `slave`'s replies told of its turnaround so far.
+    fn turnaround(&mut self, slave: u8) -> &mut Turnaround {
+        let index = match self
+            .turnarounds
+            .iter()
+            .position(|(known, _)| *known == slave)
+        {
+            Some(index) => index,
+            None => {
+                self.turnarounds.push((slave, Turnaround::default()));
+                self.turnarounds.len() - 1
+            }
+        };
+        &mut self.turnarounds[index].1
+    }
+
     /// Sends `frame` to `slave` and reads until `decode` takes a reply from the bytes received
-    /// (or fails, or the timeout passes); `Ok(None)` for a broadcast.
+    /// (or fails, or the timeout passes); `Ok(None)` for a broadcast. A reply expected to be
+    /// `reply_len` bytes long may be slept through (see `sleep_through_reply`).
     async fn exchange<R>(
         &mut self,
         slave: u8,
         frame: &[u8],
+        reply_len: Option<usize>,
         mut decode: impl FnMut(&[u8]) -> Result<Decoded<R>, DecodeError>,
     ) -> Result<Option<R>, Error> {
         self.prepare().await?;
@@ -337,7 +487,12 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
             self.unsettled = None;
             return Ok(None);
         }
+        let wait = match reply_len {
+            Some(len) => self.sleep_through_reply(slave, sent, len, deadline).await,
+            None => ReplyWait::AsItComes,
+        };
         let mut filled = 0;
+        let mut reads = 0u32;
         loop {
             match decode(&self.buffer[..filled]) {
                 Ok(Decoded::Frame { frame, consumed }) => {
@@ -351,6 +506,12 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                         return Err(Error::Frame(DecodeError::SecondReply));
                     }
                     frames::received(slave, &self.buffer[..filled], written.elapsed(), None);
+                    // A reply slept through and found whole in one read was in earlier than
+                    // the client looked, by an unknown time: it measures nothing.
+                    if wait != ReplyWait::SleptThrough || reads > 1 {
+                        let read = self.last_activity.unwrap_or(written);
+                        self.learn_turnaround(slave, sent, consumed, read);
+                    }
                     // Bytes behind a good reply mean something else is talking: recover
                     // before the next request.
                     self.unsettled =
@@ -391,6 +552,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
                 Ok(Ok(0)) => return Err(Error::Closed),
                 Ok(Ok(n)) => {
                     filled += n;
+                    reads += 1;
                     self.last_activity = Some(Instant::now());
                 }
                 Ok(Err(error)) => return Err(error.into()),
@@ -443,5 +605,35 @@ mod tests {
         };
         assert_eq!(untimed.reply_wait(1, 1), None);
         assert_eq!(untimed.reply_wait(3, 42), None);
+    }
+
+    /// Issue 28, point 9: a device's turnaround is the shortest of its last 8 measured, so
+    /// one slow reply does not lengthen it and a lasting change replaces it within 8 replies;
+    /// every 8th reply slept through is a probe that measures it again.
+    #[test]
+    fn a_turnaround_is_the_shortest_of_the_last_eight_measured() {
+        let micros = Duration::from_micros;
+        let mut turnaround = Turnaround::default();
+        assert_eq!(turnaround.shortest(), None);
+        turnaround.record(micros(400));
+        turnaround.record(micros(9_000));
+        assert_eq!(turnaround.shortest(), Some(micros(400)));
+        // Slower for good: the old turnaround is gone once 7 more are measured after it.
+        for _ in 0..6 {
+            turnaround.record(micros(2_000));
+            assert_eq!(turnaround.shortest(), Some(micros(400)));
+        }
+        turnaround.record(micros(2_000));
+        assert_eq!(turnaround.shortest(), Some(micros(2_000)));
+        // Until 8 are measured, each reply is a probe.
+        let mut young = Turnaround::default();
+        young.record(micros(400));
+        assert!(young.probe_due());
+        let probes: Vec<bool> = (0..16).map(|_| turnaround.probe_due()).collect();
+        assert_eq!(probes.iter().filter(|&&probe| probe).count(), 9);
+        assert!(!probes[..7].contains(&true) && probes[7]);
+        // A measurement starts the count again.
+        turnaround.record(micros(2_000));
+        assert!(!turnaround.probe_due());
     }
 }

@@ -2,7 +2,7 @@
 
 use std::future::{poll_fn, Future};
 use std::pin::{pin, Pin};
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::task::Poll;
 use std::time::Duration;
 
@@ -69,6 +69,39 @@ static PRECISE_WAIT: AtomicU8 = AtomicU8::new(0);
 #[doc(hidden)]
 pub fn set_precise_wait(wait: PreciseWait) {
     PRECISE_WAIT.store(wait as u8, Ordering::Relaxed);
+}
+
+/// Whether RTU clients sleep through a reply by its device's learned turnaround or await its
+/// first byte as it comes (the default).
+static SLEEP_THROUGH_REPLIES: AtomicBool = AtomicBool::new(false);
+
+/// Whether RTU clients watch the last stretch of t3.5 on the clock (the default) or leave all
+/// of it to the kernel's timer (benches only compare).
+static GAP_SPIN: AtomicBool = AtomicBool::new(true);
+
+/// Makes every RTU client of the process (on a timed line) sleep through each reply until it
+/// can be whole by its device's turnaround as learned from its last replies, and read it in
+/// one go, or (`false`, the default) await its first byte as it comes. Experimental: on a
+/// line that hands a reply over a character at a time it takes some 35 % less CPU a
+/// transaction (2.3 sleeps of the thread instead of 5.5), but on a loaded machine a timer's
+/// late wake-up then costs line time, and the line's share fell (see the bus README, "CPU per
+/// transaction"); the benches compare both.
+pub fn set_sleep_through_replies(on: bool) {
+    SLEEP_THROUGH_REPLIES.store(on, Ordering::Relaxed);
+}
+
+pub(crate) fn sleeps_through_replies() -> bool {
+    SLEEP_THROUGH_REPLIES.load(Ordering::Relaxed)
+}
+
+/// Chooses whether RTU clients watch the end of t3.5 on the clock (benches only).
+#[doc(hidden)]
+pub fn set_gap_spin(on: bool) {
+    GAP_SPIN.store(on, Ordering::Relaxed);
+}
+
+pub(crate) fn gap_spins() -> bool {
+    GAP_SPIN.load(Ordering::Relaxed)
 }
 
 fn precise_wait() -> PreciseWait {

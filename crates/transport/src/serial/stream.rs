@@ -176,6 +176,14 @@ impl AsyncRead for SerialStream {
         buf: &mut ReadBuf<'_>,
     ) -> Poll<io::Result<()>> {
         let this = self.get_mut();
+        // No room: nothing to read, and a read that waited before is given up (its caller
+        // polls no more), so the port leaves the reactor: bytes arriving while the RTU client
+        // sleeps through a reply would wake the thread each.
+        if buf.remaining() == 0 {
+            this.read_waits = false;
+            this.unwatch_if_unwaited();
+            return Poll::Ready(Ok(()));
+        }
         let unfilled = buf.initialize_unfilled();
         match this.poll_io(cx, Interest::READABLE, |mut port| port.read(unfilled)) {
             Poll::Ready(Ok(read)) => {
