@@ -72,34 +72,33 @@ impl<E: Clone, M: FnMut(u64)> Follower<E, M> {
 mod tests {
     use super::*;
 
-    #[tokio::test]
-    async fn with_duration_the_last_polls_samples_are_taken_at_the_stop() {
-        // The last poll's events are in the receiver when the stop comes, in the same turn
-        // of the runtime: every one of them is still taken.
-        let (sender, events) = broadcast::channel(256);
-        for event in 0..100u32 {
+    /// Sends the events `0..count` on a channel of `capacity`, then follows it with the stop
+    /// already come: what was counted as missed, and the events taken.
+    async fn sent_then_stopped(capacity: usize, count: u32) -> (u64, Vec<u32>) {
+        let (sender, events) = broadcast::channel(capacity);
+        for event in 0..count {
             sender.send(event).unwrap();
         }
         let mut missed = 0;
         let mut taken = Vec::new();
-        Follower::new(events, |count| missed += count)
+        Follower::new(events, |lost| missed += lost)
             .until(std::future::ready(()), |e| taken.push(e))
             .await;
+        (missed, taken)
+    }
+
+    #[tokio::test]
+    async fn with_duration_the_last_polls_samples_are_taken_at_the_stop() {
+        // The last poll's events are in the receiver when the stop comes, in the same turn
+        // of the runtime: every one of them is still taken.
+        let (missed, taken) = sent_then_stopped(256, 100).await;
         assert_eq!(missed, 0);
         assert_eq!(taken, (0..100).collect::<Vec<_>>());
     }
 
     #[tokio::test]
     async fn events_beyond_the_channel_are_counted_as_missed() {
-        let (sender, events) = broadcast::channel(4);
-        for event in 0..10u32 {
-            sender.send(event).unwrap();
-        }
-        let mut missed = 0;
-        let mut taken = Vec::new();
-        Follower::new(events, |count| missed += count)
-            .until(std::future::ready(()), |e| taken.push(e))
-            .await;
+        let (missed, taken) = sent_then_stopped(4, 10).await;
         assert_eq!(missed, 6);
         assert_eq!(taken, [6, 7, 8, 9]);
     }

@@ -1,17 +1,13 @@
 //! The recent frames of each device, as its line sent and received them: whole frames with
 //! their direction and timing, kept per device, bounded.
 
-use std::path::Path;
+mod common;
+
 use std::time::Duration;
 
-use optobus_bus::{Bus, BusFile, Catalogue, Direction, FRAMES_KEPT};
+use common::file;
+use optobus_bus::{Bus, Direction, FRAMES_KEPT};
 use optobus_inspect::parse_value;
-
-fn file(text: &str) -> BusFile {
-    let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
-    BusFile::parse("bus.yaml", text, Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()))
-}
 
 const TWO: &str = "
 lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]

@@ -1,20 +1,16 @@
 //! Writes, commands and reads asked for through the bus's handle: checked before they are
 //! queued, carried out ahead of the polls, and a command's busy time held by its device alone.
 
-use std::path::Path;
+mod common;
+
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use optobus_bus::{Bus, BusFile, Catalogue, Event, JobError, Refusal, Source};
+use common::file;
+use optobus_bus::{Bus, Event, JobError, Refusal, Source};
 use optobus_device::Table;
 use optobus_inspect::parse_value;
 use optobus_simulator::Simulator;
-
-fn file(text: &str) -> BusFile {
-    let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
-    BusFile::parse("bus.yaml", text, Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()))
-}
 
 const TWO: &str = "
 lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]

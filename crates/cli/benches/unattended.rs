@@ -43,13 +43,6 @@ fn free_address() -> SocketAddr {
         .expect("a free port")
 }
 
-fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()
-        .and_then(|s| s.split_whitespace().next().map(str::to_owned))
-        .unwrap_or_else(|| "?".to_owned())
-}
-
 /// Resident memory of process `pid` in MB.
 fn rss_mb(pid: u32) -> f64 {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
@@ -154,13 +147,7 @@ fn broker() -> (Running, SocketAddr) {
         ),
     )
     .unwrap();
-    let child = Command::new("mosquitto")
-        .arg("-c")
-        .arg(&config)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("mosquitto starts");
+    let child = optobus_testkit::spawn_mosquitto(&config);
     let deadline = Instant::now() + Duration::from_secs(10);
     while TcpStream::connect(address).is_err() && Instant::now() < deadline {
         thread::sleep(Duration::from_millis(50));
@@ -369,7 +356,7 @@ fn stalled_consumers() {
         "1. stalled consumers: optobus run --demo --json, gateway, console, /metrics{}; phases of {:.0} s  (load {})",
         if mosquitto { ", MQTT" } else { "" },
         phase().as_secs_f64(),
-        load()
+        optobus_testkit::load_average()
     );
     let mut streams = Vec::new();
     for name in [
@@ -472,7 +459,7 @@ fn gateway_flood(what: &str, request: fn(u16) -> Vec<u8>) {
         phase().as_secs_f64(),
         flooded / alone,
         rss_mb(gateway.pid()),
-        load()
+        optobus_testkit::load_average()
     );
 }
 
@@ -546,7 +533,7 @@ fn silent_clients() {
         "3. silent clients: with {} silent gateway connections a new client is served after {} (target ≤ 15 s)  (load {})",
         silent.len(),
         shown(served),
-        load()
+        optobus_testkit::load_average()
     );
     let unfinished = b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n";
     let cap = Duration::from_secs(90);
@@ -638,7 +625,7 @@ fn killed_port() {
     println!(
         "4. a killed port: both devices down on /metrics {} after the simulator was killed (target ≤ 10 s); reading series {readings_before} before, {readings_after} after  (load {})",
         down.map_or(format!("not within {} s", cap.as_secs()), |d| format!("{:.2} s", d.as_secs_f64())),
-        load()
+        optobus_testkit::load_average()
     );
     drop(run);
     let _ = std::fs::remove_dir_all(&folder);

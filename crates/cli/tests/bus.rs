@@ -132,24 +132,12 @@ fn run_records_a_csv_per_device_in_the_record_format() {
     ignore = "mbpoll is not installed (Debian package mbpoll)"
 )]
 fn the_demo_gateway_serves_mbpoll_while_the_bus_polls() {
-    let mut bus = common::optobus()
-        .args([
-            "run",
-            "--demo",
-            "--gateway",
-            "127.0.0.1:0",
-            "--duration",
-            "20s",
-            "--json",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run the demo");
+    let common::Demo {
+        child: mut bus,
+        first_line: line,
+        stderr: _stderr,
+    } = common::demo_with(&["--gateway", "127.0.0.1:0"], Stdio::piped());
     // The gateway's address is the first line on stderr.
-    let mut stderr = BufReader::new(bus.stderr.take().unwrap());
-    let mut line = String::new();
-    stderr.read_line(&mut line).unwrap();
     let address = line.trim().rsplit(' ').next().unwrap().to_owned();
     let (host, port) = address.rsplit_once(':').unwrap();
     // The P series' light power (holding register 2, 0-based) of slave 1, as mbpoll reads it.
@@ -174,22 +162,6 @@ fn the_demo_gateway_serves_mbpoll_while_the_bus_polls() {
     assert!(samples > 0, "the bus kept polling");
 }
 
-/// A bare HTTP/1.1 GET to the console at `address`: the status code and the body.
-fn http_get(address: &str, path: &str) -> (u16, String) {
-    use std::io::{Read, Write};
-    let mut stream = std::net::TcpStream::connect(address).expect("the console listens");
-    write!(
-        stream,
-        "GET {path} HTTP/1.1\r\nHost: {address}\r\nConnection: close\r\n\r\n"
-    )
-    .unwrap();
-    let mut reply = String::new();
-    stream.read_to_string(&mut reply).unwrap();
-    let (head, body) = reply.split_once("\r\n\r\n").expect("a head and a body");
-    let status = head.split(' ').nth(1).and_then(|s| s.parse().ok()).unwrap();
-    (status, body.to_owned())
-}
-
 /// Starts `optobus args…`, waits for the console's address on `stdout` or `stderr`, and gives
 /// the device names `/api/devices` lists.
 fn console_devices(args: &[&str]) -> Vec<String> {
@@ -209,7 +181,7 @@ fn console_devices(args: &[&str]) -> Vec<String> {
         }
     }
     let address = address.expect("the console's address on stderr");
-    let (status, body) = http_get(&address, "/api/devices");
+    let (status, body) = common::get(&address, "/api/devices");
     let _ = child.kill();
     let _ = child.wait();
     assert_eq!(status, 200, "{body}");

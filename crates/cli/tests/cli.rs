@@ -322,27 +322,15 @@ fn scan_finds_the_device_on_a_pty() {
 #[test]
 fn connection_errors_are_one_clear_line() {
     // Nothing listens on port 1.
-    let error = fails(&[
-        "--model",
-        "p-series",
-        "read",
-        "distance_1",
-        "--tcp",
-        "127.0.0.1:1",
-    ]);
+    let error = fails(&words("--model p-series read distance_1 --tcp 127.0.0.1:1"));
     assert!(
         error.starts_with("optobus: cannot connect to 127.0.0.1:1"),
         "{error}"
     );
     assert_eq!(error.lines().count(), 1, "{error}");
-    let error = fails(&[
-        "--model",
-        "p-series",
-        "read",
-        "distance_1",
-        "--serial",
-        "/dev/nonexistent-port",
-    ]);
+    let error = fails(&words(
+        "--model p-series read distance_1 --serial /dev/nonexistent-port",
+    ));
     assert!(
         error.contains("cannot open /dev/nonexistent-port"),
         "{error}"

@@ -154,15 +154,9 @@ fn raw_access_reads_and_writes_words_by_address() {
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
     let at = served.at.as_str();
     // light_power is holding 2 in steps of 0.1 %.
-    ok(&[
-        "--model",
-        "p-series",
-        "set",
-        "light_power",
-        "42.5",
-        "--tcp",
-        at,
-    ]);
+    ok(&words(&format!(
+        "--model p-series set light_power 42.5 --tcp {at}"
+    )));
     let text = ok(&[
         "--model", "p-series", "raw", "read", "holding", "2", "--tcp", at,
     ]);
@@ -263,26 +257,24 @@ fn scan_json_is_json_only_and_stops_at_the_first_device() {
         args.extend(extra);
         outcome(&args)
     };
-    let (code, stdout, stderr) = scan(&[]);
-    assert_eq!(code, Some(0), "{stderr}");
-    let found: serde_json::Value = serde_json::from_str(&stdout).expect("stdout is JSON only");
-    assert_eq!(
-        found,
-        serde_json::json!([{"baud": 115200, "slave": 3, "model": "p-series"}])
-    );
+    // Found: the P series at slave 3, and only it; on stdout, JSON only.
+    let found_slave_3 = |(code, stdout, stderr): (Option<i32>, String, String)| {
+        assert_eq!(code, Some(0), "{stderr}");
+        let found: serde_json::Value = serde_json::from_str(&stdout).expect("stdout is JSON only");
+        assert_eq!(
+            found,
+            serde_json::json!([{"baud": 115200, "slave": 3, "model": "p-series"}])
+        );
+        stderr
+    };
+    let stderr = found_slave_3(scan(&[]));
     assert!(stderr.contains("found: slave 3 at 115200 baud"), "{stderr}");
     // Slave 2 and 3 were asked, 4 and 5 not.
     assert!(stderr.contains(" -> 02 03"), "{stderr}");
     assert!(stderr.contains(" -> 03 03"), "{stderr}");
     assert!(!stderr.contains(" -> 04 03"), "{stderr}");
     // --all goes on to the end of the list.
-    let (code, stdout, stderr) = scan(&["--all"]);
-    assert_eq!(code, Some(0), "{stderr}");
-    let found: serde_json::Value = serde_json::from_str(&stdout).expect("stdout is JSON only");
-    assert_eq!(
-        found,
-        serde_json::json!([{"baud": 115200, "slave": 3, "model": "p-series"}])
-    );
+    let stderr = found_slave_3(scan(&["--all"]));
     assert!(stderr.contains(" -> 05 03"), "{stderr}");
 }
 
@@ -304,15 +296,10 @@ fn writes_to_the_built_in_simulator_say_they_do_not_last() {
     let (_, _, stderr) = outcome(&["read", "light_power"]);
     assert!(!stderr.contains("lasts for this"), "{stderr}");
     let served = Served::start(&["p-series", "--tcp", "127.0.0.1:0"]);
-    let (_, _, stderr) = outcome(&[
-        "--model",
-        "p-series",
-        "set",
-        "light_power",
-        "42.5",
-        "--tcp",
-        &served.at,
-    ]);
+    let (_, _, stderr) = outcome(&words(&format!(
+        "--model p-series set light_power 42.5 --tcp {}",
+        served.at
+    )));
     assert!(!stderr.contains("lasts for this"), "{stderr}");
 }
 

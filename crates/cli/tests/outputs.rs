@@ -3,7 +3,7 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::process::Stdio;
 use std::time::Duration;
 
@@ -11,26 +11,15 @@ use common::{outcome, REFUSED};
 
 #[test]
 fn run_demo_with_prometheus_serves_metrics_of_every_device() {
-    let mut bus = common::optobus()
-        .args([
-            "run",
-            "--demo",
-            "--gateway",
-            "127.0.0.1:0",
-            "--prometheus",
-            "127.0.0.1:0",
-            "--duration",
-            "20s",
-            "--json",
-        ])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run the demo");
+    let common::Demo {
+        child: mut bus,
+        first_line: line,
+        stderr: _stderr,
+    } = common::demo_with(
+        &["--gateway", "127.0.0.1:0", "--prometheus", "127.0.0.1:0"],
+        Stdio::null(),
+    );
     // The outputs are named on the first line of stderr.
-    let mut stderr = BufReader::new(bus.stderr.take().unwrap());
-    let mut line = String::new();
-    stderr.read_line(&mut line).unwrap();
     let address = line
         .split("http://")
         .nth(1)

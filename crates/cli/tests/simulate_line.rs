@@ -70,6 +70,25 @@ impl Drop for Line {
 }
 
 /// `read slave_address` of `model` at `slave` over the line: the address it holds.
+/// Asserts that a read of the P series' `slave_address` at `slave` on `line` gets no reply
+/// within 200 ms (exit code 1).
+fn assert_no_reply_at(line: &Line, slave: &str) {
+    let (code, _, stderr) = outcome(&[
+        "read",
+        "slave_address",
+        "--serial",
+        &line.path,
+        "--model",
+        "p-series",
+        "--slave",
+        slave,
+        "--timeout",
+        "200ms",
+    ]);
+    assert_eq!(code, Some(1), "slave {slave}: {stderr}");
+    assert!(stderr.contains("no reply within 200 ms"), "{stderr}");
+}
+
 fn slave_address(line: &Line, model: &str, slave: &str) -> serde_json::Value {
     let values = json(&[
         "read",
@@ -104,20 +123,7 @@ fn each_listed_device_answers_its_own_address_only() {
     assert_eq!(slave_address(&line, "rangefinder", "5"), 5);
     assert_eq!(slave_address(&line, "lc-rs", "7"), 7);
     // No device at 2: no reply, whatever the model asks.
-    let (code, _, stderr) = outcome(&[
-        "read",
-        "slave_address",
-        "--serial",
-        &line.path,
-        "--model",
-        "p-series",
-        "--slave",
-        "2",
-        "--timeout",
-        "200ms",
-    ]);
-    assert_eq!(code, Some(1), "{stderr}");
-    assert!(stderr.contains("no reply within 200 ms"), "{stderr}");
+    assert_no_reply_at(&line, "2");
 }
 
 #[test]
@@ -265,20 +271,8 @@ fn a_dead_device_times_out_while_a_slow_and_a_garbling_one_answer_right() {
         ],
     );
     let line = Line::start(&["--bus", simulated.to_str().unwrap()], 3);
-    let (code, _, stderr) = outcome(&[
-        "read",
-        "slave_address",
-        "--serial",
-        &line.path,
-        "--model",
-        "p-series",
-        "--slave",
-        "1",
-        "--timeout",
-        "200ms",
-    ]);
-    assert_eq!(code, Some(1), "the dead device: {stderr}");
-    assert!(stderr.contains("no reply within 200 ms"), "{stderr}");
+    // The dead device.
+    assert_no_reply_at(&line, "1");
     // Each reply in three pieces 20 ms apart: slow, and right.
     assert_eq!(slave_address(&line, "rangefinder", "5"), 5);
     // Half the replies garbled: those are errors, the others the right value.

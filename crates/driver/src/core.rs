@@ -202,20 +202,27 @@ impl<T: Transport> Core<T> {
         Ok(())
     }
 
+    /// The device's first readable register, which a probe reads; a model with none is
+    /// [`Error::NotAllowed`] with `register` and `what`.
+    fn probe_register(
+        &self,
+        register: &'static str,
+        what: &'static str,
+    ) -> Result<&'static RegisterInfo, Error> {
+        self.device
+            .registers
+            .iter()
+            .find(|r| r.readable())
+            .ok_or(Error::NotAllowed { register, what })
+    }
+
     /// Whether anything answers at `slave` (a scan's probe, which then talks to it): a read
     /// of the device's first readable register, where an exception is an answer too
     /// (something lives at that address). A device with no readable register is
     /// [`Error::NotAllowed`].
     pub async fn answers_at(&mut self, slave: u8) -> Result<bool, Error> {
         let probe =
-            self.device
-                .registers
-                .iter()
-                .find(|r| r.readable())
-                .ok_or(Error::NotAllowed {
-                    register: "any register",
-                    what: "read (the model has no readable register)",
-                })?;
+            self.probe_register("any register", "read (the model has no readable register)")?;
         self.set_slave(slave)?;
         Ok(match self.read_words(probe).await {
             Ok(_) => true,
@@ -528,15 +535,7 @@ impl<T: Transport> Core<T> {
     pub async fn wait_ready(&mut self, limit: Duration) -> Result<Duration, Error> {
         const POLL_INTERVAL: Duration = Duration::from_millis(100);
         let started = tokio::time::Instant::now();
-        let probe =
-            self.device
-                .registers
-                .iter()
-                .find(|r| r.readable())
-                .ok_or(Error::NotAllowed {
-                    register: "",
-                    what: "polled (the device has no readable register)",
-                })?;
+        let probe = self.probe_register("", "polled (the device has no readable register)")?;
         loop {
             match self.read_words(probe).await {
                 Ok(_) => return Ok(started.elapsed()),

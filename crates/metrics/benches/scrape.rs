@@ -20,13 +20,6 @@ const P: &optobus_device::DeviceInfo = &optobus_p_series::DEVICE;
 const DEVICES: usize = 20;
 const SCRAPES: usize = 2_000;
 
-fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()
-        .and_then(|s| s.split_whitespace().next().map(str::to_owned))
-        .unwrap_or_else(|| "?".to_owned())
-}
-
 fn file() -> BusFile {
     let mut text = String::from(
         "lines: [{ name: a, simulated: true }, { name: b, simulated: true }]\ndevices:\n",
@@ -101,45 +94,38 @@ fn quantiles(mut times: Vec<f64>) -> (f64, f64, f64) {
     (at(0.5), at(0.99), at(1.0))
 }
 
-fn main() {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    runtime.block_on(async {
-        println!("load average at start: {}", load());
-        let file = file();
-        let metrics = Arc::new(metrics(&file));
-        let body = metrics.prometheus();
-        let series = body.lines().filter(|l| !l.starts_with('#')).count();
-        let ours = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-        let ours_address = ours.local_addr().unwrap();
-        tokio::spawn(serve(ours, Arc::clone(&metrics)));
-        let fixed = body.clone();
-        let anchor = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-        let anchor_address = anchor.local_addr().unwrap();
-        let router =
-            Router::new().route("/metrics", get(move || std::future::ready(fixed.clone())));
-        tokio::spawn(async move { axum::serve(anchor, router).await });
-        let (mut ours_times, mut anchor_times) = (Vec::new(), Vec::new());
-        let mut size = 0;
-        for _ in 0..SCRAPES {
-            let start = Instant::now();
-            scrape(anchor_address).await;
-            anchor_times.push(start.elapsed().as_secs_f64() * 1000.0);
-            let start = Instant::now();
-            size = scrape(ours_address).await;
-            ours_times.push(start.elapsed().as_secs_f64() * 1000.0);
-        }
-        let (p50, p99, max) = quantiles(ours_times);
-        let (a50, a99, amax) = quantiles(anchor_times);
-        println!(
-            "scrape of {DEVICES} devices ({series} series, {size} bytes), {SCRAPES} scrapes: \
+#[tokio::main(flavor = "multi_thread", worker_threads = 2)]
+async fn main() {
+    println!("load average at start: {}", optobus_testkit::load_average());
+    let file = file();
+    let metrics = Arc::new(metrics(&file));
+    let body = metrics.prometheus();
+    let series = body.lines().filter(|l| !l.starts_with('#')).count();
+    let ours = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let ours_address = ours.local_addr().unwrap();
+    tokio::spawn(serve(ours, Arc::clone(&metrics)));
+    let fixed = body.clone();
+    let anchor = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let anchor_address = anchor.local_addr().unwrap();
+    let router = Router::new().route("/metrics", get(move || std::future::ready(fixed.clone())));
+    tokio::spawn(async move { axum::serve(anchor, router).await });
+    let (mut ours_times, mut anchor_times) = (Vec::new(), Vec::new());
+    let mut size = 0;
+    for _ in 0..SCRAPES {
+        let start = Instant::now();
+        scrape(anchor_address).await;
+        anchor_times.push(start.elapsed().as_secs_f64() * 1000.0);
+        let start = Instant::now();
+        size = scrape(ours_address).await;
+        ours_times.push(start.elapsed().as_secs_f64() * 1000.0);
+    }
+    let (p50, p99, max) = quantiles(ours_times);
+    let (a50, a99, amax) = quantiles(anchor_times);
+    println!(
+        "scrape of {DEVICES} devices ({series} series, {size} bytes), {SCRAPES} scrapes: \
              p50 {p50:.3} ms, p99 {p99:.3} ms, max {max:.3} ms; anchor (fixed body, same size): \
              p50 {a50:.3} ms, p99 {a99:.3} ms, max {amax:.3} ms; p99 ratio {:.2}",
-            p99 / a99
-        );
-        println!("load average at end: {}", load());
-    });
+        p99 / a99
+    );
+    println!("load average at end: {}", optobus_testkit::load_average());
 }

@@ -19,38 +19,24 @@
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use common::{Broker, Watcher};
-use optobus_bus::{Bus, BusFile, Catalogue, Event};
+use optobus_bus::{Bus, BusFile, Event};
 use optobus_mqtt::{Counts, Publisher};
 use rumqttc::{AsyncClient, MqttOptions, QoS};
 
-const P: &optobus_device::DeviceInfo = &optobus_p_series::DEVICE;
 const WINDOW: Duration = Duration::from_secs(3);
 const ROUNDS: usize = 3;
 const SAMPLE_TOPIC: &str = "plant/top/distance_1";
 
 fn file(port: u16) -> BusFile {
-    let text = format!(
-        "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
-devices:
-  - name: top
-    model: p-series
-    slave: 1
-    poll: [{{ read: distance_1, every: 20ms }}]
-    writable: [light_power]
-outputs:
-  mqtt: {{ broker: 127.0.0.1:{port}, prefix: plant, client_id: hall-2, homeassistant: true }}
-"
-    );
-    BusFile::parse("bench.yaml", &text, Path::new("."), &Catalogue::new([P]))
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    common::parse(&common::top_alone(
+        "poll: [{ read: distance_1, every: 20ms }], writable: [light_power]",
+        &format!("broker: 127.0.0.1:{port}, prefix: plant, client_id: hall-2, homeassistant: true"),
+    ))
 }
 
 /// `VmRSS` and `VmHWM` of this process, in MB.
@@ -64,13 +50,6 @@ fn memory() -> (f64, f64) {
             .map_or(f64::NAN, |kb| kb / 1024.0)
     };
     (field("VmRSS:"), field("VmHWM:"))
-}
-
-fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()
-        .and_then(|s| s.split_whitespace().next().map(str::to_owned))
-        .unwrap_or_else(|| "?".to_owned())
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -192,20 +171,12 @@ fn main() {
         .build()
         .expect("a runtime");
     runtime.block_on(async {
-        println!("load average at start: {}", load());
+        println!("load average at start: {}", optobus_testkit::load_average());
         let broker = Broker::start("bench-floods").await;
         let file = file(broker.port);
         let bus = Bus::new(file.clone());
         let mut events = bus.subscribe();
-        let publisher_events = bus.subscribe();
-        let running = bus.start().expect("starts");
-        let publisher = Publisher::start(
-            file.outputs.mqtt.as_ref().expect("mqtt"),
-            &file,
-            publisher_events,
-            Some(running.handle()),
-        )
-        .expect("starts");
+        let (running, publisher) = common::start_taking_writes(bus, &file);
         let polled = Arc::new(AtomicU64::new(0));
         {
             let polled = Arc::clone(&polled);
@@ -264,7 +235,7 @@ fn main() {
         }
         println!(
             "\nmedians of {ROUNDS} rounds (window {WINDOW:?}, load at end {}):",
-            load()
+            optobus_testkit::load_average()
         );
         for (flood, (polled, heard)) in Flood::ALL.into_iter().zip(&mut ratios) {
             println!(

@@ -33,13 +33,6 @@ const P: &optobus_device::DeviceInfo = &optobus_p_series::DEVICE;
 const SAMPLES: usize = 50_000;
 const TRIALS: usize = 7;
 
-fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()
-        .and_then(|s| s.split_whitespace().next().map(str::to_owned))
-        .unwrap_or_else(|| "?".to_owned())
-}
-
 fn file(port: u16, qos: u8, queue: usize) -> BusFile {
     let text = format!(
         "lines: [{{ name: rs485, simulated: true }}]\n\
@@ -326,20 +319,14 @@ async fn outage(queue: usize) {
     publisher.stop(Duration::from_secs(1)).await;
 }
 
-fn main() {
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    runtime.block_on(async {
-        println!("load average at start: {}", load());
-        let broker = Broker::start("bench").await;
-        throughput(broker.port).await;
-        latency(broker.port).await;
-        drop(broker);
-        outage(10_000).await;
-        outage(1_000).await;
-        println!("load average at end: {}", load());
-    });
+#[tokio::main(flavor = "multi_thread", worker_threads = 2)]
+async fn main() {
+    println!("load average at start: {}", optobus_testkit::load_average());
+    let broker = Broker::start("bench").await;
+    throughput(broker.port).await;
+    latency(broker.port).await;
+    drop(broker);
+    outage(10_000).await;
+    outage(1_000).await;
+    println!("load average at end: {}", optobus_testkit::load_average());
 }

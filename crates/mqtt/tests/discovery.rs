@@ -4,13 +4,12 @@
 
 mod common;
 
-use std::path::Path;
 use std::time::Duration;
 
 use common::{Broker, Watcher};
-use optobus_bus::{Bus, BusFile, Catalogue};
+use optobus_bus::BusFile;
 use optobus_codec::value::Scale;
-use rumqttc::{AsyncClient, MqttOptions, QoS};
+use rumqttc::QoS;
 use serde_json::{json, Value as Json};
 
 const P: &optobus_device::DeviceInfo = &optobus_p_series::DEVICE;
@@ -30,9 +29,7 @@ outputs:
   mqtt: {{ broker: 127.0.0.1:{port}, client_id: hall-2, homeassistant: true }}
 "
     );
-    let catalogue = Catalogue::new([P]);
-    BusFile::parse("bus.yaml", &text, Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    common::parse(&text)
 }
 
 fn config(watcher: &Watcher, topic: &str) -> Json {
@@ -51,16 +48,12 @@ fn config(watcher: &Watcher, topic: &str) -> Json {
 async fn home_assistant_gets_a_device_and_an_entity_per_polled_register() {
     let broker = Broker::start("discovery").await;
     let file = file(broker.port);
-    let bus = Bus::new(file.clone());
-    let _publisher = common::publish(&file, &bus);
-    let running = bus.start().unwrap();
+    let (running, _publisher, _) = common::start_publishing(&file);
     let watcher = Watcher::start(broker.port, "watcher-discovery", "homeassistant/#").await;
     let distance_topic = "homeassistant/sensor/hall-2_top/distance_1/config";
     assert!(
         watcher
-            .wait_for(Duration::from_secs(10), |heard| heard
-                .iter()
-                .any(|h| h.topic == distance_topic))
+            .hears(Duration::from_secs(10), distance_topic, |_| true)
             .await,
         "{:?}",
         watcher.heard.lock().unwrap()
@@ -157,23 +150,17 @@ async fn home_assistant_gets_a_device_and_an_entity_per_polled_register() {
     // Retained: a Home Assistant that connects later still finds the entities.
     let late = Watcher::start(broker.port, "watcher-late", "homeassistant/#").await;
     assert!(
-        late.wait_for(Duration::from_secs(10), |heard| heard
-            .iter()
-            .any(|h| h.topic == distance_topic && h.retain))
+        late.hears(Duration::from_secs(10), distance_topic, |h| h.retain)
             .await
     );
 
     // Home Assistant restarts and says so: the configurations come again.
     let before = watcher.on(distance_topic).len();
-    let (client, mut eventloop) = AsyncClient::new(
-        MqttOptions::new("home-assistant", "127.0.0.1", broker.port),
-        10,
-    );
+    let (client, _home_assistant) = common::controller(broker.port, "home-assistant");
     client
         .publish("homeassistant/status", QoS::AtLeastOnce, false, "online")
         .await
         .unwrap();
-    let ha = tokio::spawn(async move { while eventloop.poll().await.is_ok() {} });
     assert!(
         watcher
             .wait_for(Duration::from_secs(10), |heard| heard
@@ -184,6 +171,5 @@ async fn home_assistant_gets_a_device_and_an_entity_per_polled_register() {
             .await,
         "discovery not published again"
     );
-    ha.abort();
     running.stop();
 }

@@ -5,57 +5,35 @@
 
 mod common;
 
-use std::path::Path;
 use std::time::{Duration, SystemTime};
 
 use common::{Broker, Heard, Watcher};
-use optobus_bus::{Bus, BusFile, Catalogue, Event, Running};
+use optobus_bus::{Bus, BusFile, Event, Running};
 use optobus_mqtt::{Counts, Publisher, MAX_WRITE_PAYLOAD, WRITE_QUEUE};
-use rumqttc::{AsyncClient, MqttOptions, QoS};
+use rumqttc::QoS;
 
 const P: &optobus_device::DeviceInfo = &optobus_p_series::DEVICE;
+/// Where refusals of writes to `light_power` are answered.
+const POWER_ERROR: &str = "plant/top/light_power/error";
+/// The answer to a retained write.
+const RETAINED_REFUSAL: &str = "a retained write is not carried out (the broker would hand it \
+                                over again at every connection); nothing was sent: publish it \
+                                without the retain flag, and clear the retained one with an \
+                                empty retained message on this topic";
 
 fn file(port: u16, homeassistant: bool) -> BusFile {
-    let text = format!(
-        "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
-devices:
-  - name: top
-    model: p-series
-    slave: 1
-    poll: [{{ read: distance_1, every: 50ms }}]
-    writable: [light_power, zero_position_1]
-outputs:
-  mqtt: {{ broker: 127.0.0.1:{port}, prefix: plant, client_id: hall-2, homeassistant: {homeassistant} }}
-"
-    );
-    BusFile::parse("bus.yaml", &text, Path::new("."), &Catalogue::new([P]))
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    common::parse(&common::top_alone(
+        "poll: [{ read: distance_1, every: 50ms }], writable: [light_power, zero_position_1]",
+        &format!(
+            "broker: 127.0.0.1:{port}, prefix: plant, client_id: hall-2, \
+             homeassistant: {homeassistant}"
+        ),
+    ))
 }
 
 /// A running bus of `file` with a publisher taking writes.
 fn start(file: &BusFile) -> (Running, Publisher) {
-    let bus = Bus::new(file.clone());
-    let events = bus.subscribe();
-    let running = bus.start().expect("starts");
-    let publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().expect("mqtt"),
-        file,
-        events,
-        Some(running.handle()),
-    )
-    .expect("starts");
-    (running, publisher)
-}
-
-/// A client that publishes what a test sends (packets up to 2 MiB).
-fn controller(port: u16) -> (AsyncClient, tokio::task::JoinHandle<()>) {
-    let mut options = MqttOptions::new("controller", "127.0.0.1", port);
-    options.set_max_packet_size(2 << 20, 2 << 20);
-    let (client, mut eventloop) = AsyncClient::new(options, 1000);
-    let task = tokio::spawn(async move { while eventloop.poll().await.is_ok() {} });
-    (client, task)
+    common::start_taking_writes(Bus::new(file.clone()), file)
 }
 
 async fn wait_counts(publisher: &Publisher, what: &str, done: impl Fn(&Counts) -> bool) {
@@ -118,7 +96,7 @@ async fn a_262_kb_set_payload_is_refused_and_publishing_goes_on() {
     let power = P.register("light_power").unwrap();
     let power_before = simulator.peek(power.table, power.address).unwrap();
     subscribed(&publisher).await;
-    let (client, controller) = controller(broker.port);
+    let (client, _controller) = common::controller(broker.port, "controller");
 
     // As the issue's author sent it, then a 1 MB one (over the client's former packet limit).
     for size in [262_060, 1_000_000] {
@@ -137,15 +115,12 @@ async fn a_262_kb_set_payload_is_refused_and_publishing_goes_on() {
         );
         assert!(
             watcher
-                .wait_for(Duration::from_secs(20), |heard| heard
-                    .iter()
-                    .any(
-                        |h| h.topic == "plant/top/light_power/error" && h.payload == expected
-                    ))
+                .hears(Duration::from_secs(20), POWER_ERROR, |h| h.payload
+                    == expected)
                 .await,
             "no refusal `{expected}`: {:?}",
             watcher
-                .on("plant/top/light_power/error")
+                .on(POWER_ERROR)
                 .iter()
                 .map(|h| h.payload.len())
                 .collect::<Vec<_>>()
@@ -165,12 +140,12 @@ async fn a_262_kb_set_payload_is_refused_and_publishing_goes_on() {
         watcher
             .wait_for(Duration::from_secs(20), |heard| heard
                 .iter()
-                .filter(|h| h.topic == "plant/top/light_power/error")
+                .filter(|h| h.topic == POWER_ERROR)
                 .count()
                 == 3)
             .await
     );
-    let errors = watcher.on("plant/top/light_power/error");
+    let errors = watcher.on(POWER_ERROR);
     println!(
         "{:?}",
         errors.iter().map(|h| &h.payload).collect::<Vec<_>>()
@@ -201,7 +176,6 @@ async fn a_262_kb_set_payload_is_refused_and_publishing_goes_on() {
         power_before,
         "nothing was written"
     );
-    controller.abort();
     running.stop();
 }
 
@@ -219,7 +193,7 @@ async fn ten_thousand_writes_are_refused_beyond_the_queue_and_the_polls_go_on() 
     let simulator = running.simulator("top").unwrap();
     let power = P.register("light_power").unwrap();
     subscribed(&publisher).await;
-    let (client, controller) = controller(broker.port);
+    let (client, _controller) = common::controller(broker.port, "controller");
 
     // Values 1.0 % to 99.9 %, every one a valid light power.
     let value = |n: usize| {
@@ -269,7 +243,7 @@ async fn ten_thousand_writes_are_refused_beyond_the_queue_and_the_polls_go_on() 
         assert!(sent.contains(text), "{}", heard.payload);
     }
     let busy: Vec<_> = watcher
-        .on("plant/top/light_power/error")
+        .on(POWER_ERROR)
         .into_iter()
         .map(|h| h.payload)
         .collect();
@@ -301,15 +275,12 @@ async fn ten_thousand_writes_are_refused_beyond_the_queue_and_the_polls_go_on() 
         .unwrap();
     assert!(
         watcher
-            .wait_for(Duration::from_secs(20), |heard| heard
-                .iter()
-                .any(
-                    |h| h.topic == "plant/top/light_power" && h.payload.contains("\"0.7\"")
-                ))
+            .hears(Duration::from_secs(20), "plant/top/light_power", |h| h
+                .payload
+                .contains("\"0.7\""))
             .await
     );
     assert_eq!(simulator.peek(power.table, power.address).unwrap(), [7]);
-    controller.abort();
     running.stop();
 }
 
@@ -323,10 +294,7 @@ async fn twenty_thousand_homeassistant_status_messages_keep_the_control_queue_bo
     let broker = Broker::start("births").await;
     let watcher = Watcher::start(broker.port, "watcher-births", "#").await;
     let file = file(broker.port, true);
-    let bus = Bus::new(file.clone());
-    let mut events = bus.subscribe();
-    let publisher = common::publish(&file, &bus);
-    let running = bus.start().unwrap();
+    let (running, publisher, mut events) = common::start_publishing(&file);
     subscribed(&publisher).await;
     let configs = |heard: &[Heard]| {
         heard
@@ -340,7 +308,7 @@ async fn twenty_thousand_homeassistant_status_messages_keep_the_control_queue_bo
             .await
     );
     let per_announcement = configs(&watcher.heard.lock().unwrap());
-    let (client, controller) = controller(broker.port);
+    let (client, _controller) = common::controller(broker.port, "controller");
 
     for _ in 0..BIRTHS {
         client
@@ -390,7 +358,6 @@ async fn twenty_thousand_homeassistant_status_messages_keep_the_control_queue_bo
         }
     }
     samples_go_on(&watcher, &publisher, since, 5, Duration::from_secs(20)).await;
-    controller.abort();
     running.stop();
 }
 
@@ -404,16 +371,16 @@ async fn a_retained_set_is_refused_and_not_carried_out() {
     let watcher = Watcher::start(broker.port, "watcher-retained", "plant/top/#").await;
     // Retained before the publisher subscribes: the broker hands it over at the subscription,
     // with the retain flag (a live message reaches a subscriber without it).
-    let (client, controller) = controller(broker.port);
+    let (client, _controller) = common::controller(broker.port, "controller");
     client
         .publish("plant/top/light_power/set", QoS::AtLeastOnce, true, "55 %")
         .await
         .unwrap();
     assert!(
         watcher
-            .wait_for(Duration::from_secs(10), |heard| heard
-                .iter()
-                .any(|h| h.topic == "plant/top/light_power/set"))
+            .hears(Duration::from_secs(10), "plant/top/light_power/set", |_| {
+                true
+            })
             .await
     );
     let file = file(broker.port, false);
@@ -421,19 +388,14 @@ async fn a_retained_set_is_refused_and_not_carried_out() {
     let simulator = running.simulator("top").unwrap();
     let power = P.register("light_power").unwrap();
     let power_before = simulator.peek(power.table, power.address).unwrap();
-    let expected = "a retained write is not carried out (the broker would hand it over again \
-                    at every connection); nothing was sent: publish it without the retain flag, \
-                    and clear the retained one with an empty retained message on this topic";
+    let expected = RETAINED_REFUSAL;
     assert!(
         watcher
-            .wait_for(Duration::from_secs(20), |heard| heard
-                .iter()
-                .any(
-                    |h| h.topic == "plant/top/light_power/error" && h.payload == expected
-                ))
+            .hears(Duration::from_secs(20), POWER_ERROR, |h| h.payload
+                == expected)
             .await,
         "{:?}",
-        watcher.on("plant/top/light_power/error")
+        watcher.on(POWER_ERROR)
     );
     let counts = publisher.counts();
     assert_eq!(
@@ -446,7 +408,6 @@ async fn a_retained_set_is_refused_and_not_carried_out() {
         power_before
     );
     assert_ne!(power_before, [550]);
-    controller.abort();
     running.stop();
 }
 
@@ -460,7 +421,7 @@ async fn a_retained_do_is_refused_at_start_and_at_every_reconnection_and_never_r
     // reconnection to the broker.
     let mut broker = Broker::start("retained-do").await;
     let watcher = Watcher::start(broker.port, "watcher-retained-do", "plant/top/#").await;
-    let (client, controller) = controller(broker.port);
+    let (client, controller) = common::controller(broker.port, "controller");
     client
         .publish(
             "plant/top/zero_position_1/do",
@@ -472,19 +433,19 @@ async fn a_retained_do_is_refused_at_start_and_at_every_reconnection_and_never_r
         .unwrap();
     assert!(
         watcher
-            .wait_for(Duration::from_secs(10), |heard| heard
-                .iter()
-                .any(|h| h.topic == "plant/top/zero_position_1/do"))
+            .hears(
+                Duration::from_secs(10),
+                "plant/top/zero_position_1/do",
+                |_| true
+            )
             .await
     );
-    controller.abort();
+    drop(controller);
     let file = file(broker.port, false);
     let (running, publisher) = start(&file);
     let simulator = running.simulator("top").unwrap();
     let zero = P.register("position_1_zero").unwrap();
-    let expected = "a retained write is not carried out (the broker would hand it over again \
-                    at every connection); nothing was sent: publish it without the retain flag, \
-                    and clear the retained one with an empty retained message on this topic";
+    let expected = RETAINED_REFUSAL;
     let refusals = |heard: &[Heard]| {
         heard
             .iter()
@@ -531,7 +492,7 @@ async fn a_payload_over_the_incoming_limit_breaks_one_connection_and_publishing_
     let file = file(broker.port, false);
     let (running, publisher) = start(&file);
     subscribed(&publisher).await;
-    let (client, controller) = controller(broker.port);
+    let (client, _controller) = common::controller(broker.port, "controller");
     client
         .publish(
             "plant/top/light_power/set",
@@ -557,6 +518,5 @@ async fn a_payload_over_the_incoming_limit_breaks_one_connection_and_publishing_
         (2, 0, 0),
         "{counts:?}"
     );
-    controller.abort();
     running.stop();
 }

@@ -11,27 +11,17 @@ mod common;
 use std::path::Path;
 use std::time::{Duration, SystemTime};
 
-use common::{Broker, Heard, Watcher};
-use optobus_bus::{Bus, BusFile, Catalogue};
+use common::{parse, Broker, Heard, Watcher};
+use optobus_bus::{Bus, BusFile, Catalogue, Running};
 use optobus_device::DeviceInfo;
 use optobus_mqtt::Publisher;
-use rumqttc::{AsyncClient, MqttOptions, QoS};
+use rumqttc::QoS;
 use serde_json::Value as Json;
 
 const P: &DeviceInfo = &optobus_p_series::DEVICE;
 const CCS: &DeviceInfo = &optobus_ccs::DEVICE;
 const LC: &DeviceInfo = &optobus_lc_rs::DEVICE;
 const RANGER: &DeviceInfo = &optobus_rangefinder::DEVICE;
-
-fn parse(text: &str) -> BusFile {
-    BusFile::parse(
-        "bus.yaml",
-        text,
-        Path::new("."),
-        &Catalogue::new([P, CCS, LC, RANGER]),
-    )
-    .unwrap_or_else(|e| panic!("{}", e.render()))
-}
 
 fn json(heard: &Heard) -> Json {
     serde_json::from_str(&heard.payload)
@@ -57,6 +47,31 @@ async fn wait_for_text(watcher: &Watcher, topic: &str, text: &str) -> bool {
         .await
 }
 
+/// Starts a bus of `file` with `top`'s light power at 42.0 % (a value no default has: a
+/// state must come from the device), a watcher `watcher_id` of its Home Assistant state, and
+/// then the publisher, taking writes.
+async fn start_at_42_percent(
+    file: &BusFile,
+    port: u16,
+    watcher_id: &str,
+) -> (Running, Watcher, Publisher) {
+    let bus = Bus::new(file.clone());
+    let events = bus.subscribe();
+    let running = bus.start().unwrap();
+    let power = P.register("light_power").unwrap();
+    let simulator = running.simulator("top").unwrap();
+    simulator.poke(power.table, power.address, &[420]).unwrap();
+    let watcher = Watcher::start(port, watcher_id, "optobus/top/light_power/state").await;
+    let publisher = Publisher::start(
+        file.outputs.mqtt.as_ref().unwrap(),
+        file,
+        events,
+        Some(running.handle()),
+    )
+    .unwrap();
+    (running, watcher, publisher)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[cfg_attr(
     not(peer_mosquitto),
@@ -64,37 +79,17 @@ async fn wait_for_text(watcher: &Watcher, topic: &str, text: &str) -> bool {
 )]
 async fn controls_get_a_retained_state_read_at_start_after_each_write_and_periodically() {
     let broker = Broker::start("ha-controls").await;
-    let file = parse(&format!(
-        "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
-devices:
-  - name: top
-    model: p-series
-    slave: 1
-    poll: [{{ read: distance_1, every: 50ms }}]
-    writable: [light_power]
-outputs:
-  mqtt: {{ broker: 127.0.0.1:{}, homeassistant: true, refresh_every: 1s }}
-",
-        broker.port
+    let file = parse(&common::top_alone(
+        "poll: [{ read: distance_1, every: 50ms }], writable: [light_power]",
+        &format!(
+            "broker: 127.0.0.1:{}, homeassistant: true, refresh_every: 1s",
+            broker.port
+        ),
     ));
-    let bus = Bus::new(file.clone());
-    let events = bus.subscribe();
-    let running = bus.start().unwrap();
+    let state = "optobus/top/light_power/state";
+    let (running, probe, publisher) = start_at_42_percent(&file, broker.port, "ha-probe").await;
     let simulator = running.simulator("top").unwrap();
     let power = P.register("light_power").unwrap();
-    // 42.0 %, a value no default has: the state must come from the device.
-    simulator.poke(power.table, power.address, &[420]).unwrap();
-    let state = "optobus/top/light_power/state";
-    let probe = Watcher::start(broker.port, "ha-probe", state).await;
-    let publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        events,
-        Some(running.handle()),
-    )
-    .unwrap();
     // Home Assistant subscribes once the state is out: the broker hands it over, retained.
     assert!(
         probe
@@ -105,10 +100,7 @@ outputs:
     );
     let late = Watcher::start(broker.port, "ha-late", "optobus/top/light_power/#").await;
     assert!(
-        late.wait_for(Duration::from_secs(10), |heard| heard
-            .iter()
-            .any(|h| h.topic == state))
-            .await,
+        late.hears(Duration::from_secs(10), state, |_| true).await,
         "no state on {state}: {:?}; {:?}",
         late.heard.lock().unwrap(),
         publisher.counts()
@@ -121,9 +113,7 @@ outputs:
     let config_topic = "homeassistant/number/optobus_top/light_power/config";
     assert!(
         discovery
-            .wait_for(Duration::from_secs(10), |heard| heard
-                .iter()
-                .any(|h| h.topic == config_topic))
+            .hears(Duration::from_secs(10), config_topic, |_| true)
             .await
     );
     let config = json(&discovery.on(config_topic)[0]);
@@ -131,9 +121,7 @@ outputs:
     assert_eq!(config["command_topic"], "optobus/top/light_power/set");
 
     // A write: the value read back is the state at once.
-    let (client, mut eventloop) =
-        AsyncClient::new(MqttOptions::new("ha-writer", "127.0.0.1", broker.port), 10);
-    let writer = tokio::spawn(async move { while eventloop.poll().await.is_ok() {} });
+    let (client, _writer) = common::controller(broker.port, "ha-writer");
     client
         .publish("optobus/top/light_power/set", QoS::AtLeastOnce, false, "55")
         .await
@@ -155,7 +143,6 @@ outputs:
     let counts = publisher.counts();
     assert!(counts.state_reads >= 2, "{counts:?}");
     assert_eq!(counts.state_reads_failed, 0, "{counts:?}");
-    writer.abort();
     running.stop();
 }
 
@@ -166,10 +153,8 @@ outputs:
 )]
 async fn a_register_a_command_writes_is_shown_as_its_command_buttons_only() {
     let broker = Broker::start("ha-buttons").await;
-    let file = parse(&format!(
+    let file = parse(&common::on_a_simulated_line(&format!(
         "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
 devices:
   - name: c
     model: ccs
@@ -180,10 +165,8 @@ outputs:
   mqtt: {{ broker: 127.0.0.1:{}, homeassistant: true }}
 ",
         broker.port
-    ));
-    let bus = Bus::new(file.clone());
-    let _publisher = common::publish(&file, &bus);
-    let running = bus.start().unwrap();
+    )));
+    let (running, _publisher, _) = common::start_publishing(&file);
     let watcher = Watcher::start(broker.port, "ha-buttons-watch", "homeassistant/#").await;
     let config =
         |component: &str, id: &str| format!("homeassistant/{component}/optobus_c/{id}/config");
@@ -191,9 +174,7 @@ outputs:
     let last_button = config("button", "reset_trigger_count");
     assert!(
         watcher
-            .wait_for(Duration::from_secs(10), |heard| heard
-                .iter()
-                .any(|h| h.topic == last_button))
+            .hears(Duration::from_secs(10), &last_button, |_| true)
             .await,
         "{:?}",
         watcher.heard.lock().unwrap()
@@ -230,10 +211,8 @@ outputs:
 )]
 async fn the_device_block_carries_the_firmware_version_and_serial_number_the_spec_marks() {
     let broker = Broker::start("ha-identity").await;
-    let file = parse(&format!(
+    let file = parse(&common::on_a_simulated_line(&format!(
         "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
 devices:
   - name: gauge
     model: lc-rs
@@ -247,7 +226,7 @@ outputs:
   mqtt: {{ broker: 127.0.0.1:{}, homeassistant: true }}
 ",
         broker.port
-    ));
+    )));
     let bus = Bus::new(file.clone());
     let events = bus.subscribe();
     let running = bus.start().unwrap();
@@ -322,10 +301,8 @@ outputs:
 async fn home_assistant_states_are_rate_limited_and_the_sample_topics_keep_every_sample() {
     let broker = Broker::start("ha-rate").await;
     // The confocal sensor as fast as its line allows (about 145 samples a second).
-    let file = parse(&format!(
+    let file = parse(&common::on_a_simulated_line(&format!(
         "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
 devices:
   - name: c
     model: ccs
@@ -335,13 +312,11 @@ outputs:
   mqtt: {{ broker: 127.0.0.1:{}, homeassistant: true, qos: 0 }}
 ",
         broker.port
-    ));
+    )));
     let every = file.outputs.mqtt.as_ref().unwrap().state_every.of("c");
     assert_eq!(every, Duration::from_secs(1), "the default");
     let watcher = Watcher::start(broker.port, "ha-rate-watch", "optobus/c/#").await;
-    let bus = Bus::new(file.clone());
-    let publisher = common::publish(&file, &bus);
-    let running = bus.start().unwrap();
+    let (running, publisher, _) = common::start_publishing(&file);
     let state = "optobus/c/distance_1/state";
     let sample = "optobus/c/distance_1";
     assert!(
@@ -448,10 +423,8 @@ outputs:
 )]
 async fn units_are_the_specs_ascii_on_every_topic_and_home_assistants_symbols_in_discovery_only() {
     let broker = Broker::start("ha-units").await;
-    let file = parse(&format!(
+    let file = parse(&common::on_a_simulated_line(&format!(
         "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
 devices:
   - name: top
     model: p-series
@@ -465,11 +438,9 @@ outputs:
   mqtt: {{ broker: 127.0.0.1:{}, homeassistant: true }}
 ",
         broker.port
-    ));
+    )));
     let watcher = Watcher::start(broker.port, "ha-units-watch", "#").await;
-    let bus = Bus::new(file.clone());
-    let _publisher = common::publish(&file, &bus);
-    let running = bus.start().unwrap();
+    let (running, _publisher, _) = common::start_publishing(&file);
     let cases = [
         ("top", "temperature", "degC", "°C"),
         // Home Assistant's micro is the Greek mu (U+03BC), as its duration class lists it.
@@ -526,40 +497,24 @@ async fn a_console_or_gateway_write_refreshes_the_home_assistant_state_at_once()
 
     let broker = Broker::start("ha-written").await;
     // The periodic refresh is an hour away: only the writes can bring the states below.
-    let file = parse(&format!(
-        "
-lines:
-  - name: rs485
-    simulated: true
-    baud: 115200
-    any_format: true
-    gateway: {{ listen: 127.0.0.1:0, writes: true }}
-devices:
-  - name: top
-    model: p-series
-    slave: 1
-    poll: [{{ read: distance_1, every: 50ms }}]
-    writable: [light_power]
-outputs:
-  mqtt: {{ broker: 127.0.0.1:{}, homeassistant: true, refresh_every: 1h }}
-",
-        broker.port
-    ));
-    let bus = Bus::new(file.clone());
-    let events = bus.subscribe();
-    let running = bus.start().unwrap();
+    let file = parse(
+        &common::top_alone(
+            "poll: [{ read: distance_1, every: 50ms }], writable: [light_power]",
+            &format!(
+                "broker: 127.0.0.1:{}, homeassistant: true, refresh_every: 1h",
+                broker.port
+            ),
+        )
+        // The same line with a Modbus TCP gateway that takes writes.
+        .replace(
+            "any_format: true }",
+            "any_format: true, gateway: { listen: 127.0.0.1:0, writes: true } }",
+        ),
+    );
+    let state = "optobus/top/light_power/state";
+    let (running, watcher, publisher) = start_at_42_percent(&file, broker.port, "ha-watch").await;
     let simulator = running.simulator("top").unwrap();
     let power = P.register("light_power").unwrap();
-    simulator.poke(power.table, power.address, &[420]).unwrap();
-    let state = "optobus/top/light_power/state";
-    let watcher = Watcher::start(broker.port, "ha-watch", state).await;
-    let publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        events,
-        Some(running.handle()),
-    )
-    .unwrap();
     // Read at start.
     assert!(
         wait_for_text(&watcher, state, "42.0").await,

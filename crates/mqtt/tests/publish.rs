@@ -2,19 +2,12 @@
 
 mod common;
 
-use std::path::Path;
 use std::time::Duration;
 
-use common::{Broker, Watcher};
-use optobus_bus::{rfc3339, Bus, BusFile, Catalogue, Event};
+use common::{parse as file, Broker, Watcher};
+use optobus_bus::{rfc3339, Bus, Event};
 use optobus_mqtt::Publisher;
 use serde_json::Value as Json;
-
-fn file(text: &str) -> BusFile {
-    let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
-    BusFile::parse("bus.yaml", text, Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()))
-}
 
 fn bus_text(port: u16) -> String {
     format!(
@@ -22,17 +15,8 @@ fn bus_text(port: u16) -> String {
 lines:
   - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
 devices:
-  - name: top
-    model: p-series
-    slave: 1
-    timeout: 100ms
-    poll: [{{ read: [light_power, measurements], every: 50ms }}]
-  - name: dead
-    model: ccs
-    slave: 3
-    timeout: 20ms
-    faults: drop=1,seed=1
-    poll: [{{ read: measurements, every: 50ms }}]
+  - {{ name: top, model: p-series, slave: 1, timeout: 100ms, poll: [{{ read: [light_power, measurements], every: 50ms }}] }}
+  - {{ name: dead, model: ccs, slave: 3, timeout: 20ms, faults: \"drop=1,seed=1\", poll: [{{ read: measurements, every: 50ms }}] }}
 outputs:
   mqtt: {{ broker: 127.0.0.1:{port}, prefix: plant/hall }}
 "
@@ -48,10 +32,7 @@ async fn samples_are_published_as_json_with_number_exact_text_unit_and_time() {
     let broker = Broker::start("samples").await;
     let watcher = Watcher::start(broker.port, "watcher-samples", "plant/#").await;
     let file = file(&bus_text(broker.port));
-    let bus = Bus::new(file.clone());
-    let mut events = bus.subscribe();
-    let publisher = common::publish(&file, &bus);
-    let running = bus.start().expect("starts");
+    let (running, publisher, mut events) = common::start_publishing(&file);
     running
         .simulator("top")
         .unwrap()
@@ -120,9 +101,7 @@ async fn samples_are_published_as_json_with_number_exact_text_unit_and_time() {
 async fn availability_follows_health_and_the_last_will_says_offline() {
     let broker = Broker::start("availability").await;
     let file = file(&bus_text(broker.port));
-    let bus = Bus::new(file.clone());
-    let publisher = common::publish(&file, &bus);
-    let running = bus.start().expect("starts");
+    let (running, publisher, _) = common::start_publishing(&file);
     // Retained: a subscriber that comes later still learns the state.
     tokio::time::sleep(Duration::from_millis(1500)).await;
     let watcher = Watcher::start(broker.port, "watcher-availability", "plant/#").await;
@@ -178,17 +157,15 @@ async fn availability_follows_health_and_the_last_will_says_offline() {
 async fn a_clean_stop_says_every_device_is_offline() {
     let broker = Broker::start("clean-stop").await;
     let file = file(&bus_text(broker.port));
-    let bus = Bus::new(file.clone());
-    let publisher = common::publish(&file, &bus);
-    let running = bus.start().expect("starts");
+    let (running, publisher, _) = common::start_publishing(&file);
     let watcher = Watcher::start(broker.port, "watcher-running", "plant/hall/+/availability").await;
     assert!(
         watcher
-            .wait_for(Duration::from_secs(10), |heard| heard
-                .iter()
-                .any(
-                    |h| h.topic == "plant/hall/top/availability" && h.payload == "online"
-                ))
+            .hears(
+                Duration::from_secs(10),
+                "plant/hall/top/availability",
+                |h| h.payload == "online"
+            )
             .await,
         "{:?}",
         watcher.heard.lock().unwrap()
@@ -271,11 +248,10 @@ outputs:
 ",
         dir.join("ca.pem").display()
     ));
-    let bus = Bus::new(file.clone());
     let refused = Publisher::start(
         file.outputs.mqtt.as_ref().unwrap(),
         &file,
-        bus.subscribe(),
+        Bus::new(file.clone()).subscribe(),
         None,
     )
     .expect_err("no certificate to trust");

@@ -5,31 +5,18 @@
 mod common;
 
 use std::collections::HashSet;
-use std::path::Path;
 use std::time::Duration;
 
 use common::{Broker, Watcher};
-use optobus_bus::{rfc3339, Bus, BusFile, Catalogue, Event, Running};
+use optobus_bus::{rfc3339, BusFile, Event, Running};
 use optobus_mqtt::Publisher;
 use tokio::sync::broadcast::Receiver;
 
 fn file(port: u16, queue: usize) -> BusFile {
-    let text = format!(
-        "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
-devices:
-  - name: top
-    model: p-series
-    slave: 1
-    poll: [{{ read: distance_1, every: 10ms }}]
-outputs:
-  mqtt: {{ broker: 127.0.0.1:{port}, queue: {queue}, homeassistant: optobus/discovery }}
-"
-    );
-    let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);
-    BusFile::parse("bus.yaml", &text, Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    common::parse(&common::top_alone(
+        "poll: [{ read: distance_1, every: 10ms }]",
+        &format!("broker: 127.0.0.1:{port}, queue: {queue}, homeassistant: optobus/discovery"),
+    ))
 }
 
 /// The (topic, time) of every sample the bus sent so far.
@@ -84,10 +71,7 @@ async fn a_broker_restart_loses_no_queued_sample_and_availability_is_published_a
     let mut broker = Broker::start("restart").await;
     let watcher = Watcher::start(broker.port, "watcher-restart", "optobus/#").await;
     let file = file(broker.port, 100_000);
-    let bus = Bus::new(file.clone());
-    let mut events = bus.subscribe();
-    let publisher = common::publish(&file, &bus);
-    let running = bus.start().unwrap();
+    let (running, publisher, mut events) = common::start_publishing(&file);
     let mut sent = Vec::new();
     tokio::time::sleep(Duration::from_secs(1)).await;
     broker.stop();
@@ -150,10 +134,7 @@ async fn a_broker_restart_loses_no_queued_sample_and_availability_is_published_a
 async fn a_broker_down_at_start_gets_the_samples_that_waited() {
     let mut broker = Broker::reserve("late");
     let file = file(broker.port, 100_000);
-    let bus = Bus::new(file.clone());
-    let mut events = bus.subscribe();
-    let publisher = common::publish(&file, &bus);
-    let running = bus.start().unwrap();
+    let (running, publisher, mut events) = common::start_publishing(&file);
     tokio::time::sleep(Duration::from_millis(1500)).await;
     let waiting = publisher.counts();
     assert!(!waiting.connected && waiting.queued > 50, "{waiting:?}");
@@ -173,11 +154,9 @@ async fn a_broker_down_at_start_gets_the_samples_that_waited() {
     // The retained availability is there for a subscriber that came after it was published.
     assert!(
         watcher
-            .wait_for(Duration::from_secs(10), |heard| heard
-                .iter()
-                .any(
-                    |h| h.topic == "optobus/top/availability" && h.payload == "online"
-                ))
+            .hears(Duration::from_secs(10), "optobus/top/availability", |h| h
+                .payload
+                == "online")
             .await
     );
 }
@@ -191,10 +170,7 @@ async fn beyond_the_queue_the_oldest_samples_are_dropped_and_counted_exactly() {
     let mut broker = Broker::start("drops").await;
     let watcher = Watcher::start(broker.port, "watcher-drops", "optobus/#").await;
     let file = file(broker.port, 20);
-    let bus = Bus::new(file.clone());
-    let mut events = bus.subscribe();
-    let publisher = common::publish(&file, &bus);
-    let running = bus.start().unwrap();
+    let (running, publisher, mut events) = common::start_publishing(&file);
     tokio::time::sleep(Duration::from_millis(500)).await;
     broker.stop();
     tokio::time::sleep(Duration::from_millis(1500)).await;

@@ -10,8 +10,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use common::{Broker, Watcher};
-use optobus_bus::{Bus, BusFile, Catalogue};
-use optobus_mqtt::Publisher;
+use optobus_bus::BusFile;
 use serde_json::Value as Json;
 use tracing::field::{Field, Visit};
 use tracing::{Level, Subscriber};
@@ -31,20 +30,28 @@ fn openssl(dir: &Path, args: &[&str]) {
     );
 }
 
+/// Runs `openssl req` in `dir` with a new P-256 key, written to `key`, and the further `args`.
+fn request_with_new_key(dir: &Path, key: &str, args: &[&str]) {
+    let new_key = [
+        "req",
+        "-newkey",
+        "ec",
+        "-pkeyopt",
+        "ec_paramgen_curve:prime256v1",
+        "-nodes",
+        "-keyout",
+        key,
+    ];
+    openssl(dir, &[&new_key[..], args].concat());
+}
+
 /// A throwaway CA in `dir`: `<name>.pem` (its certificate) and `<name>.key`.
 fn make_ca(dir: &Path, name: &str) -> PathBuf {
-    openssl(
+    request_with_new_key(
         dir,
+        &format!("{name}.key"),
         &[
-            "req",
             "-x509",
-            "-newkey",
-            "ec",
-            "-pkeyopt",
-            "ec_paramgen_curve:prime256v1",
-            "-nodes",
-            "-keyout",
-            &format!("{name}.key"),
             "-out",
             &format!("{name}.pem"),
             "-days",
@@ -69,22 +76,10 @@ fn make_server_certificate(dir: &Path, ca: &str) {
          keyUsage=critical,digitalSignature\nextendedKeyUsage=serverAuth\n",
     )
     .unwrap();
-    openssl(
+    request_with_new_key(
         dir,
-        &[
-            "req",
-            "-newkey",
-            "ec",
-            "-pkeyopt",
-            "ec_paramgen_curve:prime256v1",
-            "-nodes",
-            "-keyout",
-            "server.key",
-            "-out",
-            "server.csr",
-            "-subj",
-            "/CN=127.0.0.1",
-        ],
+        "server.key",
+        &["-out", "server.csr", "-subj", "/CN=127.0.0.1"],
     );
     openssl(
         dir,
@@ -152,24 +147,13 @@ async fn tls_broker(name: &str) -> (Broker, u16) {
 
 /// A bus of one simulated P-series whose MQTT output goes to `port` over TLS, trusting `ca`.
 fn file(port: u16, ca: &Path) -> BusFile {
-    let text = format!(
-        "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
-devices:
-  - name: top
-    model: p-series
-    slave: 1
-    timeout: 100ms
-    poll: [{{ read: [light_power, distance_1], every: 50ms }}]
-outputs:
-  mqtt: {{ broker: 127.0.0.1:{port}, prefix: plant/hall, ca: {} }}
-",
-        ca.display()
-    );
-    let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);
-    BusFile::parse("bus.yaml", &text, Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    common::parse(&common::top_alone(
+        "timeout: 100ms, poll: [{ read: [light_power, distance_1], every: 50ms }]",
+        &format!(
+            "broker: 127.0.0.1:{port}, prefix: plant/hall, ca: {}",
+            ca.display()
+        ),
+    ))
 }
 
 /// The client addresses mosquitto logged as connecting on `port`
@@ -203,9 +187,7 @@ async fn samples_reach_a_tls_broker_whose_certificate_the_ca_file_vouches_for() 
     let (broker, tls_port) = tls_broker("tls-samples").await;
     let watcher = Watcher::start(broker.port, "watcher-tls", "plant/#").await;
     let file = file(tls_port, &broker.dir().join("ca.pem"));
-    let bus = Bus::new(file.clone());
-    let publisher = common::publish(&file, &bus);
-    let running = bus.start().expect("starts");
+    let (running, publisher, _) = common::start_publishing(&file);
     running
         .simulator("top")
         .unwrap()
@@ -310,15 +292,8 @@ fn a_broker_certificate_the_ca_does_not_vouch_for_is_refused() {
         let (broker, tls_port) = tls_broker("tls-refused").await;
         let watcher = Watcher::start(broker.port, "watcher-tls-refused", "plant/#").await;
         let file = file(tls_port, &broker.dir().join("other-ca.pem"));
-        let bus = Bus::new(file.clone());
-        let publisher = Publisher::start(
-            file.outputs.mqtt.as_ref().unwrap(),
-            &file,
-            bus.subscribe(),
-            None,
-        )
-        .expect("a valid CA file: the refusal comes at the handshake");
-        let running = bus.start().expect("starts");
+        // A valid CA file: the publisher starts, the refusal comes at the handshake.
+        let (running, publisher, _) = common::start_publishing(&file);
         // The bus polls on; the publisher tries, is refused, and tries again with backoff.
         for _ in 0..500 {
             if publisher.counts().queued >= 5 && refusals(&broker.log()) >= 3 {

@@ -4,33 +4,19 @@
 
 mod common;
 
-use std::path::Path;
 use std::time::Duration;
 
 use common::{Broker, Watcher};
-use optobus_bus::{Bus, BusFile, Catalogue, Event};
-use optobus_mqtt::Publisher;
-use rumqttc::{AsyncClient, MqttOptions, QoS};
+use optobus_bus::{Bus, BusFile, Event};
+use rumqttc::QoS;
 
 const P: &optobus_device::DeviceInfo = &optobus_p_series::DEVICE;
 
 fn file(port: u16) -> BusFile {
-    let text = format!(
-        "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
-devices:
-  - name: top
-    model: p-series
-    slave: 1
-    poll: [{{ read: distance_1, every: 50ms }}]
-    writable: [light_power, zero_position_1]
-outputs:
-  mqtt: {{ broker: 127.0.0.1:{port}, prefix: plant }}
-"
-    );
-    BusFile::parse("bus.yaml", &text, Path::new("."), &Catalogue::new([P]))
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    common::parse(&common::top_alone(
+        "poll: [{ read: distance_1, every: 50ms }], writable: [light_power, zero_position_1]",
+        &format!("broker: 127.0.0.1:{port}, prefix: plant"),
+    ))
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -43,17 +29,9 @@ async fn writes_from_topics_are_checked_like_optobus_set_and_refusals_go_to_erro
     let watcher = Watcher::start(broker.port, "watcher-writes", "plant/#").await;
     let file = file(broker.port);
     let bus = Bus::new(file.clone());
-    let mqtt_events = bus.subscribe();
     let mut events = bus.subscribe();
-    let running = bus.start().unwrap();
+    let (running, _publisher) = common::start_taking_writes(bus, &file);
     let handle = running.handle();
-    let _publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        mqtt_events,
-        Some(handle.clone()),
-    )
-    .unwrap();
     let simulator = running.simulator("top").unwrap();
     let power = P.register("light_power").unwrap();
     let laser = P.register("laser_enabled").unwrap();
@@ -63,9 +41,7 @@ async fn writes_from_topics_are_checked_like_optobus_set_and_refusals_go_to_erro
     let laser_before = words(laser);
     // The publisher subscribes once connected.
     tokio::time::sleep(Duration::from_millis(500)).await;
-    let (client, mut eventloop) =
-        AsyncClient::new(MqttOptions::new("controller", "127.0.0.1", broker.port), 10);
-    let controller = tokio::spawn(async move { while eventloop.poll().await.is_ok() {} });
+    let (client, _controller) = common::controller(broker.port, "controller");
 
     // A listed register, with a unit prefix as `optobus set` takes it: written, read back.
     client
@@ -74,11 +50,9 @@ async fn writes_from_topics_are_checked_like_optobus_set_and_refusals_go_to_erro
         .unwrap();
     assert!(
         watcher
-            .wait_for(Duration::from_secs(10), |heard| heard
-                .iter()
-                .any(
-                    |h| h.topic == "plant/top/light_power" && h.payload.contains("\"55.0\"")
-                ))
+            .hears(Duration::from_secs(10), "plant/top/light_power", |h| h
+                .payload
+                .contains("\"55.0\""))
             .await,
         "{:?}",
         watcher.heard.lock().unwrap()
@@ -126,9 +100,7 @@ async fn writes_from_topics_are_checked_like_optobus_set_and_refusals_go_to_erro
         let error_topic = format!("plant/{device}/{name}/error");
         assert!(
             watcher
-                .wait_for(Duration::from_secs(10), |heard| heard
-                    .iter()
-                    .any(|h| h.topic == error_topic))
+                .hears(Duration::from_secs(10), &error_topic, |_| true)
                 .await,
             "no answer on {error_topic}"
         );
@@ -173,6 +145,5 @@ async fn writes_from_topics_are_checked_like_optobus_set_and_refusals_go_to_erro
             samples += 1;
         }
     }
-    controller.abort();
     running.stop();
 }

@@ -2,7 +2,7 @@
 //! outage of the broker that overflowed the publisher's queue.
 
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::Child;
 use std::time::Duration;
 
 use optobus_bus::{Bus, BusFile, Catalogue};
@@ -36,13 +36,7 @@ impl Broker {
             format!("listener {port} 127.0.0.1\nallow_anonymous true\n"),
         )
         .unwrap();
-        let child = Command::new("mosquitto")
-            .arg("-c")
-            .arg(&config)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("mosquitto starts");
+        let child = optobus_testkit::spawn_mosquitto(&config);
         // Killed when dropped, also when it never listens.
         let broker = Self { port, dir, child };
         for _ in 0..200 {

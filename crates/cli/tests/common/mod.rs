@@ -3,7 +3,7 @@
 #![allow(dead_code, unreachable_pub)]
 
 use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, ChildStderr, Command, Output, Stdio};
 
 /// The built binary.
 pub fn optobus() -> Command {
@@ -219,18 +219,64 @@ pub fn mosquitto(dir: &std::path::Path, port: u16) -> Killed {
 
 /// An HTTP/1.1 POST of the JSON `body` to the console at `address`: the status and the body.
 pub fn post(address: &str, path: &str, body: &str) -> (u16, String) {
+    exchange(
+        address,
+        &format!(
+            "POST {path} HTTP/1.1\r\nHost: {address}\r\nContent-Type: application/json\r\n\
+             Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+            body.len()
+        ),
+    )
+}
+
+/// A bare HTTP/1.1 GET to the console at `address`: the status code and the body.
+pub fn get(address: &str, path: &str) -> (u16, String) {
+    exchange(
+        address,
+        &format!("GET {path} HTTP/1.1\r\nHost: {address}\r\nConnection: close\r\n\r\n"),
+    )
+}
+
+/// Sends `request` to the console at `address` on a new connection: the status code and the
+/// body of its reply.
+fn exchange(address: &str, request: &str) -> (u16, String) {
     use std::io::{Read, Write};
     let mut stream = std::net::TcpStream::connect(address).expect("the console listens");
-    write!(
-        stream,
-        "POST {path} HTTP/1.1\r\nHost: {address}\r\nContent-Type: application/json\r\n\
-         Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
-        body.len()
-    )
-    .unwrap();
+    stream.write_all(request.as_bytes()).unwrap();
     let mut reply = String::new();
     stream.read_to_string(&mut reply).unwrap();
     let (head, body) = reply.split_once("\r\n\r\n").expect("a head and a body");
     let status = head.split(' ').nth(1).and_then(|s| s.parse().ok()).unwrap();
     (status, body.to_owned())
+}
+
+/// A running `optobus run --demo`.
+pub struct Demo {
+    /// The process.
+    pub child: Child,
+    /// The first line of its stderr, where it names its listeners.
+    pub first_line: String,
+    /// The rest of its stderr, kept open while the demo runs (it may write more).
+    pub stderr: BufReader<ChildStderr>,
+}
+
+/// Starts `optobus run --demo` with `outputs` (such as `["--gateway", "127.0.0.1:0"]`) for
+/// 20 s, its samples as JSON lines on `stdout`, and reads the first line of its stderr.
+pub fn demo_with(outputs: &[&str], stdout: Stdio) -> Demo {
+    let mut child = optobus()
+        .args(["run", "--demo"])
+        .args(outputs)
+        .args(["--duration", "20s", "--json"])
+        .stdout(stdout)
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run the demo");
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut first_line = String::new();
+    stderr.read_line(&mut first_line).unwrap();
+    Demo {
+        child,
+        first_line,
+        stderr,
+    }
 }

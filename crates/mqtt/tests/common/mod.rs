@@ -1,11 +1,12 @@
-//! A real mosquitto on a free 127.0.0.1 port, and a subscriber that keeps what it hears.
+//! A real mosquitto on a free 127.0.0.1 port, a subscriber that keeps what it hears, a client
+//! that publishes what a test sends, and the bus files and publishers the tests start.
 
 #![allow(dead_code, unreachable_pub)]
 
 pub mod proxy;
 
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -19,6 +20,98 @@ pub fn mosquitto_installed() -> bool {
         panic!("mosquitto is not installed (Debian package mosquitto)");
     }
     true
+}
+
+/// The models the tests' bus files name.
+const MODELS: [&optobus_device::DeviceInfo; 4] = [
+    &optobus_p_series::DEVICE,
+    &optobus_ccs::DEVICE,
+    &optobus_lc_rs::DEVICE,
+    &optobus_rangefinder::DEVICE,
+];
+
+/// `text` read as a bus file; a mistake in it fails the test with the rendered message.
+pub fn parse(text: &str) -> optobus_bus::BusFile {
+    let catalogue = optobus_bus::Catalogue::new(MODELS);
+    optobus_bus::BusFile::parse("bus.yaml", text, std::path::Path::new("."), &catalogue)
+        .unwrap_or_else(|e| panic!("{}", e.render()))
+}
+
+/// The text of a bus file with one device on a simulated line (115200 baud, any frame
+/// format): the p-series `top` at slave 1 with the further settings `top` (the inside of a
+/// flow mapping: `poll: [{ read: distance_1, every: 50ms }], writable: [light_power]`), and
+/// an `mqtt` output of the settings `mqtt` (`broker: 127.0.0.1:1883, prefix: plant`).
+pub fn top_alone(top: &str, mqtt: &str) -> String {
+    on_a_simulated_line(&format!(
+        "devices:
+  - {{ name: top, model: p-series, slave: 1, {top} }}
+outputs:
+  mqtt: {{ {mqtt} }}
+"
+    ))
+}
+
+/// The text of a bus file on one simulated line `rs485` (115200 baud, any frame format):
+/// `rest` follows its `lines:` (the `devices:`, the `outputs:`...).
+pub fn on_a_simulated_line(rest: &str) -> String {
+    format!(
+        "lines:\n  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}\n{}",
+        rest.trim_start_matches('\n')
+    )
+}
+
+/// Starts `bus` and a publisher of `file`'s `mqtt` output that takes writes through the
+/// running bus's handle (the publisher subscribes before the bus starts: it misses nothing).
+pub fn start_taking_writes(
+    bus: optobus_bus::Bus,
+    file: &optobus_bus::BusFile,
+) -> (optobus_bus::Running, optobus_mqtt::Publisher) {
+    let events = bus.subscribe();
+    let running = bus.start().expect("starts");
+    let publisher = optobus_mqtt::Publisher::start(
+        file.outputs.mqtt.as_ref().expect("the file has `mqtt`"),
+        file,
+        events,
+        Some(running.handle()),
+    )
+    .expect("starts");
+    (running, publisher)
+}
+
+/// A client `id` that publishes what a test sends (packets up to 2 MiB); its task ends when
+/// the returned guard is dropped.
+pub fn controller(port: u16, id: &str) -> (AsyncClient, Polling) {
+    let mut options = MqttOptions::new(id, "127.0.0.1", port);
+    options.set_max_packet_size(2 << 20, 2 << 20);
+    let (client, mut eventloop) = AsyncClient::new(options, 1000);
+    let task = tokio::spawn(async move { while eventloop.poll().await.is_ok() {} });
+    (client, Polling(task))
+}
+
+/// A client's event loop, polled until it fails or this is dropped.
+pub struct Polling(tokio::task::JoinHandle<()>);
+
+impl Drop for Polling {
+    fn drop(&mut self) {
+        self.0.abort();
+    }
+}
+
+/// Starts a bus of `file` with a publisher of its samples to the broker its `mqtt` output
+/// names (taking no writes), and a receiver of the bus's events; both subscribe before the
+/// bus starts.
+pub fn start_publishing(
+    file: &optobus_bus::BusFile,
+) -> (
+    optobus_bus::Running,
+    optobus_mqtt::Publisher,
+    tokio::sync::broadcast::Receiver<optobus_bus::Event>,
+) {
+    let bus = optobus_bus::Bus::new(file.clone());
+    let events = bus.subscribe();
+    let publisher = publish(file, &bus);
+    let running = bus.start().expect("starts");
+    (running, publisher, events)
 }
 
 /// A publisher of `bus`'s samples to the broker its file's `mqtt` output names, taking no
@@ -85,13 +178,7 @@ impl Broker {
 
     /// Starts it (again) and waits until it accepts connections.
     pub async fn run(&mut self) {
-        let child = Command::new("mosquitto")
-            .arg("-c")
-            .arg(self.dir.join("mosquitto.conf"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("mosquitto starts");
+        let child = optobus_testkit::spawn_mosquitto(&self.dir.join("mosquitto.conf"));
         self.child = Some(child);
         for _ in 0..200 {
             if tokio::net::TcpStream::connect(("127.0.0.1", self.port))
@@ -219,6 +306,19 @@ impl Watcher {
             .filter(|h| h.topic == topic)
             .cloned()
             .collect()
+    }
+
+    /// Waits up to `within` for a message on `topic` that `matches`: whether one came.
+    pub async fn hears(
+        &self,
+        within: Duration,
+        topic: &str,
+        matches: impl Fn(&Heard) -> bool,
+    ) -> bool {
+        self.wait_for(within, |heard| {
+            heard.iter().any(|h| h.topic == topic && matches(h))
+        })
+        .await
     }
 
     /// Waits up to `within` for `done` to hold of what it heard.

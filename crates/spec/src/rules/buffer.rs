@@ -47,18 +47,15 @@ fn is_writable_enum(
     if matches!(register.kind, Kind::Enum(_)) && register.access.writable() {
         return true;
     }
-    out.push(
-        Diagnostic::at(
-            RULE,
-            &reference.path,
-            format!(
-                "the buffer's {role} `{}` is not a writable enum register",
-                reference.name
-            ),
-        )
-        .label(format!("a {} register", register.kind.name()))
-        .also(&register.path.key("name"), "register defined here"),
-    );
+    out.push(not_the_register_wanted(
+        register,
+        reference,
+        format!(
+            "the buffer's {role} `{}` is not a writable enum register",
+            reference.name
+        ),
+        format!("a {} register", register.kind.name()),
+    ));
     false
 }
 
@@ -74,16 +71,14 @@ fn is_writable_count(
     if unsigned && register.scale.is_none() && register.access.writable() {
         return true;
     }
-    out.push(
-        Diagnostic::at(
-            RULE,
-            &reference.path,
-            format!(
-                "the buffer's {role} `{}` is not a writable unsigned integer register",
-                register.name
-            ),
-        )
-        .label(format!(
+    out.push(not_the_register_wanted(
+        register,
+        reference,
+        format!(
+            "the buffer's {role} `{}` is not a writable unsigned integer register",
+            register.name
+        ),
+        format!(
             "a {} {} register{}",
             access_name(register),
             register.kind.name(),
@@ -92,10 +87,22 @@ fn is_writable_count(
             } else {
                 ""
             }
-        ))
-        .also(&register.path.key("name"), "register defined here"),
-    );
+        ),
+    ));
     false
+}
+
+/// The diagnostic at `reference` for a buffer's register that is not of the kind its role
+/// needs: `message`, the label `what_it_is`, and where `register` is defined.
+fn not_the_register_wanted(
+    register: &Register,
+    reference: &NameRef,
+    message: String,
+    what_it_is: String,
+) -> Diagnostic {
+    Diagnostic::at(RULE, &reference.path, message)
+        .label(what_it_is)
+        .also(&register.path.key("name"), "register defined here")
 }
 
 /// Checks the buffer section.
