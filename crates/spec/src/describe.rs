@@ -2,9 +2,10 @@
 //! generated `DEVICE` holds, built while the program runs, so that a tool can load a spec
 //! file without compiling a crate for it.
 //!
-//! This mirrors `emit/device.rs` value for value (the suites compare the two for every spec):
-//! a field added to the runtime types is added in both places, and the compiler points at
-//! each. The description is leaked to `'static`: a tool describes a handful of specs once.
+//! This is the one computation of a description: the emitter (`optobus-codegen`) calls
+//! [`description`] too and only prints the value as Rust, so a compiled `DEVICE` and a
+//! description built at run time agree by construction. The description is leaked to
+//! `'static`: a tool describes a handful of specs once.
 
 use optobus_device::{
     BufferInfo, CodeInfo, CommandInfo, DeviceInfo, ExceptionShape, FieldInfo, FrameShape,
@@ -18,8 +19,28 @@ use crate::model::{
 /// The runtime description of `model`, which must have passed every rule
 /// ([`crate::check_source`] gives only such models).
 pub fn describe(model: &Model) -> &'static DeviceInfo {
+    description(model).device
+}
+
+/// A checked model's description and the code lists it shares between registers.
+#[derive(Debug)]
+pub struct Description {
+    /// What [`describe`] returns.
+    pub device: &'static DeviceInfo,
+    /// The codes of each of the model's enums, in `Model::enums` order: the very slices the
+    /// device's registers, fields and exception codes hold, so that a printer can name a list
+    /// by its enum (compare with [`std::ptr::eq`]).
+    pub enum_codes: Vec<&'static [CodeInfo]>,
+}
+
+/// [`describe`], with the code list of each enum beside it.
+pub fn description(model: &Model) -> Description {
     let describer = Describer::new(model);
-    leak(describer.device())
+    let device = leak(describer.device());
+    Description {
+        device,
+        enum_codes: describer.codes,
+    }
 }
 
 fn leak<T>(value: T) -> &'static T {
