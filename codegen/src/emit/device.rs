@@ -73,7 +73,10 @@ pub(super) fn device(model: &Model, names: &TypeNames, imports: &Imports) -> Tok
     let commands = commands_module(device, &printer);
     let groups = groups_module(device, &printer);
     let table = printer.device(device);
+    // A number the checker should have refused stops the build, rather than compile clamped.
+    let unfit = &description.unfit;
     quote! {
+        #(compile_error!(#unfit);)*
         #registers
         #commands
         #groups
