@@ -40,7 +40,8 @@ pub struct Description {
     pub unfit: Vec<String>,
 }
 
-/// [`describe`], with the code list of each enum beside it.
+/// [`describe`], with the code list of each enum and the numbers that did not fit beside it:
+/// what the emitter prints as the compiled `DEVICE`.
 pub fn description(model: &Model) -> Description {
     let describer = Describer::new(model);
     let device = leak(describer.device());
