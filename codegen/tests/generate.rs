@@ -76,3 +76,23 @@ fn point_5_the_runtime_items_a_driver_user_needs_are_documented_in_place() {
         );
     }
 }
+
+/// The emitter prints what the front end describes, which clamps a number too large for its
+/// runtime type: should the checker ever let one through, the build stops with the number
+/// named rather than compile a clamped one.
+#[test]
+fn a_number_the_checker_missed_stops_the_build_instead_of_being_clamped() {
+    let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/mini.yaml");
+    let mut model = optobus_spec::check_file(&spec).unwrap_or_else(|r| panic!("{}", r.render()));
+    model.registers[0].address.0 = 70_000;
+    let unfit = optobus_spec::description(&model).unfit;
+    let message = "address 70000 does not fit u16: the spec checker should have refused it";
+    assert_eq!(unfit, [message]);
+    let generated = optobus_codegen::emit::generate(&model, "mini.yaml");
+    // prettyplease may wrap the call: compare without line breaks and indents.
+    let unwrapped: String = generated.split_whitespace().collect::<Vec<_>>().join(" ");
+    let stop = format!("compile_error!( \"{message}\" );");
+    assert!(unwrapped.contains(&stop), "no `{stop}` in the output");
+    // A checked model describes without a clamp, so its output holds no stop.
+    assert!(!generate_mini().contains("compile_error!"));
+}

@@ -2,9 +2,12 @@
 //! generated `DEVICE` holds, built while the program runs, so that a tool can load a spec
 //! file without compiling a crate for it.
 //!
-//! This mirrors `emit/device.rs` value for value (the suites compare the two for every spec):
-//! a field added to the runtime types is added in both places, and the compiler points at
-//! each. The description is leaked to `'static`: a tool describes a handful of specs once.
+//! This is the one computation of a description: the emitter (`optobus-codegen`) calls
+//! [`description`] too and only prints the value as Rust, so a compiled `DEVICE` and a
+//! description built at run time agree by construction. The description is leaked to
+//! `'static`: a tool describes a handful of specs once.
+
+use std::cell::RefCell;
 
 use optobus_device::{
     BufferInfo, CodeInfo, CommandInfo, DeviceInfo, ExceptionShape, FieldInfo, FrameShape,
@@ -18,8 +21,35 @@ use crate::model::{
 /// The runtime description of `model`, which must have passed every rule
 /// ([`crate::check_source`] gives only such models).
 pub fn describe(model: &Model) -> &'static DeviceInfo {
+    description(model).device
+}
+
+/// A checked model's description and the code lists it shares between registers.
+#[derive(Debug)]
+pub struct Description {
+    /// What [`describe`] returns.
+    pub device: &'static DeviceInfo,
+    /// The codes of each of the model's enums, in `Model::enums` order: the very slices the
+    /// device's registers, fields and exception codes hold, so that a printer can name a list
+    /// by its enum (compare with [`std::ptr::eq`]).
+    pub enum_codes: Vec<&'static [CodeInfo]>,
+    /// Each number the description had to clamp (or, for a sentinel, leave out) because it
+    /// does not fit its runtime type, as a sentence. Empty for a checked model: the rules
+    /// refuse every such number; the emitter writes each as `compile_error!`, should the
+    /// checker ever miss one, rather than compile a clamped number.
+    pub unfit: Vec<String>,
+}
+
+/// [`describe`], with the code list of each enum and the numbers that did not fit beside it:
+/// what the emitter prints as the compiled `DEVICE`.
+pub fn description(model: &Model) -> Description {
     let describer = Describer::new(model);
-    leak(describer.device())
+    let device = leak(describer.device());
+    Description {
+        device,
+        enum_codes: describer.codes,
+        unfit: describer.unfit.into_inner(),
+    }
 }
 
 fn leak<T>(value: T) -> &'static T {
@@ -48,18 +78,17 @@ fn option_text(value: Option<&str>) -> Option<&'static str> {
     value.map(text)
 }
 
-fn u16_of(value: u32) -> u16 {
-    u16::try_from(value).unwrap_or(u16::MAX)
-}
-
 struct Describer<'m> {
     model: &'m Model,
     /// The codes of each enum of the model, leaked once and shared by every user.
     codes: Vec<&'static [CodeInfo]>,
+    /// Each number that did not fit its runtime type (see [`Description::unfit`]).
+    unfit: RefCell<Vec<String>>,
 }
 
 impl<'m> Describer<'m> {
     fn new(model: &'m Model) -> Self {
+        let unfit = RefCell::new(Vec::new());
         let codes = model
             .enums
             .iter()
@@ -68,7 +97,7 @@ impl<'m> Describer<'m> {
                     def.codes
                         .iter()
                         .map(|c| CodeInfo {
-                            code: u32::try_from(c.code).unwrap_or(u32::MAX),
+                            code: fit(&unfit, c.code, u32::MAX, "enum code"),
                             name: text(&c.name),
                             meaning: text(c.meaning.as_deref().unwrap_or("")),
                             doc: doc(c.doc.as_deref()),
@@ -77,7 +106,24 @@ impl<'m> Describer<'m> {
                 )
             })
             .collect();
-        Self { model, codes }
+        Self {
+            model,
+            codes,
+            unfit,
+        }
+    }
+
+    fn fit<T, V>(&self, value: V, fallback: T, what: &str) -> T
+    where
+        T: TryFrom<V>,
+        V: Copy + std::fmt::Display,
+    {
+        fit(&self.unfit, value, fallback, what)
+    }
+
+    /// A sentinel that does not fit 32 bits is recorded, and left out of the description.
+    fn sentinel(&self, sentinel: Option<u64>) -> Option<u32> {
+        sentinel.and_then(|s| fitting(&self.unfit, s, "sentinel"))
     }
 
     fn codes(&self, index: Option<usize>) -> &'static [CodeInfo] {
@@ -118,7 +164,10 @@ impl<'m> Describer<'m> {
             .protocol
             .continuous_send
             .as_ref()
-            .map(|(register, code, _)| (text(register), u32::try_from(*code).unwrap_or(u32::MAX)));
+            .map(|(register, code, _)| {
+                let code = self.fit(*code, u32::MAX, "continuous-send code");
+                (text(register), code)
+            });
         let exception_codes = self.codes(
             model
                 .protocol
@@ -138,8 +187,8 @@ impl<'m> Describer<'m> {
             functions: leak_slice(device.functions.clone()),
             max_read_words: device.max_read_words,
             power_up_ms: device.power_up_ms.unwrap_or(0),
-            holding_registers: u16_of(device.holding_size),
-            input_registers: u16_of(device.input_size),
+            holding_registers: self.fit(device.holding_size, u16::MAX, "holding table size"),
+            input_registers: self.fit(device.input_size, u16::MAX, "input table size"),
             addressing: model.protocol.addressing,
             long_writes: model.protocol.long_writes,
             frame_shape: FrameShape {
@@ -152,15 +201,15 @@ impl<'m> Describer<'m> {
             registers: leak_each(&model.registers, |r| self.register(r)),
             reserved: leak_each(&model.reserved, |r| ReservedInfo {
                 table: r.table,
-                from: u16_of(r.from),
-                to: u16_of(r.to),
+                from: self.fit(r.from, u16::MAX, "reserved address"),
+                to: self.fit(r.to, u16::MAX, "reserved address"),
                 readable: r.readable,
             }),
             commands: leak_each(&model.commands, |c| CommandInfo {
                 name: text(&c.name),
                 doc: doc(c.doc.as_deref()),
                 register: text(&c.register),
-                value: u32::try_from(c.value).unwrap_or(u32::MAX),
+                value: self.fit(c.value, u32::MAX, "command value"),
                 busy_ms: c.busy_ms.unwrap_or(0),
                 effect: c.effect,
                 targets: leak_each(&c.targets, |t| text(t)),
@@ -210,7 +259,7 @@ impl<'m> Describer<'m> {
         };
         let copy = register.repeat.as_ref().map(|copy| RepeatCopy {
             repeat: text(&self.model.repeats[copy.repeat].name),
-            number: u8::try_from(copy.number).unwrap_or(u8::MAX),
+            number: self.fit(copy.number, u8::MAX, "copy number"),
             member: text(&copy.base),
         });
         RegisterInfo {
@@ -219,15 +268,15 @@ impl<'m> Describer<'m> {
             zh: text(register.zh.as_deref().unwrap_or("")),
             section: text(register.section.as_deref().unwrap_or("")),
             table: register.table,
-            address: u16_of(register.address.0),
-            words: u16_of(register.words.0),
+            address: self.fit(register.address.0, u16::MAX, "address"),
+            words: self.fit(register.words.0, u16::MAX, "word count"),
             access: register.access,
             kind,
             codes,
             scale: scale(register.scale.as_ref()),
             unit: option_text(register.unit.as_deref()),
             range: register.range,
-            sentinel: sentinel(register.sentinel),
+            sentinel: self.sentinel(register.sentinel),
             word_order: register.word_order,
             write_order: register.write_order.unwrap_or_default(),
             copy,
@@ -262,7 +311,7 @@ impl<'m> Describer<'m> {
                         range: field.range,
                         scale: scale(field.scale.as_ref()),
                         unit: option_text(field.unit.as_deref()),
-                        sentinel: sentinel(field.sentinel),
+                        sentinel: self.sentinel(field.sentinel),
                     }
                 })
                 .collect(),
@@ -275,6 +324,27 @@ fn scale(scale: Option<&ScaleSpec>) -> Option<Scale> {
     scale.and_then(|s| s.value.as_ref().ok()).copied()
 }
 
-fn sentinel(sentinel: Option<u64>) -> Option<u32> {
-    sentinel.and_then(|s| u32::try_from(s).ok())
+/// `value` as `T`; else `fallback`, with the value and `what` it is written in `unfit`.
+fn fit<T, V>(unfit: &RefCell<Vec<String>>, value: V, fallback: T, what: &str) -> T
+where
+    T: TryFrom<V>,
+    V: Copy + std::fmt::Display,
+{
+    fitting(unfit, value, what).unwrap_or(fallback)
+}
+
+/// `value` as `T`; else `None`, with the value and `what` it is written in `unfit`.
+fn fitting<T, V>(unfit: &RefCell<Vec<String>>, value: V, what: &str) -> Option<T>
+where
+    T: TryFrom<V>,
+    V: Copy + std::fmt::Display,
+{
+    let fits = T::try_from(value).ok();
+    if fits.is_none() {
+        unfit.borrow_mut().push(format!(
+            "{what} {value} does not fit {}: the spec checker should have refused it",
+            std::any::type_name::<T>()
+        ));
+    }
+    fits
 }

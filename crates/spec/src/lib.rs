@@ -25,7 +25,7 @@ pub mod source;
 mod syntax;
 
 pub use catalogue::{Catalogue, SpecError};
-pub use describe::describe;
+pub use describe::{describe, description, Description};
 pub use diagnostic::{render_all, Diagnostic};
 pub use model::Model;
 pub use source::SourceFile;
