@@ -249,9 +249,35 @@ fn panels<DB: DrawingBackend>(
     root.present().map_err(failed)
 }
 
+/// A text chart of `readings` for a terminal, one block per reading, from `▁` (the lowest
+/// shown) to `█` (the highest); a space where a reading was no number; all `▄` when they are
+/// equal.
+pub fn sparkline(readings: &[Option<f64>]) -> String {
+    const BLOCKS: [char; 8] = ['▁', '▂', '▃', '▄', '▅', '▆', '▇', '█'];
+    let numbers = readings.iter().flatten();
+    let low = numbers.clone().fold(f64::INFINITY, |a, &b| a.min(b));
+    let high = numbers.fold(f64::NEG_INFINITY, |a, &b| a.max(b));
+    readings
+        .iter()
+        .map(|reading| match reading {
+            None => ' ',
+            Some(_) if high <= low => BLOCKS[3],
+            Some(v) => BLOCKS[(((v - low) / (high - low)) * 7.0).round() as usize],
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
-    use super::thin;
+    use super::{sparkline, thin};
+
+    #[test]
+    fn a_sparkline_spans_its_readings_lowest_to_highest_with_gaps() {
+        let readings = [Some(1.0), Some(8.0), None, Some(4.5), Some(1.0)];
+        assert_eq!(sparkline(&readings), "▁█ ▅▁");
+        assert_eq!(sparkline(&[Some(2.0), Some(2.0)]), "▄▄");
+        assert_eq!(sparkline(&[None, None]), "  ");
+    }
 
     #[test]
     fn point_2_a_long_series_is_thinned_to_its_extremes_per_column() {

@@ -5,8 +5,8 @@ use clap::Args;
 use optobus_device::{DeviceInfo, RegisterInfo};
 use optobus_driver::identify::{identify, ConnectAs, Identification};
 use optobus_driver::transport::Client;
-use optobus_driver::{Core, PartialRead, Readings};
-use optobus_inspect::{decode_readings, Value};
+use optobus_driver::{Core, PartialRead};
+use optobus_inspect::{decode_values, Value};
 
 use crate::error::{driver_error, CliError};
 use crate::link::{self, Target};
@@ -303,30 +303,4 @@ pub(crate) fn failed_read(partial: PartialRead, registers: &[&'static RegisterIn
         .map(|r| r.name)
         .collect();
     driver_error(partial.error, Some(&names.join(", ")))
-}
-
-/// When the next of a series of reads every `interval` may start, the last one having
-/// started at `started`: one interval after it, or after its last request went out if the line
-/// held that back (the client recovering from a fault waits for a quiet line, up to a
-/// timeout). Ticks missed meanwhile are skipped: two reads never go out closer than
-/// `interval`.
-pub(crate) fn next_read(
-    core: &mut Core<Client>,
-    started: tokio::time::Instant,
-    interval: std::time::Duration,
-) -> tokio::time::Instant {
-    let sent = core.transport_mut().last_request().unwrap_or(started);
-    optobus_driver::transport::timing::deadline_from(started.max(sent), interval)
-}
-
-/// The values of `registers` in `readings`, in the order given.
-pub(crate) fn decode_values(
-    registers: &[&'static RegisterInfo],
-    readings: &Readings,
-) -> Vec<(&'static RegisterInfo, Value)> {
-    registers
-        .iter()
-        .copied()
-        .zip(decode_readings(registers, readings))
-        .collect()
 }

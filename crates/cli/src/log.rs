@@ -13,48 +13,26 @@
 //! the audit trail of writes from the network.
 
 use std::fmt;
-use std::io::Write;
 use std::sync::OnceLock;
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
 use optobus_service::journal::{self, Lines};
-use optobus_service::outlet::{Outlet, Sink};
+use optobus_service::outlet::{LineInto, Outlet, TextLines};
 
 /// Lines stderr's writer may hold back; beyond, the oldest are dropped.
 const CAPACITY: usize = 1024;
 
-/// Writes the lines of the tool to stderr, each batch at once; write errors ignored (a closed
-/// or broken stderr is no reason to stop).
-#[derive(Default)]
-struct Stderr {
-    /// Dropped lines already told about.
-    told: u64,
-}
-
-impl Sink<String> for Stderr {
-    fn write(&mut self, lines: Vec<String>, dropped: u64) {
-        let mut text = String::new();
-        if dropped > self.told {
-            text += &format!(
-                "optobus: stderr is not being read: {} of its oldest lines dropped\n",
-                dropped - self.told
-            );
-            self.told = dropped;
-        }
-        text.extend(lines);
-        let mut out = std::io::stderr().lock();
-        let _ = out.write_all(text.as_bytes());
-        let _ = out.flush();
-    }
-}
-
 /// The outlet of stderr, started with the first line.
-static STDERR: OnceLock<Outlet<String, Stderr>> = OnceLock::new();
+static STDERR: OnceLock<Outlet<String, StderrLines>> = OnceLock::new();
 
-fn outlet() -> &'static Outlet<String, Stderr> {
-    STDERR.get_or_init(|| Outlet::start("optobus-stderr", CAPACITY, Stderr::default()))
+/// What stderr's outlet writes to: stderr, telling the lines it dropped.
+type StderrLines = TextLines<std::io::Stderr>;
+
+fn outlet() -> &'static Outlet<String, StderrLines> {
+    let lines = || TextLines::new(std::io::stderr(), "stderr");
+    STDERR.get_or_init(|| Outlet::start("optobus-stderr", CAPACITY, lines()))
 }
 
 /// Hands `args` to stderr's writer; never waits.
@@ -82,29 +60,6 @@ macro_rules! note {
 }
 pub(crate) use note;
 
-/// A `--verbose` line being formatted, handed to stderr's writer whole when done.
-#[derive(Default)]
-struct TracedLine(Vec<u8>);
-
-impl Write for TracedLine {
-    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
-        self.0.extend_from_slice(bytes);
-        Ok(bytes.len())
-    }
-
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
-
-impl Drop for TracedLine {
-    fn drop(&mut self) {
-        if !self.0.is_empty() {
-            outlet().push(String::from_utf8_lossy(&self.0).into_owned());
-        }
-    }
-}
-
 /// `--verbose`: every frame the transport sends and receives and every register the driver
 /// reads or writes, on stderr (the service's [`journal`](optobus_service::journal) lines).
 pub(crate) fn show_frames() {
@@ -113,7 +68,7 @@ pub(crate) fn show_frames() {
             frames: true,
             operations: false,
         },
-        TracedLine::default,
+        || LineInto::new(outlet()),
     );
 }
 
@@ -125,7 +80,7 @@ pub(crate) fn show_operations() {
             frames: false,
             operations: true,
         },
-        TracedLine::default,
+        || LineInto::new(outlet()),
     );
 }
 

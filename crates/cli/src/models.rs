@@ -66,17 +66,3 @@ pub(crate) fn name(device: &DeviceInfo) -> String {
 pub(crate) fn names() -> Vec<String> {
     all().iter().map(|d| name(d)).collect()
 }
-
-/// Which model a device is, in words: `p-series`, `no model fits`, `several models fit: ccs,
-/// ccf`.
-pub(crate) fn verdict(verdict: &optobus_driver::identify::Verdict) -> String {
-    use optobus_driver::identify::Verdict;
-    match verdict {
-        Verdict::One(model) => name(model),
-        Verdict::None => "no model fits".to_owned(),
-        Verdict::Several(models) => {
-            let names: Vec<String> = models.iter().map(|m| name(m)).collect();
-            format!("several models fit: {}", names.join(", "))
-        }
-    }
-}

@@ -12,35 +12,14 @@ use optobus_inspect::Value;
 /// The local time of day with its offset, for people: `14:23:54.822 +01:00`.
 pub(crate) use optobus_service::journal::time_of_day;
 
-/// Now for scripts and recordings, RFC 3339 with the date, microseconds and the local
-/// offset: `2026-11-23T14:23:54.822153+01:00`.
+/// Now for scripts, in the recording's RFC 3339 form (the date, microseconds and the local
+/// offset): `2026-11-23T14:23:54.822153+01:00`.
 pub(crate) fn timestamp() -> String {
-    jiff::ZonedDateTime::now()
-        .strftime("%Y-%m-%dT%H:%M:%S%.6f%:z")
-        .to_string()
+    optobus_service::recording::local_time(std::time::SystemTime::now())
 }
 
 /// `1 line`, `2 lines`: a count and a noun whose plural takes an `s`.
-pub(crate) fn counted(count: impl Into<Count>, noun: &str) -> String {
-    let Count(count) = count.into();
-    let plural = if count == 1 { "" } else { "s" };
-    format!("{count} {noun}{plural}")
-}
-
-/// A count of things, from any unsigned integer.
-pub(crate) struct Count(u128);
-
-macro_rules! count_from {
-    ($($int:ty),*) => {$(
-        impl From<$int> for Count {
-            fn from(count: $int) -> Self {
-                Self(count as u128)
-            }
-        }
-    )*};
-}
-
-count_from!(u8, u16, u32, u64, usize);
+pub(crate) use optobus_service::counted;
 
 /// Prints `text` on stdout with a final newline, ignoring a closed stdout.
 pub(crate) fn print(text: &str) {

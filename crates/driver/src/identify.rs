@@ -259,6 +259,22 @@ pub enum Verdict {
     Several(Vec<&'static DeviceInfo>),
 }
 
+/// Which model a device is, in words: `p-series`, `no model fits`, `several models fit: ccs,
+/// ccf`.
+impl fmt::Display for Verdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::One(model) => write!(f, "{}", model.model_name()),
+            Self::None => f.write_str("no model fits"),
+            Self::Several(models) => {
+                let names: Vec<String> =
+                    models.iter().map(|m| m.model_name().to_string()).collect();
+                write!(f, "several models fit: {}", names.join(", "))
+            }
+        }
+    }
+}
+
 impl Identification {
     /// The candidates that fit.
     pub fn fitting(&self) -> Vec<&'static DeviceInfo> {
@@ -485,4 +501,20 @@ fn is_setting(model: &DeviceInfo, register: &RegisterInfo) -> bool {
         && register.words <= 2
         && checkable
         && !commanded
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Verdict;
+
+    #[test]
+    fn a_verdict_says_which_model_in_the_names_users_type() {
+        let (p_series, rangefinder) = (&optobus_p_series::DEVICE, &optobus_rangefinder::DEVICE);
+        assert_eq!(Verdict::One(p_series).to_string(), "p-series");
+        assert_eq!(Verdict::None.to_string(), "no model fits");
+        assert_eq!(
+            Verdict::Several(vec![p_series, rangefinder]).to_string(),
+            "several models fit: p-series, rangefinder"
+        );
+    }
 }

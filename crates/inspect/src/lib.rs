@@ -48,4 +48,6 @@ pub use number::{hex_and_decimal, parse_number};
 pub use optobus_codec::EncodeError;
 pub use parse::{base_unit, code_list, in_base_unit, parse_value, ParseError};
 pub use resolve::{resolve, resolve_one, resolve_readable, ResolveError};
-pub use value::{accepted_values_text, decode_readings, decode_value, range_text, Value};
+pub use value::{
+    accepted_values_text, decode_readings, decode_value, decode_values, range_text, Value,
+};

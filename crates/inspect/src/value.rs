@@ -32,6 +32,17 @@ pub enum Value {
     Version(Vec<(&'static str, u8)>),
 }
 
+impl Value {
+    /// The value as a number to draw: a quantity's or an integer's; `None` for any other.
+    pub fn number(&self) -> Option<f64> {
+        match self {
+            Self::Quantity(number, _) => Some(number.to_f64()),
+            Self::Integer(number) => Some(*number as f64),
+            _ => None,
+        }
+    }
+}
+
 impl fmt::Display for Value {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -126,6 +137,18 @@ pub fn decode_readings(registers: &[&'static RegisterInfo], readings: &Readings)
     registers
         .iter()
         .map(|register| decode_value(register, readings.words(register)))
+        .collect()
+}
+
+/// Each of `registers` with its value in what a group read read, in the order given.
+pub fn decode_values(
+    registers: &[&'static RegisterInfo],
+    readings: &Readings,
+) -> Vec<(&'static RegisterInfo, Value)> {
+    registers
+        .iter()
+        .copied()
+        .zip(decode_readings(registers, readings))
         .collect()
 }
 

@@ -388,3 +388,13 @@ fn reading_an_action_register_gets_a_note() {
         encode_read(LC_RS, &[register(LC_RS, "factory_reset")], 1, Framing::Rtu).expect("encodes");
     assert!(frames.is_empty());
 }
+
+#[test]
+fn a_value_is_a_number_to_draw_only_when_it_is_a_quantity_or_an_integer() {
+    let quantity = Value::Quantity("3.584190".parse::<Fixed>().unwrap(), Some("mm"));
+    assert_eq!(quantity.number(), Some(3.58419));
+    assert_eq!(Value::Integer(-42).number(), Some(-42.0));
+    assert_eq!(Value::Bool(true).number(), None);
+    assert_eq!(Value::Invalid.number(), None);
+    assert_eq!(Value::Code(2, Some("fast")).number(), None);
+}

@@ -49,11 +49,29 @@ impl std::fmt::Display for ServiceError {
 
 impl std::error::Error for ServiceError {}
 
-/// `1 event`, `2 events`.
-fn counted(count: u64, noun: &str) -> String {
+/// `1 event`, `2 events`: a count and a noun whose plural takes an `s`, as the service's
+/// lines and its front end's say it.
+pub fn counted(count: impl Into<Count>, noun: &str) -> String {
+    let Count(count) = count.into();
     let plural = if count == 1 { "" } else { "s" };
     format!("{count} {noun}{plural}")
 }
+
+/// A count of things for [`counted`], from any unsigned integer.
+#[derive(Clone, Copy, Debug)]
+pub struct Count(u128);
+
+macro_rules! count_from {
+    ($($int:ty),*) => {$(
+        impl From<$int> for Count {
+            fn from(count: $int) -> Self {
+                Self(count as u128)
+            }
+        }
+    )*};
+}
+
+count_from!(u8, u16, u32, u64, usize);
 
 /// What a service runs besides the bus file's own outputs.
 #[derive(Clone, Default)]
@@ -182,5 +200,17 @@ impl Service {
             }
         }
         failed
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::counted;
+
+    #[test]
+    fn a_count_takes_the_plural_s_except_for_one_of_any_integer_width() {
+        assert_eq!(counted(1u8, "line"), "1 line");
+        assert_eq!(counted(0usize, "device"), "0 devices");
+        assert_eq!(counted(u64::MAX, "event"), "18446744073709551615 events");
     }
 }

@@ -19,6 +19,79 @@ pub trait Sink<T>: Send + 'static {
     fn write(&mut self, items: Vec<T>, dropped: u64);
 }
 
+/// Lines of text for a stream people read (stderr), each batch written at once; write errors
+/// ignored (a closed or broken stream is no reason to stop). Lines the outlet dropped are
+/// told, as `optobus: NAME is not being read: N of its oldest lines dropped`, before the next
+/// batch that gets through.
+pub struct TextLines<W> {
+    out: W,
+    /// The stream, for the line that tells of drops.
+    name: &'static str,
+    /// Dropped lines already told about.
+    told: u64,
+}
+
+impl<W: std::io::Write> TextLines<W> {
+    /// Lines written to `out`, called `name` when drops are told.
+    pub fn new(out: W, name: &'static str) -> Self {
+        Self { out, name, told: 0 }
+    }
+}
+
+impl<W: std::io::Write + Send + 'static> Sink<String> for TextLines<W> {
+    fn write(&mut self, lines: Vec<String>, dropped: u64) {
+        let mut text = String::new();
+        if dropped > self.told {
+            text += &format!(
+                "optobus: {} is not being read: {} of its oldest lines dropped\n",
+                self.name,
+                dropped - self.told
+            );
+            self.told = dropped;
+        }
+        text.extend(lines);
+        let _ = self.out.write_all(text.as_bytes());
+        let _ = self.out.flush();
+    }
+}
+
+/// A line being formatted (a `tracing` event), handed to its outlet whole when done: the
+/// writer [`crate::journal::install`] takes, which never waits.
+pub struct LineInto<S: Sink<String>> {
+    line: Vec<u8>,
+    outlet: &'static Outlet<String, S>,
+}
+
+impl<S: Sink<String>> LineInto<S> {
+    /// A line for `outlet`.
+    pub fn new(outlet: &'static Outlet<String, S>) -> Self {
+        Self {
+            line: Vec::new(),
+            outlet,
+        }
+    }
+}
+
+impl<S: Sink<String>> std::io::Write for LineInto<S> {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        self.line.extend_from_slice(bytes);
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl<S: Sink<String>> Drop for LineInto<S> {
+    fn drop(&mut self) {
+        if !self.line.is_empty() {
+            self.outlet
+                .push(String::from_utf8_lossy(&self.line).into_owned());
+        }
+    }
+}
+
 /// What [`Outlet::push`] did with an item.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Pushed {
@@ -307,5 +380,39 @@ mod tests {
         drop(sink);
         let written: Vec<u32> = wrote.iter().flatten().collect();
         assert_eq!(written, (0..50).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn text_lines_tell_the_lines_dropped_once_before_the_next_that_get_through() {
+        let mut lines = TextLines::new(Vec::new(), "stderr");
+        lines.write(vec!["a\n".to_owned()], 0);
+        lines.write(vec!["b\n".to_owned(), "c\n".to_owned()], 3);
+        lines.write(vec!["d\n".to_owned()], 3);
+        assert_eq!(
+            String::from_utf8(lines.out).unwrap(),
+            "a\noptobus: stderr is not being read: 3 of its oldest lines dropped\nb\nc\nd\n"
+        );
+    }
+
+    /// A sink that hands what it is given to the test.
+    struct Sent(mpsc::Sender<Vec<String>>);
+
+    impl Sink<String> for Sent {
+        fn write(&mut self, items: Vec<String>, _: u64) {
+            let _ = self.0.send(items);
+        }
+    }
+
+    #[test]
+    fn a_line_written_in_pieces_reaches_the_outlet_whole_when_done() {
+        let (sent, received) = mpsc::channel();
+        let outlet = Box::leak(Box::new(Outlet::start("test-lines", 8, Sent(sent))));
+        {
+            let mut line = LineInto::new(outlet);
+            std::io::Write::write_all(&mut line, b"12:00:00.000 +00:00 -> ").unwrap();
+            std::io::Write::write_all(&mut line, b"01 03 00 1F\n").unwrap();
+        }
+        let whole = received.recv_timeout(Duration::from_secs(60)).unwrap();
+        assert_eq!(whole, ["12:00:00.000 +00:00 -> 01 03 00 1F\n"]);
     }
 }

@@ -41,6 +41,9 @@ pub struct ServedLine {
     faults: Option<Faults>,
     /// Whether they are in the line's replies (RTU) rather than each device's (TCP).
     on_the_line: bool,
+    /// A line of one device, made by [`ServedLine::one`]: over Modbus TCP it answers every
+    /// unit id, and its fault summary is not prefixed with its name.
+    one_device: bool,
 }
 
 impl ServedLine {
@@ -93,7 +96,21 @@ impl ServedLine {
             bus,
             faults,
             on_the_line,
+            one_device: false,
         }
+    }
+
+    /// One device served alone, `faults` in its own replies (on RTU as over TCP): over Modbus
+    /// TCP it answers every unit id, and [`ServedLine::fault_summaries`] says what its faults
+    /// did without naming it.
+    pub fn one(
+        member: Member,
+        faults: Option<Faults>,
+        observe: impl Fn(&Exchange<'_>) + Send + Sync + 'static,
+    ) -> Self {
+        let mut line = Self::new(vec![member], Protocol::Tcp, faults, observe);
+        line.one_device = true;
+        line
     }
 
     /// The devices, as served (each with the faults in its own replies).
@@ -130,13 +147,17 @@ impl ServedLine {
         })
     }
 
-    /// Serves the devices over Modbus TCP on `address`.
+    /// Serves the devices over Modbus TCP on `address` (the unit id picks the device; a line
+    /// of [`ServedLine::one`] device answers every unit id).
     pub async fn serve_tcp(&self, address: SocketAddr) -> io::Result<TcpServer> {
-        self.bus.serve_tcp(address).await
+        match self.members.first().filter(|_| self.one_device) {
+            Some(member) => member.simulator.serve_tcp(address).await,
+            None => self.bus.serve_tcp(address).await,
+        }
     }
 
     /// What the faults did, a line each: the line's (when its replies carry them), then each
-    /// device's as `name: summary`.
+    /// device's as `name: summary` (a line of [`ServedLine::one`] device: its summary alone).
     pub fn fault_summaries(&self) -> Vec<String> {
         let line = self
             .faults
@@ -146,8 +167,12 @@ impl ServedLine {
             .map(|(faults, stats)| stats.summary(faults).to_string());
         let each = self.members.iter().filter_map(|member| {
             let stats = member.simulator.fault_stats()?;
-            let faults = member.faults.as_ref()?;
-            Some(format!("{}: {}", member.name, stats.summary(faults)))
+            let summary = stats.summary(member.faults.as_ref()?);
+            Some(if self.one_device {
+                summary.to_string()
+            } else {
+                format!("{}: {summary}", member.name)
+            })
         });
         line.into_iter().chain(each).collect()
     }

@@ -66,3 +66,46 @@ fn a_lines_faults_go_to_the_line_on_rtu_and_to_each_device_over_tcp() {
         .iter()
         .all(|member| member.faults.as_ref() == Some(&faults)));
 }
+
+#[tokio::test]
+async fn one_served_device_answers_every_unit_id_over_tcp_and_its_summary_is_unnamed() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+    let faults: Faults = "delay=1,seed=3".parse().unwrap();
+    let alone = Member {
+        name: "alone".to_owned(),
+        simulator: Simulator::new(&DEVICE).slave(1),
+        faults: None,
+    };
+    let served = ServedLine::one(alone, Some(faults.clone()), |_| {});
+    let server = served
+        .serve_tcp("127.0.0.1:0".parse().unwrap())
+        .await
+        .expect("a local port");
+    let register = DEVICE
+        .registers
+        .iter()
+        .find(|r| r.table == Table::Holding && r.readable())
+        .expect("a readable holding register");
+    let [high, low] = register.address.to_be_bytes();
+    let mut stream = tokio::net::TcpStream::connect(server.local_addr())
+        .await
+        .unwrap();
+    // Transaction 7, unit 9 (not the device's slave 1): read one holding register.
+    let request = [0, 7, 0, 0, 0, 6, 9, 0x03, high, low, 0, 1];
+    stream.write_all(&request).await.unwrap();
+    let mut reply = [0u8; 11];
+    tokio::time::timeout(
+        std::time::Duration::from_secs(10),
+        stream.read_exact(&mut reply),
+    )
+    .await
+    .expect("a reply within 10 s")
+    .expect("the connection stays open");
+    assert_eq!(reply[..9], [0, 7, 0, 0, 0, 5, 9, 0x03, 2]);
+    let stats = served.members()[0].simulator.fault_stats().unwrap();
+    assert_eq!(
+        served.fault_summaries(),
+        [stats.summary(&faults).to_string()]
+    );
+}

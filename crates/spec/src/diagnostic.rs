@@ -74,7 +74,71 @@ impl From<&SyntaxError> for Diagnostic {
     }
 }
 
+/// A diagnostic as a checking tool reports it in JSON (`optobus bus check --json`): severity,
+/// rule, message, file, line, column (from 1; `null` when it has no place), the primary
+/// label, help, and the places it refers to besides.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct DiagnosticReport {
+    /// Always `error`: every rule refuses the file.
+    pub severity: &'static str,
+    /// The rule that found it.
+    pub rule: &'static str,
+    /// One line saying what is wrong.
+    pub message: String,
+    /// The file, as the user named it.
+    pub file: String,
+    /// Line, from 1.
+    pub line: Option<usize>,
+    /// Column, from 1, in characters.
+    pub column: Option<usize>,
+    /// What the primary label says (may be empty).
+    pub label: String,
+    /// How to fix it.
+    pub help: Option<String>,
+    /// The related places the source holds.
+    pub related: Vec<RelatedPlace>,
+}
+
+/// A related place of a [`DiagnosticReport`].
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct RelatedPlace {
+    /// Line, from 1.
+    pub line: usize,
+    /// Column, from 1, in characters.
+    pub column: usize,
+    /// What the label says there.
+    pub label: String,
+}
+
 impl Diagnostic {
+    /// This diagnostic placed in `source`, reported as being in `file`.
+    pub fn report(&self, source: &SourceFile, file: &str) -> DiagnosticReport {
+        let place = self.primary.place(source);
+        let related = self
+            .secondary
+            .iter()
+            .filter_map(|label| {
+                let place = label.place(source)?;
+                Some(RelatedPlace {
+                    line: place.line,
+                    column: place.column,
+                    label: label.text.clone(),
+                })
+            })
+            .collect();
+        DiagnosticReport {
+            severity: "error",
+            rule: self.rule,
+            message: self.message.clone(),
+            file: file.to_owned(),
+            line: place.map(|p| p.line),
+            column: place.map(|p| p.column),
+            label: self.primary.text.clone(),
+            help: self.help.clone(),
+            related,
+        }
+    }
+
     /// A diagnostic at the value of `path`.
     pub fn at(rule: &'static str, path: &Path, message: impl Into<String>) -> Self {
         Self {

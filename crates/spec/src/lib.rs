@@ -26,7 +26,7 @@ mod syntax;
 
 pub use catalogue::{Catalogue, SpecError};
 pub use describe::{describe, description, Description};
-pub use diagnostic::{render_all, Diagnostic};
+pub use diagnostic::{render_all, Diagnostic, DiagnosticReport, RelatedPlace};
 pub use model::Model;
 pub use source::SourceFile;
 
@@ -44,6 +44,16 @@ impl Rejected {
     /// The diagnostics rendered like rustc.
     pub fn render(&self) -> String {
         render_all(&self.diagnostics, &self.source)
+    }
+
+    /// Each diagnostic as a checking tool reports it in JSON, placed in `source` and named
+    /// as being in `file`.
+    pub fn reports(&self, file: &str) -> Vec<DiagnosticReport> {
+        let source = &self.source;
+        self.diagnostics
+            .iter()
+            .map(|diagnostic| diagnostic.report(source, file))
+            .collect()
     }
 }
 

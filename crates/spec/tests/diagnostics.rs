@@ -132,3 +132,27 @@ fn reading_errors_come_with_rule_errors_and_without_follow_ons() {
         "{rendered}"
     );
 }
+
+#[test]
+fn a_rejected_files_reports_are_typed_json_with_places_and_related_labels() {
+    use optobus_spec::diagnostic::{Label, Location};
+    use optobus_spec::{Diagnostic, Rejected, SourceFile};
+
+    let mut diagnostic = Diagnostic::at_start("duplicate-name", "`a` is named twice");
+    diagnostic.primary.location = Location::Position { line: 2, column: 3 };
+    diagnostic.primary.text = "second".to_owned();
+    diagnostic.help = Some("rename one".to_owned());
+    diagnostic.secondary.push(Label {
+        location: Location::Position { line: 1, column: 1 },
+        text: "first defined here".to_owned(),
+    });
+    let rejected = Rejected {
+        source: SourceFile::new("bus.yaml", "a: 1\n  a: 2\n"),
+        diagnostics: vec![diagnostic],
+    };
+    let json = serde_json::to_string(&rejected.reports("shown.yaml")).unwrap();
+    assert_eq!(
+        json,
+        r#"[{"severity":"error","rule":"duplicate-name","message":"`a` is named twice","file":"shown.yaml","line":2,"column":3,"label":"second","help":"rename one","related":[{"line":1,"column":1,"label":"first defined here"}]}]"#
+    );
+}

@@ -69,6 +69,15 @@ impl Client {
         }
     }
 
+    /// When the next of a series of reads every `interval` may start, the last one having
+    /// started at `started`: one interval after it, or after its last request went out if the
+    /// line held that back (recovering from a fault waits for a quiet line, up to a timeout).
+    /// Ticks missed meanwhile are skipped: two reads never go out closer than `interval`.
+    pub fn next_read(&self, started: Instant, interval: std::time::Duration) -> Instant {
+        let sent = self.last_request().unwrap_or(started);
+        crate::timing::deadline_from(started.max(sent), interval)
+    }
+
     /// Opens the connection now where the protocol has one (Modbus TCP, which otherwise
     /// connects on the first request), to tell at once that the server cannot be reached;
     /// an RTU stream is open already.

@@ -99,3 +99,35 @@ async fn one_client_opens_rtu_over_tcp_and_modbus_tcp_ports() {
         [0x00, 0x06, 0x03, 0x04, 0x01, 0x00, 0x00, 0x01]
     );
 }
+
+#[tokio::test]
+async fn the_next_read_of_a_series_is_one_interval_after_the_later_of_start_and_last_request() {
+    let (port, _served) = serve_once(12, |request| {
+        // Unit 1, FC03, one word: 0x002A.
+        let mut reply = request[..4].to_vec();
+        reply.extend_from_slice(&[0, 5, 1, 3, 2, 0, 42]);
+        reply
+    })
+    .await;
+    let address = format!("127.0.0.1:{port}");
+    let port = Port::Tcp {
+        address,
+        default_port: 502,
+    };
+    let mut client = port
+        .open(ClientConfig::default(), |stream| stream)
+        .await
+        .expect("opens");
+    let interval = Duration::from_secs(3600);
+    let started = tokio::time::Instant::now();
+    // No request yet: one interval after the start.
+    assert_eq!(client.next_read(started, interval), started + interval);
+    let words = client
+        .read(1, ReadFunction::Holding, 0, 1)
+        .await
+        .expect("the scripted reply");
+    assert_eq!(words, [42]);
+    let sent = client.last_request().expect("a request went out");
+    assert!(sent >= started);
+    assert_eq!(client.next_read(started, interval), sent + interval);
+}

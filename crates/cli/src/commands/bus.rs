@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use clap::Subcommand;
-use optobus_bus::{BusFile, LoadError, Rejected};
-use serde_json::{json, Value as Json};
+use optobus_bus::{BusFile, LoadError};
+use serde_json::json;
 
 // Re-exported for `run` until it imports `crate::bus_file::load` itself.
 pub(crate) use crate::bus_file::load;
@@ -74,7 +74,7 @@ fn check_json(path: &Path) -> Result<(), CliError> {
             print(&pretty(&json!({
                 "file": shown,
                 "ok": false,
-                "diagnostics": diagnostics_json(&rejected, &shown),
+                "diagnostics": rejected.reports(&shown),
             })));
             Err(CliError::new(format!(
                 "{shown} does not pass the bus file checks: {}",
@@ -82,38 +82,6 @@ fn check_json(path: &Path) -> Result<(), CliError> {
             )))
         }
     }
-}
-
-/// Each diagnostic as an object: severity, rule, message, file, line, column (from 1; null
-/// when it has no place), help, and the places it refers to besides.
-fn diagnostics_json(rejected: &Rejected, file: &str) -> Vec<Json> {
-    let source = &rejected.source;
-    rejected
-        .diagnostics
-        .iter()
-        .map(|diagnostic| {
-            let place = diagnostic.primary.place(source);
-            let related: Vec<Json> = diagnostic
-                .secondary
-                .iter()
-                .filter_map(|label| {
-                    let place = label.place(source)?;
-                    Some(json!({"line": place.line, "column": place.column, "label": label.text}))
-                })
-                .collect();
-            json!({
-                "severity": "error",
-                "rule": diagnostic.rule,
-                "message": diagnostic.message,
-                "file": file,
-                "line": place.map(|p| p.line),
-                "column": place.map(|p| p.column),
-                "label": diagnostic.primary.text,
-                "help": diagnostic.help,
-                "related": related,
-            })
-        })
-        .collect()
 }
 
 /// Refuses `--spec`: a bus file names each device's model or spec file itself.

@@ -37,16 +37,15 @@ pub(crate) async fn run(global: &Global) -> Result<(), CliError> {
     });
     match verdict {
         Verdict::One(_) => Ok(()),
-        other => Err(CliError::failed(format!(
-            "{} the device at {addressed}",
-            models::verdict(&other)
-        ))
-        .hint("the evidence per model is above; `--spec FILE` tries a model of your own")),
+        other => Err(
+            CliError::failed(format!("{other} the device at {addressed}"))
+                .hint("the evidence per model is above; `--spec FILE` tries a model of your own"),
+        ),
     }
 }
 
 fn text(found: &Identification, verdict: &Verdict) -> String {
-    let mut out = format!("model: {}\n", models::verdict(verdict));
+    let mut out = format!("model: {verdict}\n");
     for evidence in &found.candidates {
         let outcome = if evidence.fits() { "fits" } else { "ruled out" };
         out.push_str(&format!(

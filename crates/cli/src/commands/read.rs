@@ -3,9 +3,10 @@
 
 use clap::Args;
 use optobus_device::RegisterInfo;
+use optobus_inspect::decode_values;
 use serde_json::json;
 
-use crate::connect::{decode_values, failed_read, read_values, DeviceArgs, Global, Names};
+use crate::connect::{failed_read, read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{counted, pretty, print, values_json, values_text};

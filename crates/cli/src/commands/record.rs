@@ -9,7 +9,7 @@ use optobus_driver::transport::timing::deadline_from;
 use optobus_service::recording::{csv_cells, csv_headers, RecordingFile};
 use tokio::time::Instant;
 
-use crate::connect::{next_read, read_values, DeviceArgs, Global, Names};
+use crate::connect::{read_values, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::inputs;
 use crate::log::note;
@@ -86,7 +86,7 @@ pub(crate) async fn run(global: &Global, args: &RecordArgs) -> Result<(), CliErr
         }
         if let Some(interval) = args.interval {
             tokio::select! {
-                () = tokio::time::sleep_until(next_read(&mut core, sample_started, interval)) => {}
+                () = tokio::time::sleep_until(core.transport_mut().next_read(sample_started, interval)) => {}
                 _ = &mut ctrl_c => break,
             }
         }

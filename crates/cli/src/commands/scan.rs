@@ -78,7 +78,7 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
                 "found: slave {} at {} baud: {}",
                 found.slave,
                 found.baud,
-                models::verdict(&found.identification.verdict())
+                found.identification.verdict()
             );
             // With --json, stdout carries the JSON only.
             progress.suspend(|| {

@@ -74,16 +74,6 @@ fn faults(args: &SimulateArgs) -> Result<Option<Faults>, CliError> {
     Ok(Some(faults))
 }
 
-/// The emulated line of `--line-timing`: the model's factory format with `--baud` and
-/// `--parity` applied, and `--turnaround`.
-fn line(device: &DeviceInfo, global: &Global, args: &SimulateArgs) -> Result<Line, CliError> {
-    let format = global.target.line_format(device);
-    format
-        .check()
-        .map_err(|e| CliError::new(format!("--line-timing cannot time this line: {e}")))?;
-    Ok(Line::new(format).turnaround(args.turnaround))
-}
-
 /// `optobus simulate`: serves a virtual device, or a line of several, until Ctrl-C or
 /// `--duration`, with `--faults` in its replies and, on RTU, `--line-timing`. Every exchange
 /// is logged on stderr through [`note!`] (a thread of its own writes it), so a slow or
@@ -108,19 +98,8 @@ fn log_exchange(exchange: &Exchange<'_>) {
     note!("{} {exchange}", crate::render::time_of_day());
 }
 
-/// `--line-timing`'s description for the log.
-fn timed_text(line: Option<&Line>, args: &SimulateArgs) -> String {
-    line.map(|line| {
-        let turnaround = args.turnaround;
-        format!(
-            ", line timed at {}, turnaround {turnaround:?}",
-            line.format()
-        )
-    })
-    .unwrap_or_default()
-}
-
-/// One device, at `--slave` or its factory address, over TCP, a pty or a serial port.
+/// One device, at `--slave` or its factory address, over TCP (answering every unit id), a pty
+/// or a serial port.
 async fn serve_one(global: &Global, args: &SimulateArgs) -> Result<(), CliError> {
     let named = args.models.first().map(String::as_str);
     if let Some((model, slave)) = named.and_then(|n| n.rsplit_once('@')) {
@@ -141,49 +120,13 @@ async fn serve_one(global: &Global, args: &SimulateArgs) -> Result<(), CliError>
         )
         .hint("serve at 1 to 247 with --slave"));
     }
-    let faults = faults(args)?;
-    let line = if args.line_timing {
-        check_rtu(global, args)?;
-        Some(line(device, global, args)?)
-    } else {
-        None
+    let member = Member {
+        name: models::name(device),
+        simulator: Simulator::new(device).slave(slave),
+        faults: None,
     };
-    let faulty = faults.as_ref().map(|f| format!(", faults {f}"));
-    let extras = faulty.unwrap_or_default() + &timed_text(line.as_ref(), args);
-    let mut sim = Simulator::new(device).slave(slave);
-    if let Some(faults) = &faults {
-        sim = sim.faults(faults.clone());
-    }
-    let line_stats = line.as_ref().map(Line::stats);
-    let (server, place) = if args.pty || global.target.serial.is_some() {
-        let format = global.target.line_format(device);
-        let serial = global.target.serial.as_deref();
-        let member = Member {
-            name: models::name(device),
-            simulator: sim.clone(),
-            faults: None,
-        };
-        let served = ServedLine::new(vec![member], Protocol::Rtu, None, log_exchange);
-        serve_rtu(&served, serial, Some(format), line)?
-    } else {
-        // Over TCP one device answers every unit id.
-        let logged = sim.clone().observe(log_exchange);
-        serve_tcp(global, |address| logged.serve_tcp(address)).await?
-    };
-    note!(
-        "optobus: simulating {} (slave {slave}) on {place}{extras}",
-        crate::models::name(device)
-    );
-    let _ = std::io::Write::flush(&mut std::io::stdout());
-    inputs::until_stopped(args.duration).await;
-    drop(server);
-    if let (Some(faults), Some(stats)) = (&faults, sim.fault_stats()) {
-        note!("optobus: {}", stats.summary(faults));
-    }
-    if let Some(stats) = line_stats {
-        note!("optobus: {stats}");
-    }
-    Ok(())
+    let format = Some(global.target.line_format(device));
+    serve_line_of(global, args, Serve::One(member), format, faults(args)?).await
 }
 
 /// `--line-timing` needs an RTU line: a pty or a serial port.
@@ -266,7 +209,7 @@ async fn serve_list(
             faults: None,
         })
         .collect();
-    serve_line_of(global, args, members, format, faults(args)?).await
+    serve_line_of(global, args, Serve::Several(members), format, faults(args)?).await
 }
 
 /// The devices of one line of the bus file at `path`, each with its own faults.
@@ -302,7 +245,7 @@ async fn serve_bus_line(
         })
         .collect();
     let format = file.lines.get(index).and_then(|line| line.format);
-    serve_line_of(global, args, members, format, None).await
+    serve_line_of(global, args, Serve::Several(members), format, None).await
 }
 
 /// The line of the bus file `--line` names, or its only line, or its only simulated line.
@@ -325,12 +268,21 @@ fn bus_line(
     })
 }
 
-/// Serves `members` on one line (a pty or `--serial`, else Modbus TCP) in `format` (where
-/// they agree on one, or the bus file gives it), `line_faults` in every reply.
+/// What `simulate` serves: one device, or several on one line.
+enum Serve {
+    /// One device: over TCP it answers every unit id, and it is named in the log alone.
+    One(Member),
+    /// Several devices, each at its own slave address.
+    Several(Vec<Member>),
+}
+
+/// Serves `devices` (a pty or `--serial`, else Modbus TCP) in `format` (where they agree on
+/// one, or the bus file gives it), `line_faults` in every reply; logs what the faults did
+/// when stopped.
 async fn serve_line_of(
     global: &Global,
     args: &SimulateArgs,
-    members: Vec<Member>,
+    devices: Serve,
     format: Option<LineFormat>,
     line_faults: Option<Faults>,
 ) -> Result<(), CliError> {
@@ -359,27 +311,53 @@ async fn serve_line_of(
         None => None,
     };
     let protocol = if rtu { Protocol::Rtu } else { Protocol::Tcp };
-    let served = ServedLine::new(members, protocol, line_faults, log_exchange);
-    let extras = served.faults().map(|f| format!(", faults {f}"));
+    let one = matches!(devices, Serve::One(_));
+    let served = match devices {
+        Serve::One(member) => ServedLine::one(member, line_faults, log_exchange),
+        Serve::Several(members) => ServedLine::new(members, protocol, line_faults, log_exchange),
+    };
+    let mut extras = served
+        .faults()
+        .map(|f| format!(", faults {f}"))
+        .unwrap_or_default();
+    if let Some(line) = &line {
+        let turnaround = args.turnaround;
+        extras += &format!(
+            ", line timed at {}, turnaround {turnaround:?}",
+            line.format()
+        );
+    }
     let line_stats = line.as_ref().map(Line::stats);
-    let extras = extras.unwrap_or_default() + &timed_text(line.as_ref(), args);
     let (server, place) = if rtu {
         serve_rtu(&served, global.target.serial.as_deref(), format, line)?
     } else {
-        let (server, place) = serve_tcp(global, |address| served.serve_tcp(address)).await?;
-        (server, place + " (the unit id picks the device)")
+        let (server, place) = serve_tcp(global, &served).await?;
+        let picks = if one {
+            ""
+        } else {
+            " (the unit id picks the device)"
+        };
+        (server, place + picks)
     };
     let who: Vec<String> = served
         .members()
         .iter()
         .map(|member| format!("slave {}: {}", member.simulator.address(), member.name))
         .collect();
-    print(&who.join("\n"));
-    note!(
-        "optobus: simulating {} ({}) on {place}{extras}",
-        counted(who.len(), "device"),
-        who.join(", ")
-    );
+    if let (true, [member]) = (one, served.members()) {
+        let slave = member.simulator.address();
+        note!(
+            "optobus: simulating {} (slave {slave}) on {place}{extras}",
+            member.name
+        );
+    } else {
+        print(&who.join("\n"));
+        note!(
+            "optobus: simulating {} ({}) on {place}{extras}",
+            counted(who.len(), "device"),
+            who.join(", ")
+        );
+    }
     let _ = std::io::Write::flush(&mut std::io::stdout());
     inputs::until_stopped(args.duration).await;
     drop(server);
@@ -423,16 +401,12 @@ fn serve_rtu(
     Ok((Box::new(task), format!("RTU at {path}")))
 }
 
-/// Serves Modbus TCP on `--tcp` (127.0.0.1:5020 by default) with `listen`; prints where on
+/// Serves `served` as Modbus TCP on `--tcp` (127.0.0.1:5020 by default); prints where on
 /// stdout.
-async fn serve_tcp<F, Fut>(global: &Global, listen: F) -> Result<Served, CliError>
-where
-    F: FnOnce(std::net::SocketAddr) -> Fut,
-    Fut: std::future::Future<Output = std::io::Result<optobus_simulator::TcpServer>>,
-{
+async fn serve_tcp(global: &Global, served: &ServedLine) -> Result<Served, CliError> {
     let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
     let address = link::resolve_tcp(address, 5020).await?;
-    let server = listen(address).await.map_err(|e| {
+    let server = served.serve_tcp(address).await.map_err(|e| {
         CliError::failed(format!("cannot listen on {address}: {e}"))
             .hint("is another server using the port? try --tcp 127.0.0.1:0")
     })?;

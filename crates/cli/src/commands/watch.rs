@@ -7,16 +7,17 @@ use std::time::Duration;
 
 use clap::Args;
 use crossterm::terminal;
+use optobus_chart::sparkline;
 use serde_json::json;
 
-use crate::connect::{decode_values, failed_read, next_read, DeviceArgs, Global, Names};
+use crate::connect::{failed_read, DeviceArgs, Global, Names};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{redraw, screen, time_of_day, timestamp, values_json, values_text};
 use crate::{inputs, models};
 use optobus_device::RegisterInfo;
 use optobus_driver::ErrorKind;
-use optobus_inspect::Value;
+use optobus_inspect::{decode_values, Value};
 
 #[derive(Debug, Args)]
 pub(crate) struct WatchArgs {
@@ -124,7 +125,7 @@ pub(crate) async fn run(global: &Global, args: &WatchArgs) -> Result<(), CliErro
             break;
         }
         tokio::select! {
-            () = tokio::time::sleep_until(next_read(&mut core, started, args.interval)) => {}
+            () = tokio::time::sleep_until(core.transport_mut().next_read(started, args.interval)) => {}
             _ = &mut ctrl_c => break,
         }
     }
@@ -144,42 +145,19 @@ fn chart_text(
     let width = text.lines().map(|l| l.chars().count()).max().unwrap_or(0);
     let mut chart = String::new();
     for ((line, (_, value)), past) in text.lines().zip(values).zip(history) {
-        let number = match value {
-            Value::Quantity(number, _) => Some(number.to_f64()),
-            Value::Integer(number) => Some(*number as f64),
-            _ => None,
-        };
         if past.len() == CHART_WIDTH {
             past.pop_front();
         }
-        past.push_back(number);
-        let line = format!("{line:<width$}  {}", sparkline(past));
+        past.push_back(value.number());
+        let line = format!("{line:<width$}  {}", sparkline(past.make_contiguous()));
         chart.push_str(line.trim_end());
         chart.push('\n');
     }
     chart
 }
 
-/// One block per reading, from `▁` (the lowest shown) to `█` (the highest); a space where a
-/// reading was no number; all `▄` when they are equal.
-fn sparkline(readings: &VecDeque<Option<f64>>) -> String {
-    const BLOCKS: [char; 8] = ['▁', '▂', '▃', '▄', '▅', '▆', '▇', '█'];
-    let numbers = readings.iter().flatten();
-    let low = numbers.clone().fold(f64::INFINITY, |a, &b| a.min(b));
-    let high = numbers.fold(f64::NEG_INFINITY, |a, &b| a.max(b));
-    readings
-        .iter()
-        .map(|reading| match reading {
-            None => ' ',
-            Some(_) if high <= low => BLOCKS[3],
-            Some(v) => BLOCKS[(((v - low) / (high - low)) * 7.0).round() as usize],
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
-    use super::sparkline;
     use crate::render::{redraw, screen};
 
     #[test]
@@ -196,15 +174,6 @@ mod tests {
             String::from_utf8_lossy(&out),
             format!("{clear}13:05:01.250  p-series · slave 1\n{clear}distance_1  3.584190 mm\n")
         );
-    }
-
-    #[test]
-    fn a_sparkline_spans_its_readings_lowest_to_highest_with_gaps() {
-        let readings = [Some(1.0), Some(8.0), None, Some(4.5), Some(1.0)];
-        assert_eq!(sparkline(&readings.into_iter().collect()), "▁█ ▅▁");
-        let flat = [Some(2.0), Some(2.0)];
-        assert_eq!(sparkline(&flat.into_iter().collect()), "▄▄");
-        assert_eq!(sparkline(&[None, None].into_iter().collect()), "  ");
     }
 
     #[test]
