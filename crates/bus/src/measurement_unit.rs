@@ -12,13 +12,12 @@ use std::time::Duration;
 
 use optobus_codec::server::{self, ServerRequest};
 use optobus_codec::value::{Fixed, Scale};
-use optobus_codec::{FrameShape, ReadFunction, MAX_READ_WORDS};
+use optobus_codec::{ExceptionCode, FrameShape, ReadFunction, MAX_READ_WORDS};
 use optobus_measure::Judgement;
 use tokio::sync::broadcast::{self, error::RecvError};
 
 use crate::event::Event;
 use crate::file::Measurements;
-use crate::gateway::{exception, ILLEGAL_ADDRESS, ILLEGAL_FUNCTION, ILLEGAL_VALUE};
 use crate::measurement::MeasurementEvent;
 use crate::schedule::Health;
 
@@ -142,7 +141,7 @@ impl MeasurementUnit {
     }
 
     /// `count` registers from `address`, or exception 02 when any is outside the map.
-    fn read(&self, address: u16, count: u16) -> Result<Vec<u16>, u8> {
+    fn read(&self, address: u16, count: u16) -> Result<Vec<u16>, ExceptionCode> {
         let registers = self
             .registers
             .read()
@@ -151,7 +150,7 @@ impl MeasurementUnit {
         registers
             .get(start..start + usize::from(count))
             .map(<[u16]>::to_vec)
-            .ok_or(ILLEGAL_ADDRESS)
+            .ok_or(ExceptionCode::ILLEGAL_DATA_ADDRESS)
     }
 
     /// The reply PDU to a request PDU, read with the codec's server framing: FC04 reads of
@@ -160,7 +159,7 @@ impl MeasurementUnit {
     pub(crate) fn answer(&self, pdu: &[u8]) -> Vec<u8> {
         let request = match server::parse_request(pdu, &FrameShape::STANDARD) {
             Ok(request) => request,
-            Err(refused) => return exception(refused.function(), refused.exception().0 as u8),
+            Err(refused) => return exception(refused.function(), refused.exception()),
         };
         let function = request.function_code();
         match request {
@@ -173,14 +172,19 @@ impl MeasurementUnit {
                     let mut reply = [0u8; 2 + 2 * MAX_READ_WORDS as usize];
                     match server::encode_read_reply(&mut reply, ReadFunction::Input, words) {
                         Ok(len) => reply[..len].to_vec(),
-                        Err(_) => exception(function, ILLEGAL_VALUE),
+                        Err(_) => exception(function, ExceptionCode::ILLEGAL_DATA_VALUE),
                     }
                 }
                 Err(code) => exception(function, code),
             },
-            _ => exception(function, ILLEGAL_FUNCTION),
+            _ => exception(function, ExceptionCode::ILLEGAL_FUNCTION),
         }
     }
+}
+
+/// The exception reply PDU to a request of `function` (every code here is one byte).
+fn exception(function: u8, code: ExceptionCode) -> Vec<u8> {
+    server::exception_pdu(function, code.0 as u8).to_vec()
 }
 
 /// The exponent as its register holds it (a signed 16-bit integer).

@@ -24,8 +24,8 @@
 #![forbid(unsafe_code)]
 #![cfg_attr(docsrs, feature(doc_cfg))]
 
-#[cfg(feature = "serde")]
 mod address;
+#[cfg(feature = "serde")]
 pub mod array_serde;
 mod buffer;
 mod buffer_request;

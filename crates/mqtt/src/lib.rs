@@ -28,10 +28,13 @@
 
 pub mod discovery;
 mod homeassistant;
+mod lock;
 mod outbox;
 mod payload;
 mod publisher;
+mod refresh;
 mod secret;
+mod shared;
 mod state;
 mod text;
 mod tls;

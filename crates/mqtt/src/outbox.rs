@@ -378,6 +378,17 @@ pub(crate) fn sample(n: u8) -> Message {
     }
 }
 
+/// A retained QoS 1 announcement.
+pub(crate) fn announce(topic: String, payload: impl Into<Vec<u8>>) -> Message {
+    Message {
+        topic,
+        payload: payload.into(),
+        qos: QoS::AtLeastOnce,
+        retain: true,
+        kind: Kind::Announce,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

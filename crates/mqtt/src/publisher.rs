@@ -2,7 +2,7 @@
 //! client, and one that drives the connection (reconnecting with backoff).
 
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use optobus_bus::{BusFile, Event, Follower, Handle, Health, MqttConfig, Source, Writer};
@@ -15,10 +15,13 @@ use tokio::sync::{mpsc, Notify};
 use tokio::task::JoinHandle;
 
 use crate::discovery::{self, measurements};
-use crate::homeassistant::{refresh, states_due, Discovery, Reads, Rereads};
-use crate::outbox::{Counts, Kind, Message, Outbox, MAX_PACKET};
+use crate::homeassistant::{Discovery, Reads, Rereads};
+use crate::lock::lock;
+use crate::outbox::{announce, Counts, Kind, Message, Outbox, MAX_PACKET};
 use crate::payload::sample_json;
+use crate::refresh::{refresh, states_due};
 use crate::secret::{Secret, SecretError};
+use crate::shared::{availability, DeviceState, Shared};
 use crate::state::States;
 use crate::topics::Topics;
 use crate::writes::{Taken, Write, WRITE_QUEUE};
@@ -56,131 +59,6 @@ impl std::fmt::Display for StartError {
 }
 
 impl std::error::Error for StartError {}
-
-/// A device as the publisher follows it.
-#[derive(Debug)]
-pub(crate) struct DeviceState {
-    pub(crate) name: String,
-    /// `None` before its first sample or health event.
-    pub(crate) online: Option<bool>,
-}
-
-pub(crate) fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
-    mutex
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
-}
-
-#[derive(Debug)]
-pub(crate) struct Shared {
-    pub(crate) outbox: Mutex<Outbox>,
-    pub(crate) wake: Notify,
-    pub(crate) devices: Mutex<Vec<DeviceState>>,
-    pub(crate) topics: Topics,
-    pub(crate) qos: QoS,
-    /// Home Assistant discovery, when on.
-    pub(crate) discovery: Option<Discovery>,
-    /// The state topics Home Assistant reads, when it is on.
-    pub(crate) states: Option<Mutex<States>>,
-    /// Set by [`Publisher::stop`]: the connection's end is ours, nothing to warn about.
-    pub(crate) stopping: std::sync::atomic::AtomicBool,
-    /// Set when [`Publisher::stop`] begins: every device is announced `offline`, and no
-    /// later sample or health event announces one `online` again.
-    pub(crate) closing: std::sync::atomic::AtomicBool,
-    /// The controls another path wrote, to be read again at once.
-    pub(crate) rereads: Rereads,
-}
-
-impl Shared {
-    pub(crate) fn outbox(&self) -> MutexGuard<'_, Outbox> {
-        lock(&self.outbox)
-    }
-
-    fn counts(&self) -> Counts {
-        let mut counts = self.outbox().counts();
-        if let Some(states) = &self.states {
-            counts.states_skipped = lock(states).skipped;
-        }
-        counts
-    }
-
-    pub(crate) fn push(&self, message: Message) {
-        self.outbox().push(message);
-        self.wake.notify_one();
-    }
-
-    /// Publishes the answer to a write (bounded: the oldest waiting is dropped beyond
-    /// [`REPLY_QUEUE`](crate::REPLY_QUEUE)), counting the refusal `count` names.
-    fn reply(&self, message: Message, count: impl FnOnce(&mut Counts)) {
-        {
-            let mut outbox = self.outbox();
-            count(&mut outbox.counts);
-            outbox.push(message);
-        }
-        self.wake.notify_one();
-    }
-
-    /// What every new connection publishes first: the process is online, each device's known
-    /// availability, and discovery.
-    fn announcements(&self) -> Vec<Message> {
-        let mut messages = vec![announce(self.topics.status(), "online")];
-        let devices = self.devices.lock().unwrap_or_else(|p| p.into_inner());
-        for device in devices.iter() {
-            if let Some(online) = device.online {
-                messages.push(announce(
-                    self.topics.availability(&device.name),
-                    availability(online),
-                ));
-            }
-        }
-        if let Some(discovery) = &self.discovery {
-            messages.extend(discovery.configs());
-        }
-        messages
-    }
-
-    /// Records a device's health; publishes its availability when it changed.
-    fn health(&self, device: &str, online: bool) {
-        if self.closing.load(std::sync::atomic::Ordering::Relaxed) {
-            return;
-        }
-        let changed = {
-            let mut devices = self.devices.lock().unwrap_or_else(|p| p.into_inner());
-            match devices.iter_mut().find(|d| d.name == device) {
-                Some(state) if state.online != Some(online) => {
-                    state.online = Some(online);
-                    true
-                }
-                _ => false,
-            }
-        };
-        if changed {
-            self.push(announce(
-                self.topics.availability(device),
-                availability(online),
-            ));
-        }
-    }
-}
-
-fn availability(online: bool) -> &'static str {
-    if online {
-        "online"
-    } else {
-        "offline"
-    }
-}
-
-/// A retained QoS 1 announcement.
-pub(crate) fn announce(topic: String, payload: impl Into<Vec<u8>>) -> Message {
-    Message {
-        topic,
-        payload: payload.into(),
-        qos: QoS::AtLeastOnce,
-        retain: true,
-        kind: Kind::Announce,
-    }
-}
 
 /// A running MQTT output of a bus. Dropping it stops publishing (the broker then publishes
 /// the last will: the process is `offline`); [`Publisher::stop`] says so itself first.
