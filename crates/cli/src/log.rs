@@ -61,7 +61,7 @@ macro_rules! note {
 pub(crate) use note;
 
 /// `--verbose`: every frame the transport sends and receives and every register the driver
-/// reads or writes, on stderr (the service's [`journal`](optobus_service::journal) lines).
+/// reads or writes, on stderr (the service's [`journal`] lines).
 pub(crate) fn show_frames() {
     journal::install(
         Lines {
@@ -73,7 +73,7 @@ pub(crate) fn show_frames() {
 }
 
 /// What a bus that runs unattended tells its operator, on stderr (the service's
-/// [`journal`](optobus_service::journal) lines: changes of state and the audit trail).
+/// [`journal`] lines: changes of state and the audit trail).
 pub(crate) fn show_operations() {
     journal::install(
         Lines {

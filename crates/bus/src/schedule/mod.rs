@@ -10,8 +10,8 @@
 //!   [`MAX_BACKOFF`], so a dead device costs at most one attempt per backoff period. A
 //!   successful probe brings it back online, its periodic polls resuming at their phases.
 //! - A device is first asked once its power-up wait has passed.
-//! - The polls that feed one measurement run as a [group](group): back to back when due, on
-//!   ticks counted from the bus's start, so that its inputs are read together.
+//! - The polls that feed one measurement run as a group (`schedule/group.rs`): back to back
+//!   when due, on ticks counted from the bus's start, so that its inputs are read together.
 
 mod group;
 mod plan;
