@@ -56,15 +56,8 @@ fn expected_reply(simulator: &Simulator) -> Vec<u8> {
     with_crc(&body)
 }
 
-/// Issue 28, point 9: a reply arriving a character at a time while nobody reads the port
-/// wakes nobody. tokio-serial's stream stays in tokio's edge-triggered reactor, which wakes
-/// the runtime's thread for each of the 125 characters (and the RTU client, which sleeps
-/// through a reply in flight, paid a thread wake per byte); the transport's port is in the
-/// reactor only while a read waits, so the thread sleeps until its own timer ends. The
-/// reply read afterwards is whole and right.
-#[test]
-fn bytes_arriving_unread_wake_nobody() {
-    let (path, simulator, _stop) = served_ccs();
+/// A current-thread runtime that counts each time its thread is woken.
+fn runtime_counting_wakes() -> (tokio::runtime::Runtime, Arc<AtomicU64>) {
     let unparks = Arc::new(AtomicU64::new(0));
     let counted = Arc::clone(&unparks);
     let runtime = tokio::runtime::Builder::new_current_thread()
@@ -74,13 +67,31 @@ fn bytes_arriving_unread_wake_nobody() {
         })
         .build()
         .unwrap();
+    (runtime, unparks)
+}
+
+/// The transport's port on the served pty, at the tests' baud rate.
+fn open(path: &std::path::Path) -> optobus_transport::SerialStream {
+    SerialSettings {
+        path: path.display().to_string(),
+        line: LineFormat::new(BAUD),
+    }
+    .open()
+    .expect("open the pty")
+}
+
+/// Issue 28, point 9: a reply arriving a character at a time while nobody reads the port
+/// wakes nobody. tokio-serial's stream stays in tokio's edge-triggered reactor, which wakes
+/// the runtime's thread for each of the 125 characters (and the RTU client, which sleeps
+/// through a reply in flight, paid a thread wake per byte); the transport's port is in the
+/// reactor only while a read waits, so the thread sleeps until its own timer ends. The
+/// reply read afterwards is whole and right.
+#[test]
+fn bytes_arriving_unread_wake_nobody() {
+    let (path, simulator, _stop) = served_ccs();
+    let (runtime, unparks) = runtime_counting_wakes();
     runtime.block_on(async {
-        let mut port = SerialSettings {
-            path: path.display().to_string(),
-            line: LineFormat::new(BAUD),
-        }
-        .open()
-        .expect("open the pty");
+        let mut port = open(&path);
         port.write_all(&rtu_frame(1, &holding(0, 60)))
             .await
             .unwrap();
@@ -111,22 +122,9 @@ fn bytes_arriving_unread_wake_nobody() {
 #[test]
 fn a_read_given_up_lets_bytes_arriving_unread_wake_nobody() {
     let (path, simulator, _stop) = served_ccs();
-    let unparks = Arc::new(AtomicU64::new(0));
-    let counted = Arc::clone(&unparks);
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .on_thread_unpark(move || {
-            counted.fetch_add(1, Ordering::Relaxed);
-        })
-        .build()
-        .unwrap();
+    let (runtime, unparks) = runtime_counting_wakes();
     runtime.block_on(async {
-        let mut port = SerialSettings {
-            path: path.display().to_string(),
-            line: LineFormat::new(BAUD),
-        }
-        .open()
-        .expect("open the pty");
+        let mut port = open(&path);
         // Nothing to read: the read waits in the reactor; then it is given up.
         let mut byte = [0; 1];
         let waited = std::future::poll_fn(|cx| {
@@ -166,12 +164,7 @@ fn a_read_given_up_lets_bytes_arriving_unread_wake_nobody() {
 #[tokio::test]
 async fn a_read_dropped_while_waiting_leaves_the_port_usable() {
     let (path, simulator, _stop) = served_ccs();
-    let mut port = SerialSettings {
-        path: path.display().to_string(),
-        line: LineFormat::new(BAUD),
-    }
-    .open()
-    .expect("open the pty");
+    let mut port = open(&path);
     let expected = expected_reply(&simulator);
     for _ in 0..2 {
         let mut byte = [0; 1];
