@@ -37,9 +37,8 @@ pub use event::{
     rfc3339, DeviceId, ErrorCounts, Event, HealthEvent, LineStats, Sample, Writer, Written,
 };
 pub use file::{
-    BusFile, DeviceConfig, GatewayMoveError, HttpConfig, LineConfig, LinePickError, LoadError,
-    MetricsConfig, MqttConfig, Outputs, PollConfig, Port, Rejected, SecretSource, StateEvery,
-    Writable,
+    BusFile, DeviceConfig, GatewayMoveError, LineConfig, LinePickError, LoadError, OutputSettings,
+    Outputs, PollConfig, Port, ReadOutputs, Rejected, Writable,
 };
 pub use follow::Follower;
 pub use gateway::GatewayCounts;

@@ -359,54 +359,6 @@ devices:
 }
 
 #[test]
-fn the_console_listens_on_loopback_unless_told_and_takes_a_token_file_and_origins() {
-    let one_device = "
-lines: [{ name: a, simulated: true }]
-devices: [{ name: head, model: p-series }]
-";
-    let short = parse(&format!("{one_device}outputs: {{ http: 8081 }}\n")).expect("a port alone");
-    let http = short.outputs.http.expect("http given");
-    assert_eq!(http.listen, "127.0.0.1:8081".parse().unwrap());
-    assert_eq!(http.token_file, None);
-    let full = parse(&format!(
-        "{one_device}outputs:\n  http: {{ listen: 0.0.0.0:9000, token_file: secret/console.token, \
-         origins: [\"https://scada.example:8443/\"] }}\n"
-    ))
-    .expect("a full mapping");
-    let http = full.outputs.http.expect("http given");
-    assert_eq!(http.listen, "0.0.0.0:9000".parse().unwrap());
-    assert_eq!(
-        http.token_file.as_deref(),
-        Some(Path::new("./secret/console.token"))
-    );
-    assert_eq!(http.origins, ["https://scada.example:8443"]);
-    assert_eq!(parse(one_device).expect("no outputs").outputs.http, None);
-}
-
-#[test]
-fn a_bad_console_address_key_or_origin_is_located() {
-    let rendered = parse(
-        "
-lines: [{ name: a, simulated: true }]
-devices: [{ name: head, model: p-series }]
-outputs:
-  http: { listen: nowhere, tokens: x, origins: [\"javascript:alert(1)\"] }
-  ftp: 21
-",
-    )
-    .expect_err("bad outputs");
-    for expected in [
-        "`http` has no key `tokens`",
-        "`nowhere` is no address to listen on",
-        "`javascript:alert(1)` is no origin",
-        "`outputs` has no key `ftp`",
-        "bus.yaml:5:19",
-    ] {
-        assert!(rendered.contains(expected), "{expected}: {rendered}");
-    }
-}
-
-#[test]
 fn a_gateways_idle_time_and_queue_are_read_with_their_defaults_and_bad_ones_located() {
     let bus = parse(
         "
@@ -451,56 +403,24 @@ devices: [{ name: head, model: p-series, line: a }]
     }
 }
 
-/// Point 6 of issue 29: the `Host` names a console answers (`hosts:`), checked as the file is
-/// read; a malformed one is located at its line and column.
+/// Issue 31, point 2: the bus reads no output's settings; it checks that `outputs` is a
+/// mapping and leaves its sections to the outputs' crates (`optobus-service` reads them all).
 #[test]
-fn the_consoles_hosts_are_read_and_a_malformed_one_is_located() {
+fn the_bus_alone_leaves_the_outputs_sections_unread_but_checks_their_shape() {
     let one_device = "
 lines: [{ name: a, simulated: true }]
 devices: [{ name: head, model: p-series }]
 ";
     let bus = parse(&format!(
-        "{one_device}outputs:\n  http: {{ listen: 0.0.0.0:8080, hosts: [Plant-GW.example, \
-         \"192.0.2.7:80\", \"[2001:db8::7]\", \"gw-2.plant.example:8443\"] }}\n"
+        "{one_device}outputs:\n  mqtt: {{ qos: 7 }}\n  ftp: 21\n"
     ))
-    .expect("good hosts");
-    let http = bus.outputs.http.expect("http given");
-    assert_eq!(
-        http.hosts,
-        [
-            "plant-gw.example",
-            "192.0.2.7:80",
-            "[2001:db8::7]",
-            "gw-2.plant.example:8443"
-        ]
-    );
-    let rendered = parse(&format!(
-        "{one_device}outputs:\n  http:\n    listen: 0.0.0.0:8080\n    hosts:\n      - plant-gw.example\n      - \"http://plant-gw.example/\"\n      - \"plant gw\"\n      - \"plant-gw.example:99999\"\n      - \"2001:db8::7\"\n      - \"*.example\"\n"
-    ))
-    .expect_err("malformed hosts");
-    for (entry, line) in [
-        ("http://plant-gw.example/", 9),
-        ("plant gw", 10),
-        ("plant-gw.example:99999", 11),
-        ("2001:db8::7", 12),
-        ("*.example", 13),
-    ] {
-        assert!(
-            rendered.contains(&format!("`{entry}` is no host name")),
-            "{entry}: {rendered}"
-        );
-        assert!(
-            rendered.contains(&format!("bus.yaml:{line}:9")),
-            "{entry} at line {line}: {rendered}"
-        );
-    }
-    assert!(!rendered.contains("`plant-gw.example` is no"), "{rendered}");
-    let empty = parse(&format!("{one_device}outputs:\n  http: {{ hosts: [] }}\n"));
+    .expect("sections the bus does not read");
+    assert_eq!(bus.devices[0].name, "head");
+    let rendered = parse(&format!("{one_device}outputs: [mqtt]\n")).expect_err("not a mapping");
     assert!(
-        empty
-            .expect_err("an empty list")
-            .contains("`hosts` lists no name"),
-        "an empty list would answer no one"
+        rendered.contains("`outputs` must be a mapping, not a list")
+            && rendered.contains("bus.yaml:4:10"),
+        "{rendered}"
     );
 }
 

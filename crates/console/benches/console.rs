@@ -25,7 +25,8 @@ use std::net::TcpStream;
 use std::path::Path;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use optobus_bus::{Bus, BusFile, Catalogue, Event, HttpConfig, Running};
+use optobus_bus::{Bus, BusFile, Catalogue, Event, Running};
+use optobus_console::HttpConfig;
 
 fn load_average() -> String {
     std::fs::read_to_string("/proc/loadavg")

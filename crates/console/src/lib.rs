@@ -38,7 +38,7 @@
 //!
 //! ```no_run
 //! # async fn demo(running: &optobus_bus::Running) -> Result<(), Box<dyn std::error::Error>> {
-//! let config = optobus_bus::HttpConfig::new("127.0.0.1:8080".parse()?);
+//! let config = optobus_console::HttpConfig::new("127.0.0.1:8080".parse()?);
 //! let server = optobus_console::serve(running, &config).await?;
 //! println!("the console is on {}", server.url());
 //! # Ok(())
@@ -53,6 +53,7 @@ mod guard;
 mod map;
 mod page;
 mod reply;
+pub mod settings;
 mod state;
 mod stream;
 mod write;
@@ -62,11 +63,12 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use axum::Router;
-use optobus_bus::{HttpConfig, Running, Source};
+use optobus_bus::{Running, Source};
 use optobus_http::Limits;
 
 pub use batch::{BATCH_EVERY, BATCH_QUEUE};
 pub use page::PAGE_BYTES;
+pub use settings::{HttpConfig, DEFAULT_HTTP_PORT};
 
 /// The limits of the console's listener: [`Limits::DEFAULT`] (a silent socket or a half-sent head
 /// closed within 10 s, an idle connection after 15 s, a handler answers within 20 s, at most

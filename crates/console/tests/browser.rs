@@ -17,7 +17,8 @@ use std::time::Duration;
 
 use fantoccini::wd::{Capabilities, WebDriverCompatibleCommand};
 use fantoccini::{Client, ClientBuilder, Locator};
-use optobus_bus::{Bus, BusFile, Catalogue, Direction, HttpConfig, Running};
+use optobus_bus::{Bus, BusFile, Catalogue, Direction, Running};
+use optobus_console::HttpConfig;
 use optobus_device::Table;
 use serde_json::{json, Value};
 

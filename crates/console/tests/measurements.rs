@@ -8,7 +8,8 @@ use std::time::Duration;
 use axum::body::Body;
 use axum::http::{Request, StatusCode};
 use axum::Router;
-use optobus_bus::{Bus, BusFile, Catalogue, HttpConfig, Running};
+use optobus_bus::{Bus, BusFile, Catalogue, Running};
+use optobus_console::HttpConfig;
 use serde_json::Value;
 use tower::ServiceExt;
 

@@ -194,14 +194,16 @@ devices:
     drop(server);
 
     // `hosts:` from the bus file: those names only, at the console's port unless they say.
-    let file = BusFile::parse(
+    let mut http: Option<HttpConfig> = None;
+    BusFile::parse_with(
         "bus.yaml",
         &format!("{bus}outputs:\n  http: {{ listen: 0.0.0.0:0, hosts: [plant-gw.example, \"192.0.2.7:80\"] }}\n"),
         Path::new("."),
         &Catalogue::new([&optobus_p_series::DEVICE]),
+        &mut http,
     )
     .unwrap_or_else(|e| panic!("{}", e.render()));
-    let config = file.outputs.http.clone().unwrap();
+    let config = http.unwrap();
     let server = optobus_console::serve(&running, &config).await.unwrap();
     let address = server.address();
     let port = address.port();

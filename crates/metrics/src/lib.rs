@@ -20,8 +20,9 @@
 //! devices: [{ name: top, model: p-series, slave: 1, poll: [{ read: measurements }] }]
 //! outputs: { metrics: 0 }
 //! ";
-//! let file = BusFile::parse("demo.yaml", text, ".".as_ref(), &catalogue)?;
-//! let config = file.outputs.metrics.clone().expect("metrics are on");
+//! let mut metrics = None;
+//! let file = BusFile::parse_with("demo.yaml", text, ".".as_ref(), &catalogue, &mut metrics)?;
+//! let config: optobus_metrics::MetricsConfig = metrics.expect("metrics are on");
 //! let bus = Bus::new(file.clone());
 //! let exporter = optobus_metrics::Exporter::start(&config, &file, bus.subscribe()).await?;
 //! let running = bus.start()?;
@@ -35,11 +36,13 @@
 mod exposition;
 mod metrics;
 mod serve;
+pub mod settings;
 mod sources;
 
 pub use exposition::{prometheus_text, OPENMETRICS_TYPE, PROMETHEUS_TEXT_TYPE};
 pub use metrics::Metrics;
 pub use serve::{serve, Exporter, LIMITS};
+pub use settings::MetricsConfig;
 pub use sources::{Reading, ReadingValue, Source, SourceError};
 
 pub use optobus_bus::Event;

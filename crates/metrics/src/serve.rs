@@ -8,7 +8,9 @@ use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::IntoResponse;
 use axum::routing::get;
 use axum::Router;
-use optobus_bus::{BusFile, Event, Follower, MetricsConfig};
+use optobus_bus::{BusFile, Event, Follower};
+
+use crate::settings::MetricsConfig;
 use optobus_http::Limits;
 use tokio::net::TcpListener;
 use tokio::sync::broadcast;

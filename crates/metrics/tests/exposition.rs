@@ -314,8 +314,7 @@ fn a_source_later_giving_a_series_it_did_not_declare_has_it_left_out() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_exporter_counts_the_bus_events_it_missed_exactly() {
-    let file = file();
-    let config = file.outputs.metrics.clone().expect("metrics are on");
+    let (file, config) = with_metrics();
     let capacity = 32;
     let bus = Bus::new(file.clone()).event_capacity(capacity);
     // Subscribed now, read only once the bus has stopped: far behind by then.

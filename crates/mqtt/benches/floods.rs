@@ -24,7 +24,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use common::{Broker, Watcher};
-use optobus_bus::{Bus, BusFile, Event};
+use optobus_bus::{Bus, Event};
 use optobus_mqtt::{Counts, Publisher};
 use rumqttc::{AsyncClient, MqttOptions, QoS};
 
@@ -32,7 +32,7 @@ const WINDOW: Duration = Duration::from_secs(3);
 const ROUNDS: usize = 3;
 const SAMPLE_TOPIC: &str = "plant/top/distance_1";
 
-fn file(port: u16) -> BusFile {
+fn file(port: u16) -> common::File {
     common::parse(&common::top_alone(
         "poll: [{ read: distance_1, every: 20ms }], writable: [light_power]",
         &format!("broker: 127.0.0.1:{port}, prefix: plant, client_id: hall-2, homeassistant: true"),
@@ -174,7 +174,7 @@ fn main() {
         println!("load average at start: {}", optobus_testkit::load_average());
         let broker = Broker::start("bench-floods").await;
         let file = file(broker.port);
-        let bus = Bus::new(file.clone());
+        let bus = Bus::new(file.bus.clone());
         let mut events = bus.subscribe();
         let (running, publisher) = common::start_taking_writes(bus, &file);
         let polled = Arc::new(AtomicU64::new(0));

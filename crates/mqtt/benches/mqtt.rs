@@ -25,7 +25,7 @@ use optobus_bus::{rfc3339, BusFile, Catalogue, DeviceId, Event, Sample};
 use optobus_codec::value::{Fixed, Scale};
 use optobus_device::RegisterInfo;
 use optobus_inspect::Value;
-use optobus_mqtt::Publisher;
+use optobus_mqtt::{MqttConfig, Publisher};
 use rumqttc::{AsyncClient, Event as MqttEvent, MqttOptions, Outgoing, Packet, QoS};
 use tokio::sync::broadcast;
 
@@ -33,14 +33,23 @@ const P: &optobus_device::DeviceInfo = &optobus_p_series::DEVICE;
 const SAMPLES: usize = 50_000;
 const TRIALS: usize = 7;
 
-fn file(port: u16, qos: u8, queue: usize) -> BusFile {
+/// The bench's bus file and its `mqtt` settings.
+fn file(port: u16, qos: u8, queue: usize) -> (BusFile, MqttConfig) {
     let text = format!(
         "lines: [{{ name: rs485, simulated: true }}]\n\
          devices: [{{ name: top, model: p-series, slave: 1 }}]\n\
          outputs: {{ mqtt: {{ broker: 127.0.0.1:{port}, qos: {qos}, queue: {queue} }} }}\n"
     );
-    BusFile::parse("bench.yaml", &text, Path::new("."), &Catalogue::new([P]))
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    let mut mqtt = None;
+    let file = BusFile::parse_with(
+        "bench.yaml",
+        &text,
+        Path::new("."),
+        &Catalogue::new([P]),
+        &mut mqtt,
+    )
+    .unwrap_or_else(|e| panic!("{}", e.render()));
+    (file, mqtt.expect("the file has `mqtt`"))
 }
 
 fn registers() -> Vec<&'static RegisterInfo> {
@@ -81,10 +90,9 @@ fn sample(source: &Arc<DeviceId>, register: &'static RegisterInfo, n: usize) -> 
 
 /// Samples per second through the publisher: all handed over, then until all are taken.
 async fn through_publisher(port: u16, qos: u8) -> f64 {
-    let file = file(port, qos, SAMPLES * 2);
+    let (file, mqtt) = file(port, qos, SAMPLES * 2);
     let (events, receiver) = broadcast::channel(SAMPLES + 16);
-    let publisher = Publisher::start(file.outputs.mqtt.as_ref().unwrap(), &file, receiver, None)
-        .expect("starts");
+    let publisher = Publisher::start(&mqtt, &file, receiver, None).expect("starts");
     while !publisher.counts().connected {
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
@@ -203,10 +211,9 @@ async fn throughput(port: u16) {
 /// Reply-to-delivery latency at 1,000 samples a second for 5 s, at QoS 1.
 async fn latency(port: u16) {
     let watcher = Watcher::start(port, "bench-latency", "optobus/top/+").await;
-    let file = file(port, 1, 100_000);
+    let (file, mqtt) = file(port, 1, 100_000);
     let (events, receiver) = broadcast::channel(4096);
-    let publisher =
-        Publisher::start(file.outputs.mqtt.as_ref().unwrap(), &file, receiver, None).unwrap();
+    let publisher = Publisher::start(&mqtt, &file, receiver, None).unwrap();
     while !publisher.counts().connected {
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
@@ -252,10 +259,9 @@ async fn latency(port: u16) {
 async fn outage(queue: usize) {
     let mut broker = Broker::start("bench-outage").await;
     let watcher = Watcher::start(broker.port, "bench-outage", "optobus/#").await;
-    let file = file(broker.port, 1, queue);
+    let (file, mqtt) = file(broker.port, 1, queue);
     let (events, receiver) = broadcast::channel(4096);
-    let publisher =
-        Publisher::start(file.outputs.mqtt.as_ref().unwrap(), &file, receiver, None).unwrap();
+    let publisher = Publisher::start(&mqtt, &file, receiver, None).unwrap();
     let source = source();
     let registers = registers();
     let mut sent = Vec::new();

@@ -34,6 +34,7 @@ mod payload;
 mod publisher;
 mod refresh;
 mod secret;
+pub mod settings;
 mod shared;
 mod state;
 mod text;
@@ -47,4 +48,5 @@ pub use publisher::{
     CountsReader, Publisher, StartError, FIRST_BACKOFF, MAX_BACKOFF, MAX_INCOMING_PACKET,
 };
 pub use secret::{Secret, SecretError};
+pub use settings::{MqttConfig, SecretSource, StateEvery};
 pub use writes::{MAX_WRITE_PAYLOAD, WRITE_QUEUE};

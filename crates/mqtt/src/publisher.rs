@@ -5,7 +5,9 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use optobus_bus::{BusFile, Event, Follower, Handle, Health, MqttConfig, Source, Writer};
+use optobus_bus::{BusFile, Event, Follower, Handle, Health, Source, Writer};
+
+use crate::settings::MqttConfig;
 use rumqttc::{
     AsyncClient, ConnectionError, Event as MqttEvent, EventLoop, LastWill, MqttOptions, Outgoing,
     Packet, QoS, StateError, TlsConfiguration, Transport,

@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-use optobus_bus::SecretSource;
+use crate::settings::SecretSource;
 
 /// A secret's text; its `Debug` and `Display` never show it.
 #[derive(Clone, PartialEq, Eq)]

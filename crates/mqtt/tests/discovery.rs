@@ -7,14 +7,13 @@ mod common;
 use std::time::Duration;
 
 use common::{Broker, Watcher};
-use optobus_bus::BusFile;
 use optobus_codec::value::Scale;
 use rumqttc::QoS;
 use serde_json::{json, Value as Json};
 
 const P: &optobus_device::DeviceInfo = &optobus_p_series::DEVICE;
 
-fn file(port: u16) -> BusFile {
+fn file(port: u16) -> common::File {
     let text = format!(
         "
 lines:

@@ -23,12 +23,11 @@
 mod common;
 
 use std::collections::{HashMap, HashSet};
-use std::path::Path;
 use std::time::Duration;
 
 use common::proxy::{Connection, Cut, Frames, Passed, Plan, Proxy};
 use common::{Broker, Watcher};
-use optobus_bus::{rfc3339, Bus, BusFile, Catalogue, Event};
+use optobus_bus::{rfc3339, Bus, Event};
 use optobus_mqtt::{Counts, Publisher};
 use tokio::sync::broadcast::{error::RecvError, Receiver};
 use tokio::sync::oneshot;
@@ -54,7 +53,7 @@ fn seed(case: u64) -> u64 {
 }
 
 /// Three sensors polled every 5 ms on one simulated line: about a thousand samples a second.
-fn bus_file(port: u16, qos: u8, queue: usize) -> BusFile {
+fn bus_file(port: u16, qos: u8, queue: usize) -> common::File {
     let text = format!(
         "
 lines:
@@ -67,9 +66,7 @@ outputs:
   mqtt: {{ broker: 127.0.0.1:{port}, qos: {qos}, queue: {queue} }}
 "
     );
-    let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);
-    BusFile::parse("bus.yaml", &text, Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    common::parse(&text)
 }
 
 /// A sample as the bus emitted it, with the payload the publisher makes of it.
@@ -250,7 +247,7 @@ async fn run(name: &str, qos: u8, queue: usize, plan: Plan) -> Outcome {
     let proxy = Proxy::start(broker.port, &plan).await;
     let watcher = Watcher::start(broker.port, &format!("watcher-{name}"), "optobus/#").await;
     let file = bus_file(proxy.port, qos, queue);
-    let bus = Bus::new(file.clone());
+    let bus = Bus::new(file.bus.clone());
     let recorder = Recorder::start(bus.subscribe());
     let publisher = common::publish(&file, &bus);
     let running = bus.start().expect("the bus starts");

@@ -8,7 +8,7 @@ mod common;
 use std::time::{Duration, SystemTime};
 
 use common::{Broker, Heard, Watcher};
-use optobus_bus::{Bus, BusFile, Event, Running};
+use optobus_bus::{Bus, Event, Running};
 use optobus_mqtt::{Counts, Publisher, MAX_WRITE_PAYLOAD, WRITE_QUEUE};
 use rumqttc::QoS;
 
@@ -21,7 +21,7 @@ const RETAINED_REFUSAL: &str = "a retained write is not carried out (the broker 
                                 without the retain flag, and clear the retained one with an \
                                 empty retained message on this topic";
 
-fn file(port: u16, homeassistant: bool) -> BusFile {
+fn file(port: u16, homeassistant: bool) -> common::File {
     common::parse(&common::top_alone(
         "poll: [{ read: distance_1, every: 50ms }], writable: [light_power, zero_position_1]",
         &format!(
@@ -32,8 +32,8 @@ fn file(port: u16, homeassistant: bool) -> BusFile {
 }
 
 /// A running bus of `file` with a publisher taking writes.
-fn start(file: &BusFile) -> (Running, Publisher) {
-    common::start_taking_writes(Bus::new(file.clone()), file)
+fn start(file: &common::File) -> (Running, Publisher) {
+    common::start_taking_writes(Bus::new(file.bus.clone()), file)
 }
 
 async fn wait_counts(publisher: &Publisher, what: &str, done: impl Fn(&Counts) -> bool) {

@@ -8,18 +8,16 @@
 
 mod common;
 
-use std::path::Path;
 use std::time::{Duration, SystemTime};
 
 use common::{parse, Broker, Heard, Watcher};
-use optobus_bus::{Bus, BusFile, Catalogue, Running};
+use optobus_bus::{Bus, Running};
 use optobus_device::DeviceInfo;
 use optobus_mqtt::Publisher;
 use rumqttc::QoS;
 use serde_json::Value as Json;
 
 const P: &DeviceInfo = &optobus_p_series::DEVICE;
-const CCS: &DeviceInfo = &optobus_ccs::DEVICE;
 const LC: &DeviceInfo = &optobus_lc_rs::DEVICE;
 const RANGER: &DeviceInfo = &optobus_rangefinder::DEVICE;
 
@@ -51,11 +49,11 @@ async fn wait_for_text(watcher: &Watcher, topic: &str, text: &str) -> bool {
 /// state must come from the device), a watcher `watcher_id` of its Home Assistant state, and
 /// then the publisher, taking writes.
 async fn start_at_42_percent(
-    file: &BusFile,
+    file: &common::File,
     port: u16,
     watcher_id: &str,
 ) -> (Running, Watcher, Publisher) {
-    let bus = Bus::new(file.clone());
+    let bus = Bus::new(file.bus.clone());
     let events = bus.subscribe();
     let running = bus.start().unwrap();
     let power = P.register("light_power").unwrap();
@@ -63,8 +61,8 @@ async fn start_at_42_percent(
     simulator.poke(power.table, power.address, &[420]).unwrap();
     let watcher = Watcher::start(port, watcher_id, "optobus/top/light_power/state").await;
     let publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        file,
+        file.mqtt.as_ref().unwrap(),
+        &file.bus,
         events,
         Some(running.handle()),
     )
@@ -227,7 +225,7 @@ outputs:
 ",
         broker.port
     )));
-    let bus = Bus::new(file.clone());
+    let bus = Bus::new(file.bus.clone());
     let events = bus.subscribe();
     let running = bus.start().unwrap();
     // Values no simulator starts with: the device block must come from the devices.
@@ -252,8 +250,8 @@ outputs:
         ("2.7.19", "102", "123456")
     );
     let _publisher = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
+        file.mqtt.as_ref().unwrap(),
+        &file.bus,
         events,
         Some(running.handle()),
     )
@@ -313,7 +311,7 @@ outputs:
 ",
         broker.port
     )));
-    let every = file.outputs.mqtt.as_ref().unwrap().state_every.of("c");
+    let every = file.mqtt.as_ref().unwrap().state_every.of("c");
     assert_eq!(every, Duration::from_secs(1), "the default");
     let watcher = Watcher::start(broker.port, "ha-rate-watch", "optobus/c/#").await;
     let (running, publisher, _) = common::start_publishing(&file);
@@ -394,22 +392,18 @@ outputs:
         )
     };
     let file = parse(&text("{ default: 2s, c: 100ms }"));
-    let every = &file.outputs.mqtt.as_ref().unwrap().state_every;
+    let every = &file.mqtt.as_ref().unwrap().state_every;
     assert_eq!(every.of("c"), Duration::from_millis(100));
     assert_eq!(every.of("top"), Duration::from_secs(2));
     let file = parse(&text("0s"));
     assert_eq!(
-        file.outputs.mqtt.as_ref().unwrap().state_every.of("c"),
+        file.mqtt.as_ref().unwrap().state_every.of("c"),
         Duration::ZERO
     );
-    let rejected = BusFile::parse(
-        "bus.yaml",
-        &text("{ bottom: 1s }"),
-        Path::new("."),
-        &Catalogue::new([P, CCS]),
-    )
-    .unwrap_err()
-    .render();
+    let rejected = common::try_parse(&text("{ bottom: 1s }"))
+        .err()
+        .expect("refused")
+        .render();
     assert!(
         rejected.contains("`state_every` has no key `bottom`") && rejected.contains("`c`"),
         "{rejected}"

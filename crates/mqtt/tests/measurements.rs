@@ -3,15 +3,14 @@
 
 mod common;
 
-use std::path::Path;
 use std::time::Duration;
 
 use common::{Broker, Watcher};
-use optobus_bus::{Bus, BusFile, Catalogue};
+use optobus_bus::Bus;
 use optobus_codec::value::Fixed;
 use serde_json::Value as Json;
 
-fn file(port: u16) -> BusFile {
+fn file(port: u16) -> common::File {
     let text = format!(
         "
 lines:
@@ -29,9 +28,7 @@ outputs:
   mqtt: {{ broker: 127.0.0.1:{port}, prefix: plant }}
 "
     );
-    let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);
-    BusFile::parse("bus.yaml", &text, Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    common::parse(&text)
 }
 
 /// An exact decimal of the JSON.
@@ -52,7 +49,7 @@ async fn a_measurement_is_published_as_its_json_with_the_inputs_it_was_made_of()
     let broker = Broker::start("measurements").await;
     let watcher = Watcher::start(broker.port, "watcher-measurements", "plant/measurements/#").await;
     let file = file(broker.port);
-    let bus = Bus::new(file.clone());
+    let bus = Bus::new(file.bus.clone());
     let _publisher = common::publish(&file, &bus);
     let _running = bus.start().expect("starts");
     assert!(
@@ -165,10 +162,8 @@ outputs:
 ",
         broker.port
     );
-    let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);
-    let file = BusFile::parse("bus.yaml", &text, Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()));
-    let bus = Bus::new(file.clone());
+    let file = common::parse(&text);
+    let bus = Bus::new(file.bus.clone());
     let _publisher = common::publish(&file, &bus);
     let _running = bus.start().expect("starts");
 

@@ -198,7 +198,7 @@ async fn a_clean_stop_says_every_device_is_offline() {
 #[tokio::test]
 async fn secrets_are_never_in_debug_output() {
     std::env::set_var("OPTOBUS_TEST_MQTT_PASSWORD", "hunter2");
-    let secret = optobus_mqtt::Secret::read(&optobus_bus::SecretSource::Env(
+    let secret = optobus_mqtt::Secret::read(&optobus_mqtt::SecretSource::Env(
         "OPTOBUS_TEST_MQTT_PASSWORD".into(),
     ))
     .expect("set");
@@ -214,9 +214,9 @@ outputs:
     password: { env: OPTOBUS_TEST_MQTT_PASSWORD }
 ",
     );
-    let config = file.outputs.mqtt.as_ref().unwrap();
-    let bus = Bus::new(file.clone());
-    let publisher = Publisher::start(config, &file, bus.subscribe(), None).expect("starts");
+    let config = file.mqtt.as_ref().unwrap();
+    let bus = Bus::new(file.bus.clone());
+    let publisher = Publisher::start(config, &file.bus, bus.subscribe(), None).expect("starts");
     for shown in [
         format!("{publisher:?}"),
         format!("{config:?}"),
@@ -224,7 +224,7 @@ outputs:
     ] {
         assert!(!shown.contains("hunter2"), "{shown}");
     }
-    let missing = optobus_mqtt::Secret::read(&optobus_bus::SecretSource::Env(
+    let missing = optobus_mqtt::Secret::read(&optobus_mqtt::SecretSource::Env(
         "OPTOBUS_TEST_NO_SUCH_VARIABLE".into(),
     ))
     .expect_err("not set");
@@ -249,9 +249,9 @@ outputs:
         dir.join("ca.pem").display()
     ));
     let refused = Publisher::start(
-        file.outputs.mqtt.as_ref().unwrap(),
-        &file,
-        Bus::new(file.clone()).subscribe(),
+        file.mqtt.as_ref().unwrap(),
+        &file.bus,
+        Bus::new(file.bus.clone()).subscribe(),
         None,
     )
     .expect_err("no certificate to trust");

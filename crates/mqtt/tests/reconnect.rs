@@ -8,11 +8,11 @@ use std::collections::HashSet;
 use std::time::Duration;
 
 use common::{Broker, Watcher};
-use optobus_bus::{rfc3339, BusFile, Event, Running};
+use optobus_bus::{rfc3339, Event, Running};
 use optobus_mqtt::Publisher;
 use tokio::sync::broadcast::Receiver;
 
-fn file(port: u16, queue: usize) -> BusFile {
+fn file(port: u16, queue: usize) -> common::File {
     common::parse(&common::top_alone(
         "poll: [{ read: distance_1, every: 10ms }]",
         &format!("broker: 127.0.0.1:{port}, queue: {queue}, homeassistant: optobus/discovery"),

@@ -10,7 +10,6 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use common::{Broker, Watcher};
-use optobus_bus::BusFile;
 use serde_json::Value as Json;
 use tracing::field::{Field, Visit};
 use tracing::{Level, Subscriber};
@@ -146,7 +145,7 @@ async fn tls_broker(name: &str) -> (Broker, u16) {
 }
 
 /// A bus of one simulated P-series whose MQTT output goes to `port` over TLS, trusting `ca`.
-fn file(port: u16, ca: &Path) -> BusFile {
+fn file(port: u16, ca: &Path) -> common::File {
     common::parse(&common::top_alone(
         "timeout: 100ms, poll: [{ read: [light_power, distance_1], every: 50ms }]",
         &format!(

@@ -7,12 +7,12 @@ mod common;
 use std::time::Duration;
 
 use common::{Broker, Watcher};
-use optobus_bus::{Bus, BusFile, Event};
+use optobus_bus::{Bus, Event};
 use rumqttc::QoS;
 
 const P: &optobus_device::DeviceInfo = &optobus_p_series::DEVICE;
 
-fn file(port: u16) -> BusFile {
+fn file(port: u16) -> common::File {
     common::parse(&common::top_alone(
         "poll: [{ read: distance_1, every: 50ms }], writable: [light_power, zero_position_1]",
         &format!("broker: 127.0.0.1:{port}, prefix: plant"),
@@ -28,7 +28,7 @@ async fn writes_from_topics_are_checked_like_optobus_set_and_refusals_go_to_erro
     let broker = Broker::start("writes").await;
     let watcher = Watcher::start(broker.port, "watcher-writes", "plant/#").await;
     let file = file(broker.port);
-    let bus = Bus::new(file.clone());
+    let bus = Bus::new(file.bus.clone());
     let mut events = bus.subscribe();
     let (running, _publisher) = common::start_taking_writes(bus, &file);
     let handle = running.handle();

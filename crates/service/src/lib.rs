@@ -2,7 +2,9 @@
 //! publisher, the Prometheus exporter, the console in the browser and a CSV recording, each
 //! an [`Output`] started from the same [`Start`], and the run's start and stop sequence
 //! written once ([`Service`]). A front end (the `optobus` tool) starts a service and renders
-//! what it says; it follows the bus's events itself for what it shows.
+//! what it says; it follows the bus's events itself for what it shows. It reads the bus file
+//! whole ([`ServiceFile`]): the bus, and each output's settings, which the output's crate
+//! reads from its section of `outputs`.
 //!
 //! It also holds what such a run is made of and nothing below it owns: the
 //! [recording format](mod@recording) (writer and reader side by side), the [demo bus](mod@demo),
@@ -12,6 +14,7 @@
 #![forbid(unsafe_code)]
 
 pub mod demo;
+mod file;
 pub mod journal;
 pub mod mqtt_metrics;
 pub mod outlet;
@@ -21,9 +24,10 @@ pub mod recording;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use optobus_bus::{Bus, BusFile, Event, Running};
+use optobus_bus::{Bus, Event, Running};
 use tokio::sync::broadcast;
 
+pub use file::{HttpConfig, MetricsConfig, MqttConfig, OutputsConfig, ServiceFile, SECTIONS};
 pub use output::{Console, Metrics, Mqtt, Output, Record, Start, Stopping, DRAIN_AT_END};
 
 /// Where a service says what happens (a line for people: `optobus: …`); the front end
@@ -99,13 +103,21 @@ impl Service {
     /// with a subscription taken before the bus started: the recording, the metrics, MQTT
     /// (the publisher's counts on the metrics when both run), then says the gateways and
     /// outputs on one line, starts the console and says where it is.
-    pub async fn start(file: BusFile, options: Options, say: Say) -> Result<Self, ServiceError> {
+    pub async fn start(
+        file: ServiceFile,
+        options: Options,
+        say: Say,
+    ) -> Result<Self, ServiceError> {
+        let ServiceFile {
+            bus: file,
+            outputs: settings,
+        } = file;
         let bus = Bus::new(file.clone());
         let events = bus.subscribe();
         let record_events = options.record.as_ref().map(|_| bus.subscribe());
-        let metrics_events = file.outputs.metrics.as_ref().map(|_| bus.subscribe());
-        let mqtt_events = file.outputs.mqtt.as_ref().map(|_| bus.subscribe());
-        let console_events = file.outputs.http.as_ref().map(|_| bus.subscribe());
+        let metrics_events = settings.metrics.as_ref().map(|_| bus.subscribe());
+        let mqtt_events = settings.mqtt.as_ref().map(|_| bus.subscribe());
+        let console_events = settings.http.as_ref().map(|_| bus.subscribe());
         let running = bus.start().map_err(|e| ServiceError::new(e.to_string()))?;
         let start = |events| Start {
             file: &file,
@@ -117,11 +129,11 @@ impl Service {
         if let (Some(dir), Some(events)) = (&options.record, record_events) {
             outputs.push(Box::new(Record::start(dir, start(events)).await?));
         }
-        let metrics = match (&file.outputs.metrics, metrics_events) {
+        let metrics = match (&settings.metrics, metrics_events) {
             (Some(config), Some(events)) => Some(Metrics::start(config, start(events)).await?),
             _ => None,
         };
-        let mqtt = match (&file.outputs.mqtt, mqtt_events) {
+        let mqtt = match (&settings.mqtt, mqtt_events) {
             (Some(config), Some(events)) => Some(Mqtt::start(config, start(events)).await?),
             _ => None,
         };
@@ -140,7 +152,7 @@ impl Service {
             say(&format!("optobus: {}", summary.join(", ")));
         }
         let mut console = None;
-        if let (Some(config), Some(events)) = (&file.outputs.http, console_events) {
+        if let (Some(config), Some(events)) = (&settings.http, console_events) {
             let started = Console::start(config, start(events)).await?;
             console = Some(started.url());
             outputs.push(Box::new(started));

@@ -8,7 +8,10 @@ use std::pin::Pin;
 use std::sync::Arc;
 use std::time::Duration;
 
-use optobus_bus::{BusFile, Event, Follower, HttpConfig, MetricsConfig, MqttConfig, Running};
+use optobus_bus::{BusFile, Event, Follower, Running};
+use optobus_console::HttpConfig;
+use optobus_metrics::MetricsConfig;
+use optobus_mqtt::MqttConfig;
 use tokio::sync::{broadcast, oneshot};
 use tokio::task::JoinHandle;
 

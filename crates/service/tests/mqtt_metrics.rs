@@ -5,11 +5,12 @@ use std::path::PathBuf;
 use std::process::Child;
 use std::time::Duration;
 
-use optobus_bus::{Bus, BusFile, Catalogue};
+use optobus_bus::{Bus, Catalogue};
 use optobus_metrics::Exporter;
 use optobus_mqtt::Counts;
 use optobus_mqtt::Publisher;
 use optobus_service::mqtt_metrics::add;
+use optobus_service::ServiceFile;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 /// A mosquitto on a free 127.0.0.1 port, killed when dropped.
@@ -111,7 +112,7 @@ outputs:
 ",
         broker.port
     );
-    let file = BusFile::parse(
+    let ServiceFile { bus: file, outputs } = ServiceFile::parse(
         "bus.yaml",
         &text,
         ".".as_ref(),
@@ -119,13 +120,13 @@ outputs:
     )
     .unwrap_or_else(|e| panic!("{}", e.render()));
     let bus = Bus::new(file.clone());
-    let metrics_config = file.outputs.metrics.clone().expect("metrics");
+    let metrics_config = outputs.metrics.clone().expect("metrics");
     let exporter = Exporter::start(&metrics_config, &file, bus.subscribe())
         .await
         .expect("listens");
     let mqtt_events = bus.subscribe();
     let running = bus.start().expect("starts");
-    let mqtt_config = file.outputs.mqtt.as_ref().expect("mqtt");
+    let mqtt_config = outputs.mqtt.as_ref().expect("mqtt");
     let publisher = Publisher::start(mqtt_config, &file, mqtt_events, None).expect("starts");
     add(exporter.metrics(), publisher.counts_reader()).expect("the names are free");
 

@@ -44,7 +44,9 @@ async fn a_service_records_every_sample_its_caller_saw_and_the_recording_reads_b
     let options = Options {
         record: Some(dir.clone()),
     };
-    let mut service = Service::start(bus(), options, say).await.expect("starts");
+    let mut service = Service::start(bus().into(), options, say)
+        .await
+        .expect("starts");
     let events = service.events().expect("the caller's subscription");
     assert!(service.events().is_none(), "given once");
     // Follow until the samples of five polls have come (a generous deadline, no timing).
@@ -177,7 +179,9 @@ measurements:
     let options = Options {
         record: Some(dir.clone()),
     };
-    let mut service = Service::start(file, options, say).await.expect("starts");
+    let mut service = Service::start(file.into(), options, say)
+        .await
+        .expect("starts");
     let events = service.events().expect("the caller's subscription");
     let mut values = 0;
     let (enough, mut enough_rx) = tokio::sync::watch::channel(false);

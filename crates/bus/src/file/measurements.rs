@@ -11,7 +11,7 @@ use optobus_measure::{
 };
 use optobus_spec::source::{Node, Span, Value};
 
-use super::reader::{parse_duration, Reader};
+use super::reading::{parse_duration, FileReader};
 use super::DeviceConfig;
 
 pub(super) const MEASUREMENT_KEYS: &[&str] =
@@ -53,7 +53,7 @@ struct Read<'n> {
     span: Span,
 }
 
-impl Reader<'_> {
+impl FileReader<'_> {
     /// The `measurements` list, checked against the devices as read (`None` where a device did
     /// not read whole: its problems are reported already, and its inputs are not checked
     /// again).

@@ -3,17 +3,19 @@
 //! [`BusFile::parse`] reads the YAML with the spec compiler's positioned parse and reports
 //! every problem at once, located like rustc ([`Rejected`]); nothing is opened before the
 //! whole file passes. The schema is [`SCHEMA`] (the crate's README shows it, with a tour).
+//! The `outputs` are not the bus's: [`BusFile::parse_with`] hands their sections to the
+//! outputs' readers ([`ReadOutputs`]), which read them with the file's [`reading`] kit.
 
 mod check;
 mod measurements;
-pub mod outputs;
+mod outputs;
 mod pick;
 mod read;
 mod read_device;
-mod reader;
+pub mod reading;
 
 pub use measurements::Measurements;
-pub use outputs::{HttpConfig, MetricsConfig, MqttConfig, Outputs, SecretSource, StateEvery};
+pub use outputs::{OutputSettings, Outputs, ReadOutputs};
 pub use pick::{GatewayMoveError, LinePickError};
 pub use read_device::{resolve, writable};
 
@@ -45,8 +47,6 @@ pub struct BusFile {
     pub devices: Vec<DeviceConfig>,
     /// What the file computes from the registers the devices' polls read.
     pub measurements: Measurements,
-    /// Where the bus sends what it reads besides its events (MQTT, metrics, the console).
-    pub outputs: Outputs,
 }
 
 /// One line: a port and the character format on it.
@@ -226,14 +226,37 @@ pub use optobus_spec::Rejected;
 
 impl BusFile {
     /// Reads and checks a bus file's text. `name` is shown in diagnostics; spec files the
-    /// devices name are found relative to `base` (the bus file's folder).
+    /// devices name are found relative to `base` (the bus file's folder). Its `outputs` are
+    /// left unread (only their shape is checked): [`BusFile::parse_with`] reads them.
     pub fn parse(
         name: &str,
         text: &str,
         base: &Path,
         catalogue: &Catalogue,
     ) -> Result<Self, Box<Rejected>> {
-        let source = SourceFile::of_kind(reader::BUS_FILE, name, text);
+        Self::read(name, text, base, catalogue, None)
+    }
+
+    /// [`BusFile::parse`], the sections of `outputs` read by `outputs` as the file is read:
+    /// their problems are the file's, reported in the one [`Rejected`] with the others.
+    pub fn parse_with(
+        name: &str,
+        text: &str,
+        base: &Path,
+        catalogue: &Catalogue,
+        outputs: &mut dyn ReadOutputs,
+    ) -> Result<Self, Box<Rejected>> {
+        Self::read(name, text, base, catalogue, Some(outputs))
+    }
+
+    fn read(
+        name: &str,
+        text: &str,
+        base: &Path,
+        catalogue: &Catalogue,
+        outputs: Option<&mut dyn ReadOutputs>,
+    ) -> Result<Self, Box<Rejected>> {
+        let source = SourceFile::of_kind(reading::BUS_FILE, name, text);
         let mut diagnostics = Vec::new();
         let bus = match (&source.syntax_error, &source.root) {
             (Some(error), _) => {
@@ -241,13 +264,13 @@ impl BusFile {
                 None
             }
             (None, Some(root)) => {
-                let mut reader = reader::Reader::new(base, catalogue);
-                let bus = reader.bus(root);
-                diagnostics.append(&mut reader.diagnostics);
+                let mut reader = reading::FileReader::new(base, catalogue);
+                let bus = reader.bus(root, outputs);
+                diagnostics.append(&mut reader.kit.diagnostics);
                 bus
             }
             (None, None) => {
-                diagnostics.push(reader::empty());
+                diagnostics.push(reading::empty());
                 None
             }
         };
@@ -260,7 +283,7 @@ impl BusFile {
             file => {
                 if diagnostics.is_empty() && file.is_none() {
                     // Every item that does not read says why; a safety net all the same.
-                    diagnostics.push(reader::incomplete());
+                    diagnostics.push(reading::incomplete());
                 }
                 Err(Box::new(Rejected {
                     source,
@@ -272,13 +295,32 @@ impl BusFile {
 
     /// Reads and checks the bus file at `path`: a regular file (or a pipe) of at most
     /// [`YAML_LIMIT`](optobus_spec::source::YAML_LIMIT) bytes of UTF-8, read as specs are.
+    /// Its `outputs` are left unread, as [`BusFile::parse`] leaves them.
     pub fn load(path: &Path, catalogue: &Catalogue) -> Result<Self, LoadError> {
+        Self::load_from(path, catalogue, None)
+    }
+
+    /// [`BusFile::load`], the sections of `outputs` read by `outputs` as
+    /// [`BusFile::parse_with`] reads them.
+    pub fn load_with(
+        path: &Path,
+        catalogue: &Catalogue,
+        outputs: &mut dyn ReadOutputs,
+    ) -> Result<Self, LoadError> {
+        Self::load_from(path, catalogue, Some(outputs))
+    }
+
+    fn load_from(
+        path: &Path,
+        catalogue: &Catalogue,
+        outputs: Option<&mut dyn ReadOutputs>,
+    ) -> Result<Self, LoadError> {
         let text = read_yaml(path).map_err(|source| LoadError::Read {
             path: path.to_path_buf(),
             source,
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
-        Self::parse(&path.display().to_string(), &text, base, catalogue)
+        Self::read(&path.display().to_string(), &text, base, catalogue, outputs)
             .map_err(LoadError::Rejected)
     }
 
@@ -309,7 +351,7 @@ impl LineConfig {
 impl Port {
     /// A Modbus TCP server at `address`, which must be `host:port` (as a bus file's `tcp`).
     pub fn tcp(address: &str) -> Result<Self, String> {
-        if reader::has_port(address) {
+        if reading::has_port(address) {
             Ok(Self::Tcp(address.to_owned()))
         } else {
             Err(format!("`tcp` needs host:port, not `{address}`"))
@@ -420,7 +462,8 @@ mod tests {
     }
 
     /// Point 9 of issue 30: every key the reader takes is in the schema (`faults:` was not),
-    /// and the README shows the schema the tool prints.
+    /// and the README shows the schema the tool prints. (The outputs' keys are their crates';
+    /// `optobus-service` checks that the schema shows them.)
     #[test]
     fn the_schema_names_every_key_the_reader_takes() {
         let keys = [
@@ -432,7 +475,6 @@ mod tests {
             read::POLL_KEYS,
         ]
         .into_iter()
-        .chain(outputs::KEYS)
         .flatten();
         let schema = readme_schema();
         let missing: Vec<&str> = keys
@@ -465,6 +507,5 @@ mod tests {
         );
         assert!(file.devices[1].faults.is_some(), "the faults are read");
         assert_eq!(file.lines[1].port, Port::Simulated);
-        assert!(file.outputs.mqtt.is_some() && file.outputs.http.is_some());
     }
 }

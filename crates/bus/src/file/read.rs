@@ -7,9 +7,9 @@ use optobus_device::DeviceInfo;
 use optobus_spec::source::{Node, Span, Value};
 
 use super::measurements::Measurements;
-use super::outputs::Outputs;
+use super::outputs::ReadOutputs;
 
-use super::reader::{has_port, listen_address, Reader, HELP};
+use super::reading::{has_port, listen_address, FileReader, HELP};
 use super::{
     BusFile, DeviceConfig, GatewayConfig, LineConfig, Port, DEFAULT_GATEWAY_CLIENTS,
     DEFAULT_GATEWAY_IDLE, DEFAULT_MEASUREMENTS_UNIT,
@@ -66,7 +66,6 @@ pub(super) struct Parsed {
     pub(super) lines: Vec<Option<LineConfig>>,
     /// The devices, in file order; `None` where a device did not read whole.
     pub(super) devices: Vec<Option<DeviceConfig>>,
-    pub(super) outputs: Outputs,
     /// `None` where the measurements did not read (and said why).
     pub(super) measurements: Option<Measurements>,
     pub(super) seen: Seen,
@@ -79,7 +78,6 @@ impl Parsed {
             lines: self.lines.into_iter().collect::<Option<_>>()?,
             devices: self.devices.into_iter().collect::<Option<_>>()?,
             measurements: self.measurements?,
-            outputs: self.outputs,
         })
     }
 }
@@ -128,9 +126,13 @@ pub(super) struct DeviceSeen {
     pub(super) faults: Option<Span>,
 }
 
-impl Reader<'_> {
-    /// The whole file.
-    pub(super) fn bus(&mut self, root: &Node) -> Option<Parsed> {
+impl FileReader<'_> {
+    /// The whole file, its `outputs` read by `outputs` (left unread without one).
+    pub(super) fn bus(
+        &mut self,
+        root: &Node,
+        outputs: Option<&mut dyn ReadOutputs>,
+    ) -> Option<Parsed> {
         let top = self.mapping(root, "the bus file", TOP_KEYS)?;
         let mut lines = Vec::new();
         let mut devices = Vec::new();
@@ -171,21 +173,20 @@ impl Reader<'_> {
             }
             _ => Some(Measurements::default()),
         };
-        let outputs = match top.iter().find(|(k, _)| k.scalar() == Some("outputs")) {
-            Some((_, outputs)) if !outputs.is_null() => {
-                let names: Vec<(&str, Span)> = seen
-                    .devices
-                    .iter()
-                    .filter_map(|d| Some((d.name.as_deref()?, d.name_span)))
-                    .collect();
-                self.outputs(outputs, &names)
-            }
-            _ => Outputs::default(),
-        };
+        let outputs_node = top
+            .iter()
+            .find(|(k, _)| k.scalar() == Some("outputs"))
+            .map(|(_, node)| node)
+            .filter(|node| !node.is_null());
+        let names: Vec<(&str, Span)> = seen
+            .devices
+            .iter()
+            .filter_map(|d| Some((d.name.as_deref()?, d.name_span)))
+            .collect();
+        self.outputs(outputs_node, &names, outputs);
         Some(Parsed {
             lines,
             devices,
-            outputs,
             measurements,
             seen,
         })

@@ -8,10 +8,10 @@ use optobus_inspect::did_you_mean;
 use optobus_spec::source::{Node, Value};
 
 use super::read::{DeviceSeen, LineSeen, DEVICE_KEYS, POLL_KEYS};
-use super::reader::{parse_duration, quoted, spec_refusal, Reader, HELP, NOT_A_DURATION};
+use super::reading::{parse_duration, quoted, spec_refusal, FileReader, HELP, NOT_A_DURATION};
 use super::{DeviceConfig, PollConfig, Writable};
 
-impl Reader<'_> {
+impl FileReader<'_> {
     pub(super) fn device(
         &mut self,
         node: &Node,
@@ -45,10 +45,11 @@ impl Reader<'_> {
                 None
             }
             (None, None) => {
+                let models = format!("built-in models: {}", self.catalogue.names().join(", "));
                 self.error(
                     span,
                     "a device needs a `model` (a built-in one) or a `spec` (a spec file)",
-                    format!("built-in models: {}", self.catalogue.names().join(", ")),
+                    models,
                 );
                 None
             }

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Subcommand;
 use optobus_bus::{BusFile, LoadError};
+use optobus_service::ServiceFile;
 use serde_json::json;
 
 // Re-exported for `run` until it imports `crate::bus_file::load` itself.
@@ -56,8 +57,8 @@ fn summary(bus: &BusFile) -> String {
 /// does not pass is then refused (exit 3) with a line on stderr.
 fn check_json(path: &Path) -> Result<(), CliError> {
     let shown = path.display().to_string();
-    match BusFile::load(path, models::catalogue()) {
-        Ok(bus) => {
+    match ServiceFile::load(path, models::catalogue()) {
+        Ok(ServiceFile { bus, .. }) => {
             let polls: usize = bus.devices.iter().map(|d| d.polls.len()).sum();
             print(&pretty(&json!({
                 "file": shown,

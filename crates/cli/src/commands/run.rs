@@ -10,15 +10,15 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Args;
-use optobus_bus::{
-    BusFile, Event, Follower, GatewayMoveError, Health, HttpConfig, MeasurementEvent,
-    MetricsConfig, MqttConfig, Sample,
-};
+use optobus_bus::{BusFile, Event, Follower, GatewayMoveError, Health, MeasurementEvent, Sample};
 use optobus_device::RegisterInfo;
 use optobus_inspect::Value;
 use optobus_service::outlet::{Outlet, Sink};
 use optobus_service::recording::local_time;
-use optobus_service::{Options, Service, DRAIN_AT_END};
+use optobus_service::{
+    HttpConfig, MetricsConfig, MqttConfig, Options, OutputsConfig, Service, ServiceFile,
+    DRAIN_AT_END,
+};
 
 use crate::error::CliError;
 use crate::inputs;
@@ -69,17 +69,17 @@ pub(crate) struct RunArgs {
 }
 
 /// The outputs the command line adds to the bus file's, or overrides in it.
-fn command_line_outputs(bus: &mut BusFile, args: &RunArgs) -> Result<(), CliError> {
+fn command_line_outputs(outputs: &mut OutputsConfig, args: &RunArgs) -> Result<(), CliError> {
     if let Some(broker) = &args.mqtt {
         let given =
             MqttConfig::for_broker(broker).map_err(|e| CliError::new(format!("--mqtt: {e}")))?;
-        match bus.outputs.mqtt.as_mut() {
+        match outputs.mqtt.as_mut() {
             Some(mqtt) => (mqtt.host, mqtt.port) = (given.host, given.port),
-            None => bus.outputs.mqtt = Some(given),
+            None => outputs.mqtt = Some(given),
         }
     }
     if args.homeassistant {
-        let mqtt = bus.outputs.mqtt.as_mut().ok_or_else(|| {
+        let mqtt = outputs.mqtt.as_mut().ok_or_else(|| {
             CliError::new(
                 "--homeassistant needs a broker: give --mqtt HOST:PORT or `mqtt` in the bus file",
             )
@@ -88,13 +88,13 @@ fn command_line_outputs(bus: &mut BusFile, args: &RunArgs) -> Result<(), CliErro
             .get_or_insert_with(|| "homeassistant".to_owned());
     }
     if let Some(address) = args.http {
-        match bus.outputs.http.as_mut() {
+        match outputs.http.as_mut() {
             Some(http) => http.listen = address,
-            None => bus.outputs.http = Some(HttpConfig::new(address)),
+            None => outputs.http = Some(HttpConfig::new(address)),
         }
     }
     if let Some(address) = &args.prometheus {
-        bus.outputs.metrics = Some(
+        outputs.metrics = Some(
             MetricsConfig::for_address(address)
                 .map_err(|e| CliError::new(format!("--prometheus: {e}")))?,
         );
@@ -320,13 +320,13 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
     if !std::io::stdout().is_terminal() || json {
         crate::log::show_operations();
     }
-    let mut bus_file = match &args.file {
+    let mut file = match &args.file {
         Some(path) => {
-            let mut bus = crate::bus_file::load(path)?;
+            let mut file = crate::bus_file::load_with_outputs(path)?;
             if let Some(address) = args.gateway {
-                move_gateway(&mut bus, address)?;
+                move_gateway(&mut file.bus, address)?;
             }
-            bus
+            file
         }
         None if args.demo => {
             let mut bus = optobus_service::demo::bus(models::catalogue())
@@ -334,7 +334,7 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
             if let Some(address) = args.gateway {
                 move_gateway(&mut bus, address)?;
             }
-            bus
+            ServiceFile::from(bus)
         }
         None => {
             let hint = "`optobus run --demo` runs a built-in bus of simulated sensors, one of \
@@ -345,13 +345,13 @@ pub(crate) async fn run(json: bool, args: &RunArgs) -> Result<(), CliError> {
             .hint(hint));
         }
     };
-    command_line_outputs(&mut bus_file, args)?;
-    let mut view = TerminalView::new(&bus_file);
-    let (lines, devices) = (bus_file.lines.len(), bus_file.devices.len());
+    command_line_outputs(&mut file.outputs, args)?;
+    let mut view = TerminalView::new(&file.bus);
+    let (lines, devices) = (file.bus.lines.len(), file.bus.devices.len());
     let options = Options {
         record: args.record.clone(),
     };
-    let mut service = Service::start(bus_file, options, Arc::new(|text: &str| note!("{text}")))
+    let mut service = Service::start(file, options, Arc::new(|text: &str| note!("{text}")))
         .await
         .map_err(|e| CliError::failed(e.to_string()))?;
     let header = format!(

@@ -7,9 +7,9 @@ use std::time::Duration;
 
 use clap::Args;
 use optobus_bus::file::Measurements;
-use optobus_bus::{BusFile, DeviceConfig, HttpConfig, LineConfig, Outputs, PollConfig, Port};
+use optobus_bus::{BusFile, DeviceConfig, LineConfig, PollConfig, Port};
 use optobus_device::DeviceInfo;
-use optobus_service::{Options, Service};
+use optobus_service::{HttpConfig, Options, OutputsConfig, Service, ServiceFile};
 
 use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
@@ -65,7 +65,6 @@ fn one_device(global: &Global, every: Duration) -> Result<BusFile, CliError> {
         lines: vec![line],
         devices: vec![one],
         measurements: Measurements::default(),
-        outputs: Outputs::default(),
     })
 }
 
@@ -74,7 +73,7 @@ pub(crate) async fn run(global: &Global, args: &UiArgs) -> Result<(), CliError> 
         || global.spec.is_some()
         || global.target.addressed().is_some()
         || std::env::var_os(crate::connect::MODEL_VARIABLE).is_some();
-    let mut file = if addressed {
+    let bus = if addressed {
         one_device(global, args.every)?
     } else {
         let mut demo = optobus_service::demo::bus(models::catalogue())
@@ -86,8 +85,9 @@ pub(crate) async fn run(global: &Global, args: &UiArgs) -> Result<(), CliError> 
         demo
     };
     // The console alone: the bus's other outputs are `optobus run`'s.
-    file.outputs = Outputs::default();
-    file.outputs.http = Some(HttpConfig::new(args.http));
+    let mut outputs = OutputsConfig::default();
+    outputs.http = Some(HttpConfig::new(args.http));
+    let file = ServiceFile { bus, outputs };
     crate::log::show_operations();
     let service = Service::start(
         file,

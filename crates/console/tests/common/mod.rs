@@ -10,8 +10,9 @@ pub use std::time::Duration;
 pub use axum::body::Body;
 pub use axum::http::{Request, StatusCode};
 pub use axum::Router;
-pub use optobus_bus::{Bus, BusFile, Catalogue, HttpConfig, Running};
+pub use optobus_bus::{Bus, BusFile, Catalogue, Running};
 pub use optobus_console::Console;
+pub use optobus_console::HttpConfig;
 pub use serde_json::{json, Value};
 pub use tower::ServiceExt;
 

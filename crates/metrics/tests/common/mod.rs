@@ -9,7 +9,7 @@ pub use std::time::Duration;
 
 pub use optobus_bus::{Bus, BusFile, Catalogue, Event};
 pub use optobus_inspect::Value;
-pub use optobus_metrics::{Exporter, Metrics, Reading, SourceError};
+pub use optobus_metrics::{Exporter, Metrics, MetricsConfig, Reading, SourceError};
 pub use tokio::io::{AsyncReadExt, AsyncWriteExt};
 pub use tokio::sync::broadcast::error::RecvError;
 
@@ -24,25 +24,30 @@ outputs:
 ";
 
 pub fn file() -> BusFile {
+    with_metrics().0
+}
+
+/// The bus file [`BUS`] and its `metrics` output's settings.
+pub fn with_metrics() -> (BusFile, MetricsConfig) {
     let catalogue = Catalogue::new([&optobus_p_series::DEVICE, &optobus_ccs::DEVICE]);
-    BusFile::parse("bus.yaml", BUS, Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    let mut metrics = None;
+    let file = BusFile::parse_with("bus.yaml", BUS, Path::new("."), &catalogue, &mut metrics)
+        .unwrap_or_else(|e| panic!("{}", e.render()));
+    (file, metrics.expect("metrics are on"))
 }
 
 /// An exporter of `bus`'s events (a bus of [`file`]) on the `metrics` output's address.
 pub async fn exporter(bus: &Bus) -> Exporter {
-    let file = file();
-    let config = file.outputs.metrics.as_ref().expect("metrics are on");
-    Exporter::start(config, &file, bus.subscribe())
+    let (file, config) = with_metrics();
+    Exporter::start(&config, &file, bus.subscribe())
         .await
         .expect("listens")
 }
 
 /// An exporter of `bus`'s events (a bus of [`file`]) whose listener has the limits `limits`.
 pub async fn exporter_with_limits(bus: &Bus, limits: optobus_http::Limits) -> Exporter {
-    let file = file();
-    let config = file.outputs.metrics.as_ref().expect("metrics are on");
-    Exporter::start_with_limits(config, &file, bus.subscribe(), limits)
+    let (file, config) = with_metrics();
+    Exporter::start_with_limits(&config, &file, bus.subscribe(), limits)
         .await
         .expect("listens")
 }

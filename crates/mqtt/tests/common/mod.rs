@@ -30,11 +30,33 @@ const MODELS: [&optobus_device::DeviceInfo; 4] = [
     &optobus_rangefinder::DEVICE,
 ];
 
-/// `text` read as a bus file; a mistake in it fails the test with the rendered message.
-pub fn parse(text: &str) -> optobus_bus::BusFile {
+/// A bus file and the settings of its `mqtt` output.
+#[derive(Clone, Debug)]
+pub struct File {
+    /// The lines, devices and measurements.
+    pub bus: optobus_bus::BusFile,
+    /// `outputs: mqtt:`, if the file has it.
+    pub mqtt: Option<optobus_mqtt::MqttConfig>,
+}
+
+/// `text` read as a bus file with its `mqtt` output; a mistake in it fails the test with the
+/// rendered message.
+pub fn parse(text: &str) -> File {
+    try_parse(text).unwrap_or_else(|e| panic!("{}", e.render()))
+}
+
+/// `text` read as a bus file with its `mqtt` output, or every problem of it.
+pub fn try_parse(text: &str) -> Result<File, Box<optobus_bus::Rejected>> {
     let catalogue = optobus_bus::Catalogue::new(MODELS);
-    optobus_bus::BusFile::parse("bus.yaml", text, std::path::Path::new("."), &catalogue)
-        .unwrap_or_else(|e| panic!("{}", e.render()))
+    let mut mqtt = None;
+    let bus = optobus_bus::BusFile::parse_with(
+        "bus.yaml",
+        text,
+        std::path::Path::new("."),
+        &catalogue,
+        &mut mqtt,
+    )?;
+    Ok(File { bus, mqtt })
 }
 
 /// The text of a bus file with one device on a simulated line (115200 baud, any frame
@@ -64,13 +86,13 @@ pub fn on_a_simulated_line(rest: &str) -> String {
 /// running bus's handle (the publisher subscribes before the bus starts: it misses nothing).
 pub fn start_taking_writes(
     bus: optobus_bus::Bus,
-    file: &optobus_bus::BusFile,
+    file: &File,
 ) -> (optobus_bus::Running, optobus_mqtt::Publisher) {
     let events = bus.subscribe();
     let running = bus.start().expect("starts");
     let publisher = optobus_mqtt::Publisher::start(
-        file.outputs.mqtt.as_ref().expect("the file has `mqtt`"),
-        file,
+        file.mqtt.as_ref().expect("the file has `mqtt`"),
+        &file.bus,
         events,
         Some(running.handle()),
     )
@@ -101,13 +123,13 @@ impl Drop for Polling {
 /// names (taking no writes), and a receiver of the bus's events; both subscribe before the
 /// bus starts.
 pub fn start_publishing(
-    file: &optobus_bus::BusFile,
+    file: &File,
 ) -> (
     optobus_bus::Running,
     optobus_mqtt::Publisher,
     tokio::sync::broadcast::Receiver<optobus_bus::Event>,
 ) {
-    let bus = optobus_bus::Bus::new(file.clone());
+    let bus = optobus_bus::Bus::new(file.bus.clone());
     let events = bus.subscribe();
     let publisher = publish(file, &bus);
     let running = bus.start().expect("starts");
@@ -116,10 +138,10 @@ pub fn start_publishing(
 
 /// A publisher of `bus`'s samples to the broker its file's `mqtt` output names, taking no
 /// writes.
-pub fn publish(file: &optobus_bus::BusFile, bus: &optobus_bus::Bus) -> optobus_mqtt::Publisher {
+pub fn publish(file: &File, bus: &optobus_bus::Bus) -> optobus_mqtt::Publisher {
     optobus_mqtt::Publisher::start(
-        file.outputs.mqtt.as_ref().expect("the file has `mqtt`"),
-        file,
+        file.mqtt.as_ref().expect("the file has `mqtt`"),
+        &file.bus,
         bus.subscribe(),
         None,
     )

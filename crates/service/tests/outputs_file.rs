@@ -1,15 +1,22 @@
-//! The `outputs` of a bus file: MQTT and metrics read into plain settings, and every problem
-//! of them reported with the rest of the file, located.
+//! The `outputs` of a bus file as a service reads them: each output's section read into its
+//! settings by the output's crate, and every problem of them reported with the rest of the
+//! file, located. (Moved from the bus crate's tests with the settings.)
 
 use std::net::SocketAddr;
 use std::path::Path;
 use std::time::Duration;
 
-use optobus_bus::{BusFile, Catalogue, SecretSource};
+use optobus_bus::Catalogue;
+use optobus_mqtt::SecretSource;
+use optobus_service::{ServiceFile, SECTIONS};
 
-fn parse(text: &str) -> Result<BusFile, String> {
+fn parse_in(base: &str, text: &str) -> Result<ServiceFile, String> {
     let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);
-    BusFile::parse("bus.yaml", text, Path::new("/etc/optobus"), &catalogue).map_err(|e| e.render())
+    ServiceFile::parse("bus.yaml", text, Path::new(base), &catalogue).map_err(|e| e.render())
+}
+
+fn parse(text: &str) -> Result<ServiceFile, String> {
+    parse_in("/etc/optobus", text)
 }
 
 const BUS: &str = "
@@ -75,7 +82,7 @@ fn mqtt_defaults_are_plain_tcp_qos_1_and_no_discovery() {
     );
     assert_eq!(
         (mqtt.qos, mqtt.queue),
-        (1, optobus_bus::file::outputs::DEFAULT_MQTT_QUEUE)
+        (1, optobus_mqtt::settings::DEFAULT_MQTT_QUEUE)
     );
     assert_eq!(
         (mqtt.ca, mqtt.username, mqtt.homeassistant),
@@ -134,51 +141,52 @@ outputs:
 }
 
 #[test]
-fn a_password_written_in_the_file_is_refused_without_being_shown() {
-    let rendered = parse(&format!(
-        "{BUS}outputs:\n  mqtt:\n    broker: localhost\n    username: gateway\n    password: hunter2\n"
-    ))
-    .expect_err("a password is never written in the file");
-    assert!(
-        rendered.contains("`password` is never written in the bus file"),
-        "{rendered}"
-    );
-    assert!(
-        !rendered.contains("hunter2"),
-        "the password is shown:\n{rendered}"
-    );
-}
-
-#[test]
-fn secret_sources_do_not_show_a_written_user_name_in_debug() {
-    let shown = format!("{:?}", SecretSource::Text("gateway".into()));
-    assert!(!shown.contains("gateway"), "{shown}");
-    assert_eq!(
-        format!("{:?}", SecretSource::Env("MQTT_PASSWORD".into())),
-        "Env(\"MQTT_PASSWORD\")"
-    );
-}
-
-#[test]
-fn homeassistant_yes_is_refused_rather_than_taken_for_a_prefix() {
-    // Found in the README walk: `yes` passed `bus check` and became the discovery prefix
-    // `yes`, so Home Assistant saw no entity.
-    for word in ["yes", "no", "on", "Off"] {
-        let rendered = parse(&format!(
-            "{BUS}outputs:\n  mqtt:\n    broker: localhost\n    homeassistant: {word}\n"
-        ))
-        .expect_err("a YAML 1.1 boolean is no prefix");
-        assert!(
-            rendered.contains(&format!(
-                "`homeassistant: {word}` reads as a discovery prefix `{word}`"
-            )) && rendered.contains("write `true`"),
-            "{rendered}"
-        );
+fn a_bad_console_address_key_or_origin_is_located() {
+    let rendered = parse_in(
+        ".",
+        "
+lines: [{ name: a, simulated: true }]
+devices: [{ name: head, model: p-series }]
+outputs:
+  http: { listen: nowhere, tokens: x, origins: [\"javascript:alert(1)\"] }
+  ftp: 21
+",
+    )
+    .expect_err("bad outputs");
+    for expected in [
+        "`http` has no key `tokens`",
+        "`nowhere` is no address to listen on",
+        "`javascript:alert(1)` is no origin",
+        "`outputs` has no key `ftp`",
+        "bus.yaml:5:19",
+    ] {
+        assert!(rendered.contains(expected), "{expected}: {rendered}");
     }
-    let file = parse(&format!(
-        "{BUS}outputs:\n  mqtt:\n    broker: localhost\n    homeassistant: ha\n"
-    ))
-    .unwrap();
-    let mqtt = file.outputs.mqtt.unwrap();
-    assert_eq!(mqtt.homeassistant.as_deref(), Some("ha"));
+}
+
+/// The schema `optobus bus schema` prints names every section of `outputs` and every key of
+/// each (each output's crate gives its own), as the bus crate checks for its own keys.
+#[test]
+fn the_schema_names_every_output_and_every_key_of_each() {
+    let keys = [
+        &SECTIONS[..],
+        optobus_mqtt::settings::KEYS,
+        optobus_metrics::settings::KEYS,
+        optobus_console::settings::KEYS,
+    ];
+    let schema = optobus_bus::file::SCHEMA;
+    let missing: Vec<&str> = keys
+        .into_iter()
+        .flatten()
+        .filter(|key| !schema.contains(&format!("{key}:")))
+        .copied()
+        .collect();
+    assert!(missing.is_empty(), "the schema lacks {missing:?}");
+}
+
+/// The README walk: `optobus bus schema`'s example passes its own check, its outputs too.
+#[test]
+fn the_schemas_example_passes_with_its_outputs() {
+    let file = parse_in(".", optobus_bus::file::SCHEMA).unwrap_or_else(|e| panic!("{e}"));
+    assert!(file.outputs.mqtt.is_some() && file.outputs.http.is_some());
 }

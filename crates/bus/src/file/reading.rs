@@ -1,22 +1,29 @@
 //! The reading kit of the bus file: a reader that collects every problem with its place, and
 //! what it reads values with (mappings with known keys, lists, text, numbers, durations,
-//! addresses). What the bus file means is read with it in `read.rs` and `outputs/`.
+//! addresses). What the bus file means is read with it in `read.rs`; it is public so that the
+//! crates of the outputs read their sections of `outputs:` with it, in the same words.
 
+use std::ops::{Deref, DerefMut};
 use std::path::Path;
 use std::time::Duration;
 
 use jiff::SignedDuration;
 use optobus_inspect::did_you_mean;
 use optobus_spec::reading::{check_keys, KeyProblem};
-use optobus_spec::source::{FileKind, Node, Span};
-use optobus_spec::{Diagnostic, SpecError};
+use optobus_spec::source::FileKind;
+use optobus_spec::SpecError;
 
 use super::MAX_DURATION;
 use optobus_spec::Catalogue;
 
+/// The positioned tree the kit reads and the problems it reports, for the outputs' readers.
+pub use optobus_spec::source::{Node, Span, Value};
+pub use optobus_spec::Diagnostic;
+
 /// Rule name of reading errors.
-pub(super) const RULE: &str = "bus-file";
-pub(super) const HELP: &str =
+pub const RULE: &str = "bus-file";
+/// The help of a reading error that has none of its own.
+pub const HELP: &str =
     "the bus file schema lists the keys a bus file takes (`optobus bus schema` prints it)";
 
 /// What the bus file's syntax errors call it.
@@ -29,11 +36,31 @@ pub(super) const BUS_FILE: FileKind = FileKind {
 /// Why a text is not a duration at all (as opposed to one out of bounds).
 pub(super) const NOT_A_DURATION: &str = "is not a duration";
 
-/// Reads the bus file's tree, collecting every problem.
-pub(super) struct Reader<'a> {
+/// Reads part of a bus file's tree, collecting every problem with its place (as a
+/// [`Diagnostic`] of rule [`RULE`]).
+pub struct Reader<'a> {
     pub(super) base: &'a Path,
-    pub(super) catalogue: &'a Catalogue,
     pub(super) diagnostics: Vec<Diagnostic>,
+}
+
+/// The reader of the bus file's own parts: the kit and the models its devices name.
+pub(super) struct FileReader<'a> {
+    pub(super) kit: Reader<'a>,
+    pub(super) catalogue: &'a Catalogue,
+}
+
+impl<'a> Deref for FileReader<'a> {
+    type Target = Reader<'a>;
+
+    fn deref(&self) -> &Self::Target {
+        &self.kit
+    }
+}
+
+impl DerefMut for FileReader<'_> {
+    fn deref_mut(&mut self) -> &mut Self::Target {
+        &mut self.kit
+    }
 }
 
 /// The diagnostic for an empty file.
@@ -49,28 +76,48 @@ pub(super) fn incomplete() -> Diagnostic {
     Diagnostic::at_start(RULE, "the bus file did not read whole").help(HELP)
 }
 
-impl<'a> Reader<'a> {
+impl<'a> FileReader<'a> {
     pub(super) fn new(base: &'a Path, catalogue: &'a Catalogue) -> Self {
         Self {
-            base,
+            kit: Reader::new(base),
             catalogue,
+        }
+    }
+}
+
+impl<'a> Reader<'a> {
+    /// A reader of a bus file in the folder `base` (paths the file gives are relative to it).
+    pub fn new(base: &'a Path) -> Self {
+        Self {
+            base,
             diagnostics: Vec::new(),
         }
     }
 
-    pub(super) fn error(
-        &mut self,
-        span: Span,
-        message: impl Into<String>,
-        help: impl Into<String>,
-    ) {
+    /// The bus file's folder.
+    pub fn base(&self) -> &'a Path {
+        self.base
+    }
+
+    /// The problems reported so far, in the order they were.
+    pub fn diagnostics(&self) -> &[Diagnostic] {
+        &self.diagnostics
+    }
+
+    /// Reports a problem at `span`, with a help line.
+    pub fn error(&mut self, span: Span, message: impl Into<String>, help: impl Into<String>) {
         self.diagnostics
             .push(Diagnostic::at_span(RULE, span, message).help(help));
     }
 
+    /// Reports `diagnostic` as it is.
+    pub fn report(&mut self, diagnostic: Diagnostic) {
+        self.diagnostics.push(diagnostic);
+    }
+
     /// The entries of `node`, checked against `allowed` keys (each unknown or repeated key
     /// reported), or an error saying `what` must be a mapping.
-    pub(super) fn mapping<'n>(
+    pub fn mapping<'n>(
         &mut self,
         node: &'n Node,
         what: &str,
@@ -110,7 +157,7 @@ impl<'a> Reader<'a> {
     }
 
     /// The items of a list, or an error.
-    pub(super) fn list<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n [Node]> {
+    pub fn list<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n [Node]> {
         let items = node.items();
         if items.is_none() {
             self.error(
@@ -122,7 +169,8 @@ impl<'a> Reader<'a> {
         items
     }
 
-    pub(super) fn text<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n str> {
+    /// The text of a scalar, or an error.
+    pub fn text<'n>(&mut self, node: &'n Node, what: &str) -> Option<&'n str> {
         let text = node.scalar();
         if text.is_none() {
             self.error(
@@ -134,7 +182,8 @@ impl<'a> Reader<'a> {
         text
     }
 
-    pub(super) fn number<T: TryFrom<u64>>(
+    /// A whole number (decimal or `0x` hex) within `range`, or an error.
+    pub fn number<T: TryFrom<u64>>(
         &mut self,
         node: &Node,
         what: &str,
@@ -158,7 +207,8 @@ impl<'a> Reader<'a> {
         }
     }
 
-    pub(super) fn boolean(&mut self, node: &Node, what: &str) -> Option<bool> {
+    /// `true` or `false`, or an error.
+    pub fn boolean(&mut self, node: &Node, what: &str) -> Option<bool> {
         match node.scalar() {
             Some("true") => Some(true),
             Some("false") => Some(false),
@@ -170,7 +220,7 @@ impl<'a> Reader<'a> {
     }
 
     /// A duration like `200ms`, `1.5s`, `1s 500ms`, within `min ..= MAX_DURATION`.
-    pub(super) fn duration(&mut self, node: &Node, what: &str, min: Duration) -> Option<Duration> {
+    pub fn duration(&mut self, node: &Node, what: &str, min: Duration) -> Option<Duration> {
         let text = self.text(node, what)?;
         match parse_duration(text) {
             Ok(duration) if duration < min => {
@@ -226,7 +276,7 @@ pub(super) fn quoted(names: &[&str]) -> String {
 }
 
 /// A port alone (on 127.0.0.1), `localhost:PORT`, or `IP:PORT`.
-pub(super) fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
+pub fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
     let text = text.trim();
     if let Ok(port) = text.parse::<u16>() {
         return Some(std::net::SocketAddr::from(([127, 0, 0, 1], port)));
@@ -240,7 +290,8 @@ pub(super) fn listen_address(text: &str) -> Option<std::net::SocketAddr> {
     text.parse().ok()
 }
 
-pub(super) fn has_port(address: &str) -> bool {
+/// Whether `address` ends in `:PORT` after a host (a port from 1 to 65535).
+pub fn has_port(address: &str) -> bool {
     address
         .rsplit_once(':')
         .is_some_and(|(host, port)| !host.is_empty() && port.parse::<u16>().is_ok_and(|p| p > 0))
