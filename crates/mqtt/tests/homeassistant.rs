@@ -401,8 +401,7 @@ outputs:
         Duration::ZERO
     );
     let rejected = common::try_parse(&text("{ bottom: 1s }"))
-        .err()
-        .expect("refused")
+        .expect_err("refused")
         .render();
     assert!(
         rejected.contains("`state_every` has no key `bottom`") && rejected.contains("`c`"),
