@@ -40,6 +40,7 @@ mod error;
 pub mod frames;
 #[cfg(feature = "tokio-modbus")]
 mod modbus;
+mod no_wait;
 mod rtu;
 mod serial;
 mod shared;

@@ -2,7 +2,7 @@
 
 use std::future::poll_fn;
 use std::pin::Pin;
-use std::task::Poll;
+use std::task::{Context, Poll};
 use std::time::Duration;
 
 use optobus_codec::passthrough::{self, PassPdu};
@@ -14,6 +14,7 @@ use tokio::time::{timeout_at, Instant};
 
 use crate::error::Error;
 use crate::frames;
+use crate::no_wait::nobody;
 use crate::timing::{self, deadline_from, PreciseTimer};
 use crate::transact::{Reply, Transact};
 use crate::transport::DEFAULT_TIMEOUT;
@@ -260,25 +261,22 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
     }
 
     /// Takes in bytes already waiting, without waiting for more; `true` if there were any.
-    async fn discard_waiting(&mut self) -> Result<bool, Error> {
+    /// It polls with a waker that does nothing, which tells a stream that no read will wait
+    /// (the transport's serial port then stays out of tokio's reactor).
+    fn discard_waiting(&mut self) -> Result<bool, Error> {
         let mut discarded = false;
+        let mut nobody = Context::from_waker(nobody());
         loop {
             let mut buf = ReadBuf::new(&mut self.buffer[..]);
-            let stream = &mut self.stream;
-            let polled = poll_fn(|cx| match Pin::new(&mut *stream).poll_read(cx, &mut buf) {
-                Poll::Ready(result) => Poll::Ready(Some(result)),
-                Poll::Pending => Poll::Ready(None),
-            })
-            .await;
-            match polled {
-                None => return Ok(discarded),
-                Some(Ok(())) if buf.filled().is_empty() => return Err(Error::Closed),
-                Some(Ok(())) => {
+            match Pin::new(&mut self.stream).poll_read(&mut nobody, &mut buf) {
+                Poll::Pending => return Ok(discarded),
+                Poll::Ready(Ok(())) if buf.filled().is_empty() => return Err(Error::Closed),
+                Poll::Ready(Ok(())) => {
                     frames::discarded(buf.filled());
                     discarded = true;
                     self.last_activity = Some(Instant::now());
                 }
-                Some(Err(error)) => return Err(error.into()),
+                Poll::Ready(Err(error)) => return Err(error.into()),
             }
         }
     }
@@ -300,7 +298,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
     async fn recover(&mut self, unsettled: Unsettled) -> Result<(), Error> {
         let Unsettled { since, quiet } = unsettled;
         let mut heard = since;
-        if self.discard_waiting().await? {
+        if self.discard_waiting()? {
             heard = Instant::now();
         }
         loop {
@@ -344,7 +342,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
         match self.unsettled {
             Some(unsettled) => self.recover(unsettled).await?,
             None => {
-                self.discard_waiting().await?;
+                self.discard_waiting()?;
             }
         }
         if let Some(last) = self.last_activity {
