@@ -56,6 +56,7 @@ pub use error::Error;
 #[cfg(feature = "tokio-modbus")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tokio-modbus")))]
 pub use modbus::ModbusContext;
+pub use no_wait::nobody_waits;
 pub use rtu::{RtuClient, RtuConfig};
 pub use serial::SerialSettings;
 #[cfg(feature = "serial")]

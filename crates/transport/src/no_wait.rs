@@ -12,12 +12,14 @@ impl Wake for Nobody {
 
 static NOBODY: LazyLock<Waker> = LazyLock::new(|| Waker::from(Arc::new(Nobody)));
 
-/// The waker of a poll after which nobody waits.
-pub(crate) fn nobody() -> &'static Waker {
+/// The waker to poll a stream with when no read will wait for what the poll did not find
+/// (the RTU client's look for stray bytes): the transport's serial port then stays out of
+/// tokio's reactor, where bytes arriving would wake the thread each.
+pub fn nobody_waits() -> &'static Waker {
     &NOBODY
 }
 
-/// `waker` is [`nobody`]'s (compared by its data, which is unique to it; a waker's vtable
+/// `waker` is [`nobody_waits`]'s (compared by its data, which is unique to it; a waker's vtable
 /// address need not be).
 #[cfg(all(feature = "serial", unix))]
 pub(crate) fn is_nobody(waker: &Waker) -> bool {

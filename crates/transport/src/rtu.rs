@@ -14,7 +14,7 @@ use tokio::time::{timeout_at, Instant};
 
 use crate::error::Error;
 use crate::frames;
-use crate::no_wait::nobody;
+use crate::no_wait::nobody_waits;
 use crate::timing::{self, deadline_from, PreciseTimer};
 use crate::transact::{Reply, Transact};
 use crate::transport::DEFAULT_TIMEOUT;
@@ -265,7 +265,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> RtuClient<S> {
     /// (the transport's serial port then stays out of tokio's reactor).
     fn discard_waiting(&mut self) -> Result<bool, Error> {
         let mut discarded = false;
-        let mut nobody = Context::from_waker(nobody());
+        let mut nobody = Context::from_waker(nobody_waits());
         loop {
             let mut buf = ReadBuf::new(&mut self.buffer[..]);
             match Pin::new(&mut self.stream).poll_read(&mut nobody, &mut buf) {
