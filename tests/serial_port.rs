@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::pin::Pin;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
-use std::task::Poll;
+use std::task::{Context, Poll};
 use std::time::Duration;
 
 use optobus_codec::LineFormat;
@@ -142,6 +142,41 @@ fn a_read_given_up_lets_bytes_arriving_unread_wake_nobody() {
             .await
             .unwrap();
         port.flush().await.unwrap();
+        let before = unparks.load(Ordering::Relaxed);
+        // The reply takes 130 ms to cross a 9600 baud line.
+        tokio::time::sleep(Duration::from_millis(600)).await;
+        let while_unread = unparks.load(Ordering::Relaxed) - before;
+        let mut reply = [0; 125];
+        timeout(Duration::from_secs(10), port.read_exact(&mut reply))
+            .await
+            .expect("the reply within 10 s")
+            .unwrap();
+        assert_eq!(reply.to_vec(), expected_reply(&simulator));
+        assert!(
+            while_unread < 10,
+            "the runtime's thread woke {while_unread} times while 125 bytes arrived unread"
+        );
+    });
+}
+
+/// Issue 28, point 9: a look for bytes that nobody will wait for (polled with
+/// `nobody_waits()`, as the RTU client looks for stray bytes before a request) leaves the port
+/// out of the reactor: the reply then arriving a character at a time wakes nobody, and no
+/// system calls go to putting the port in and out of epoll. Before, the look registered the
+/// port and each of the 125 characters woke the thread until a read with no room gave it up.
+#[test]
+fn a_look_nobody_waits_for_leaves_the_port_out_of_the_reactor() {
+    let (path, simulator, _stop) = served_ccs();
+    let (runtime, unparks) = runtime_counting_wakes();
+    runtime.block_on(async {
+        let mut port = open(&path);
+        let mut byte = [0; 1];
+        let mut nobody = Context::from_waker(optobus_transport::nobody_waits());
+        let looked = Pin::new(&mut port).poll_read(&mut nobody, &mut ReadBuf::new(&mut byte));
+        assert!(looked.is_pending(), "a byte to read before any request");
+        port.write_all(&rtu_frame(1, &holding(0, 60)))
+            .await
+            .unwrap();
         let before = unparks.load(Ordering::Relaxed);
         // The reply takes 130 ms to cross a 9600 baud line.
         tokio::time::sleep(Duration::from_millis(600)).await;

@@ -11,8 +11,12 @@
 //! on the transport's `SerialStream`, which is in the reactor only while a read waits, each
 //! awaiting a reply's first byte as it comes (the own timerfd is the default); then the own
 //! timerfd with each reply slept through by its device's learned turnaround and read in one
-//! go ("learned turnaround", `timing::set_sleep_through_replies`), and the same with the end of t3.5 left whole to the kernel's timer ("learned,
-//! no gap spin"). For each it prints the
+//! go ("learned turnaround", `timing::set_sleep_through_replies`), and the same with the end of
+//! t3.5 left whole to the kernel's timer ("learned, no gap spin"). Last, the floor of any client
+//! that waits twice a transaction ("floor: blocking loop"): the bus's own requests, recorded
+//! from a bus run, replayed on the same pty by a blocking loop on a thread of its own (no
+//! runtime, bus or events; `clock_nanosleep` through each reply by its learned turnaround and
+//! through t3.5), its thread's CPU counted. For each it prints the
 //! process's CPU time (user + system, every thread, `getrusage`) per transaction, counted
 //! between two of the line's statistics events, the transactions per second and their share
 //! of the line limit (characters both ways plus 2 t3.5 per transaction, over the time taken),
@@ -65,6 +69,8 @@ mod linux {
         TokioSerial,
         /// The transport's `SerialStream` (what `SerialSettings::open` gives).
         Transport,
+        /// No bus: the bus's requests replayed by a blocking loop (`floor`).
+        Floor,
     }
 
     /// How the RTU client waits for a reply and for the end of t3.5.
@@ -80,7 +86,7 @@ mod linux {
         SleptThroughNoGapSpin,
     }
 
-    const WAYS: [(&str, PreciseWait, Port, Reply); 7] = [
+    const WAYS: [(&str, PreciseWait, Port, Reply); 8] = [
         (
             "spin, tokio-serial",
             PreciseWait::Spin,
@@ -122,6 +128,12 @@ mod linux {
             PreciseWait::OwnTimer,
             Port::Transport,
             Reply::SleptThroughNoGapSpin,
+        ),
+        (
+            "floor: blocking loop",
+            PreciseWait::OwnTimer,
+            Port::Floor,
+            Reply::SleptThrough,
         ),
     ];
 
@@ -312,6 +324,7 @@ mod linux {
                 .expect("open the pty");
                 bus.with_stream("bench", Tap::new(port, count))
             }
+            Port::Floor => unreachable!("the floor runs without a bus"),
             Port::TokioSerial => {
                 use tokio_serial::SerialPortBuilderExt;
                 let port = tokio_serial::new(&simulator.path, BAUD)
@@ -359,6 +372,215 @@ mod linux {
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
 
+    /// The floor of any client that waits twice a transaction (for the reply, then t3.5):
+    /// the bus's own requests, recorded from a running bus, replayed by a plain blocking loop
+    /// on a thread of its own, with no runtime, bus, events or tracing; each reply slept
+    /// through by the request's learned turnaround (`clock_nanosleep`, absolute, no timer
+    /// slack) and read in one go, the rest awaited in `poll` when it is not whole, and t3.5
+    /// kept after it in a second `clock_nanosleep`.
+    mod floor {
+        use std::os::fd::AsFd;
+        use std::os::unix::fs::OpenOptionsExt;
+        use std::time::{Duration, Instant};
+
+        use nix::fcntl::OFlag;
+        use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
+        use nix::sys::resource::{getrusage, UsageWho};
+        use nix::sys::termios::{cfmakeraw, tcgetattr, tcsetattr, SetArg};
+        use nix::sys::time::TimeSpec;
+        use nix::time::{clock_gettime, clock_nanosleep, ClockId, ClockNanosleepFlags};
+        use optobus_codec::crc::crc16;
+        use optobus_codec::LineFormat;
+
+        /// What a floor trial counted.
+        pub(super) struct Counts {
+            pub cpu: Duration,
+            pub sleeps: u64,
+            pub transactions: u64,
+            pub errors: u64,
+            pub elapsed: Duration,
+            pub bytes: u64,
+        }
+
+        fn thread_usage() -> (Duration, u64) {
+            let usage = getrusage(UsageWho::RUSAGE_THREAD).expect("getrusage");
+            let time = |t: nix::sys::time::TimeVal| {
+                Duration::from_secs(t.tv_sec() as u64) + Duration::from_micros(t.tv_usec() as u64)
+            };
+            (
+                time(usage.user_time()) + time(usage.system_time()),
+                usage.voluntary_context_switches() as u64,
+            )
+        }
+
+        fn sleep_until(deadline: Instant) {
+            let now = Instant::now();
+            if deadline <= now {
+                return;
+            }
+            let at = clock_gettime(ClockId::CLOCK_MONOTONIC).expect("clock_gettime")
+                + TimeSpec::from_duration(deadline - now);
+            while clock_nanosleep(
+                ClockId::CLOCK_MONOTONIC,
+                ClockNanosleepFlags::TIMER_ABSTIME,
+                &at,
+            )
+            .is_err()
+            {}
+        }
+
+        /// The reply's length to a register read (`FC03`/`FC04`), from its request.
+        fn reply_len(request: &[u8]) -> usize {
+            5 + 2 * usize::from(u16::from_be_bytes([request[4], request[5]]))
+        }
+
+        /// Replays `requests` in turn on the pty at `path` for `run`.
+        pub(super) fn trial(
+            path: &str,
+            requests: &[Vec<u8>],
+            format: LineFormat,
+            run: Duration,
+        ) -> Counts {
+            let port = std::fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .custom_flags((OFlag::O_NOCTTY | OFlag::O_NONBLOCK).bits())
+                .open(path)
+                .expect("open the pty");
+            let mut raw = tcgetattr(port.as_fd()).expect("tcgetattr");
+            cfmakeraw(&mut raw);
+            tcsetattr(port.as_fd(), SetArg::TCSANOW, &raw).expect("tcsetattr");
+            let mut turnarounds: Vec<Option<Duration>> = vec![None; requests.len()];
+            let mut buffer = [0u8; 260];
+            let mut last_activity = Instant::now();
+            let (cpu, sleeps) = thread_usage();
+            let started = Instant::now();
+            let mut counts = Counts {
+                cpu: Duration::ZERO,
+                sleeps: 0,
+                transactions: 0,
+                errors: 0,
+                elapsed: Duration::ZERO,
+                bytes: 0,
+            };
+            for (index, request) in requests.iter().enumerate().cycle() {
+                if started.elapsed() >= run {
+                    break;
+                }
+                let len = reply_len(request);
+                sleep_until(last_activity + format.frame_gap());
+                let written = nix::unistd::write(&port, request).expect("write");
+                assert_eq!(written, request.len(), "a request written whole");
+                let sent = Instant::now() + format.transmit_time(request.len());
+                let deadline = sent + Duration::from_millis(500);
+                let slept = turnarounds[index].map(|turnaround| {
+                    sleep_until(sent + turnaround + format.transmit_time(len));
+                });
+                let mut filled = 0;
+                let mut reads = 0;
+                while filled < len {
+                    match nix::unistd::read(&port, &mut buffer[filled..len]) {
+                        Ok(n) if n > 0 => {
+                            filled += n;
+                            reads += 1;
+                            continue;
+                        }
+                        Ok(_) => panic!("the pty closed"),
+                        Err(nix::errno::Errno::EAGAIN) => {}
+                        Err(error) => panic!("read: {error}"),
+                    }
+                    let left = deadline.saturating_duration_since(Instant::now());
+                    if left.is_zero() {
+                        break;
+                    }
+                    let timeout = PollTimeout::try_from(left.as_millis().max(1) as u32)
+                        .unwrap_or(PollTimeout::MAX);
+                    let mut fds = [PollFd::new(port.as_fd(), PollFlags::POLLIN)];
+                    poll(&mut fds, timeout).expect("poll");
+                }
+                last_activity = Instant::now();
+                // A reply found whole at once says nothing of when it was in.
+                if slept.is_none() || reads > 1 {
+                    let turnaround = last_activity
+                        .saturating_duration_since(sent)
+                        .saturating_sub(format.transmit_time(len));
+                    let known = &mut turnarounds[index];
+                    *known = Some(known.map_or(turnaround, |known| known.min(turnaround)));
+                }
+                let whole = filled == len
+                    && crc16(&buffer[..len - 2]).to_le_bytes() == buffer[len - 2..len]
+                    && buffer[0] == request[0];
+                counts.transactions += 1;
+                counts.errors += u64::from(!whole);
+                counts.bytes += (request.len() + filled) as u64;
+            }
+            let (cpu_after, sleeps_after) = thread_usage();
+            counts.cpu = cpu_after - cpu;
+            counts.sleeps = sleeps_after - sleeps;
+            counts.elapsed = started.elapsed();
+            counts
+        }
+    }
+
+    /// The bus's requests, as many as differ, recorded from a bus run for a second.
+    async fn recorded_requests(simulator: &Simulator) -> Vec<Vec<u8>> {
+        let requests = Arc::new(std::sync::Mutex::new(Vec::<Vec<u8>>::new()));
+        let recorded = Arc::clone(&requests);
+        let record = move |flow: Flow, bytes: &[u8]| {
+            let mut requests = recorded.lock().expect("not poisoned");
+            if flow == Flow::Sent && !requests.iter().any(|known| known == bytes) {
+                requests.push(bytes.to_vec());
+            }
+        };
+        let port = SerialSettings {
+            path: simulator.path.clone(),
+            line: LineFormat::new(BAUD),
+        }
+        .open()
+        .expect("open the pty");
+        let file = common::bus_file(&format!("serial: bench, baud: {BAUD}"), &devices());
+        let running = optobus_bus::Bus::new(file)
+            .with_stream("bench", Tap::new(port, record))
+            .start()
+            .expect("starts");
+        tokio::time::sleep(Duration::from_secs(1)).await;
+        drop(running);
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        let requests = requests.lock().expect("not poisoned").clone();
+        assert!(
+            requests
+                .iter()
+                .all(|request| matches!(request.get(1), Some(3 | 4)) && request.len() == 8),
+            "the bus's requests are register reads"
+        );
+        requests
+    }
+
+    /// A floor trial, counted as a bus trial is.
+    fn floor_trial(simulator: &Simulator, requests: &[Vec<u8>], totals: &mut Totals) {
+        let format = LineFormat::new(BAUD);
+        let path = simulator.path.clone();
+        let simulator_cpu = simulator.cpu_time();
+        let counts = std::thread::scope(|scope| {
+            scope
+                .spawn(|| floor::trial(&path, requests, format, Duration::from_secs(SECONDS)))
+                .join()
+                .expect("the floor's thread")
+        });
+        totals.cpu += counts.cpu;
+        totals.sleeps += counts.sleeps;
+        totals.simulator_cpu += simulator.cpu_time() - simulator_cpu;
+        totals.transactions += counts.transactions;
+        totals.errors += counts.errors;
+        totals.elapsed += counts.elapsed;
+        let ideal = format.transmit_time(counts.bytes as usize)
+            + format.frame_gap() * 2 * counts.transactions as u32;
+        totals
+            .ratios
+            .push(ideal.as_secs_f64() / counts.elapsed.as_secs_f64());
+        std::thread::sleep(Duration::from_millis(100));
+    }
+
     pub(super) fn main() {
         let Some(binary) = optobus() else {
             println!(
@@ -390,10 +612,15 @@ mod linux {
                 continue;
             }
             let simulator = Simulator::start(&binary, timed);
+            let requests = runtime.block_on(recorded_requests(&simulator));
             let mut totals: Vec<Totals> = WAYS.iter().map(|_| Totals::default()).collect();
             for _ in 0..trials {
                 for ((name, way, port, reply), totals) in WAYS.iter().zip(&mut totals) {
                     if !chosen(name) {
+                        continue;
+                    }
+                    if *port == Port::Floor {
+                        floor_trial(&simulator, &requests, totals);
                         continue;
                     }
                     set_precise_wait(*way);

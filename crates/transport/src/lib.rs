@@ -40,6 +40,7 @@ mod error;
 pub mod frames;
 #[cfg(feature = "tokio-modbus")]
 mod modbus;
+mod no_wait;
 mod rtu;
 mod serial;
 mod shared;
@@ -55,6 +56,7 @@ pub use error::Error;
 #[cfg(feature = "tokio-modbus")]
 #[cfg_attr(docsrs, doc(cfg(feature = "tokio-modbus")))]
 pub use modbus::ModbusContext;
+pub use no_wait::nobody_waits;
 pub use rtu::{RtuClient, RtuConfig};
 pub use serial::SerialSettings;
 #[cfg(feature = "serial")]

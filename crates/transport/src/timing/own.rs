@@ -105,6 +105,18 @@ impl OwnTimer {
             if rest.is_zero() {
                 return true;
             }
+            if !clock_paused() {
+                // tokio's timer beside it would cost a wake of the driver (an eventfd write
+                // and an `epoll_wait`) each time it is set earlier than the driver's next.
+                match expire(timer, rest).await {
+                    Ok(()) => continue,
+                    Err(error) => {
+                        tracing::debug!(target: "optobus_transport", "timerfd failed: {error}");
+                        self.failed = true;
+                        return false;
+                    }
+                }
+            }
             let mut expired = pin!(expire(timer, rest));
             let mut tokio = pin!(sleep_until(deadline));
             let first = poll_fn(|cx| match expired.as_mut().poll(cx) {
@@ -127,6 +139,20 @@ impl OwnTimer {
     }
 }
 
+/// tokio's test clock is paused: its time is not the system's (ahead of it once advanced,
+/// behind it once real time passed). The system clock is read second, so a running clock
+/// reads a little ahead of tokio's, never behind.
+fn clock_paused() -> bool {
+    let tokio = Instant::now().into_std();
+    let system = std::time::Instant::now();
+    tokio > system || system - tokio > PAUSE_SEEN_AFTER
+}
+
+/// How far tokio's clock may fall behind the system's between two reads before it counts as
+/// paused (a preempted thread can take that long between them; a paused clock falls behind
+/// by real time passing, and a wait under it misses tokio's timer only before that).
+const PAUSE_SEEN_AFTER: Duration = Duration::from_millis(50);
+
 /// A new non-blocking timerfd in the current runtime's reactor (which has IO).
 fn register() -> io::Result<AsyncFd<Timer>> {
     let timer = TimerFd::new(
@@ -140,7 +166,11 @@ fn register() -> io::Result<AsyncFd<Timer>> {
 }
 
 /// Arms `timer` to expire after `rest` and waits until it does (or until a stale expiry of
-/// an earlier, dropped wait is read: the caller checks the clock).
+/// an earlier, dropped wait is seen: the caller checks the clock).
+///
+/// The expiry is not read: arming the timer again resets its count, and each expiry is a new
+/// edge for the reactor's edge-triggered epoll, so clearing tokio's readiness is enough (one
+/// system call a wait saved).
 async fn expire(timer: &AsyncFd<Timer>, rest: Duration) -> io::Result<()> {
     // A zero expiration would disarm the timer.
     let rest = TimeSpec::from_duration(rest.max(Duration::from_nanos(1)));
@@ -148,16 +178,7 @@ async fn expire(timer: &AsyncFd<Timer>, rest: Duration) -> io::Result<()> {
         .get_ref()
         .0
         .set(Expiration::OneShot(rest), TimerSetTimeFlags::empty())?;
-    loop {
-        let mut ready = timer.readable().await?;
-        match ready.try_io(|timer| timer.get_ref().0.wait().map_err(io::Error::from)) {
-            Ok(result) => {
-                // Read, so no longer ready: the next wait need not find that out by a read.
-                ready.clear_ready();
-                return result;
-            }
-            // The readiness was stale and is cleared: wait for the next.
-            Err(_would_block) => continue,
-        }
-    }
+    let mut ready = timer.readable().await?;
+    ready.clear_ready();
+    Ok(())
 }
