@@ -610,3 +610,31 @@ devices: [{ name: head, model: p-series, slave: 7, poll: [{ read: measurements, 
     );
     assert!(PollConfig::new(device, "no_such_register", None).is_err());
 }
+
+#[test]
+fn a_one_device_bus_polls_the_measurements_group_as_the_file_it_stands_for() {
+    use optobus_bus::{DeviceConfig, LineConfig};
+    let file = parse(
+        "lines: [{ name: line, simulated: true, baud: 9600, parity: none, data_bits: 8, stop_bits: 1 }]
+devices: [{ name: head, model: p-series, slave: 7, poll: [{ read: measurements, every: 100ms }] }]
+",
+    )
+    .unwrap();
+    let device = &optobus_p_series::DEVICE;
+    let format = file.lines[0].format.expect("a serial format");
+    let head = DeviceConfig::new("head", device, 3, 7)
+        .polling_measurements(Duration::from_millis(100))
+        .unwrap();
+    let one = BusFile::one_device(LineConfig::new("line", Port::Simulated, format), head);
+    assert_eq!(one.lines, file.lines);
+    let (built, read) = (&one.devices[0], &file.devices[0]);
+    assert_eq!(built.line, 0);
+    let names = |device: &DeviceConfig| -> Vec<(Vec<String>, Vec<&str>)> {
+        let polls = device.polls.iter();
+        let names = |p: &optobus_bus::PollConfig| p.registers.iter().map(|r| r.name).collect();
+        polls.map(|p| (p.names.clone(), names(p))).collect()
+    };
+    assert_eq!(names(built), names(read));
+    assert_eq!(built.polls[0].every, Some(Duration::from_millis(100)));
+    assert!(one.measurements.plan.formulas.is_empty());
+}

@@ -77,6 +77,16 @@ impl CliError {
         }
     }
 
+    /// Input refused as `refusal` says, with its `hint` if it has one (a list of addresses or
+    /// rates).
+    pub(crate) fn listed(refusal: &impl fmt::Display, hint: Option<String>) -> Self {
+        let refused = Self::new(refusal.to_string());
+        match hint {
+            Some(hint) => refused.hint(hint),
+            None => refused,
+        }
+    }
+
     /// The error with what to try instead.
     pub(crate) fn hint(mut self, hint: impl Into<String>) -> Self {
         self.error = self.error.hint(hint);
@@ -121,6 +131,13 @@ impl From<optobus_inspect::ParseError> for CliError {
 impl From<optobus_driver::Error> for CliError {
     fn from(error: optobus_driver::Error) -> Self {
         driver_error(error, None)
+    }
+}
+
+/// A list of slave addresses refused before anything was sent.
+impl From<optobus_driver::scan::SlaveListError> for CliError {
+    fn from(error: optobus_driver::scan::SlaveListError) -> Self {
+        Self::listed(&error, error.hint())
     }
 }
 

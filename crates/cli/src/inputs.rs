@@ -6,13 +6,10 @@ use std::time::Duration;
 use clap::ValueEnum;
 use jiff::SignedDuration;
 use optobus_device::{CommandInfo, DeviceInfo, RegisterInfo};
+use optobus_driver::scan::{self, BaudListError};
 use optobus_driver::transport::Parity;
 
 use crate::error::CliError;
-
-/// The first and last address a Modbus device can have; 0 is the broadcast address and 248 to
-/// 255 are reserved.
-pub(crate) const SLAVES: (u8, u8) = (1, 247);
 
 /// The bounds of a duration option.
 #[derive(Clone, Copy, Debug)]
@@ -169,9 +166,6 @@ impl ParityArg {
     }
 }
 
-/// Baud rates any serial port can be asked for, with `--any-baud`.
-pub(crate) const BAUDS: (u32, u32) = (50, 4_000_000);
-
 /// `baud` (given as `option`) is one the model's manual lists, or with `any` at least a rate a
 /// serial port can run at.
 pub(crate) fn check_baud(
@@ -180,7 +174,7 @@ pub(crate) fn check_baud(
     baud: u32,
     any: bool,
 ) -> Result<(), CliError> {
-    let (min, max) = BAUDS;
+    let (min, max) = scan::BAUD_RATES;
     if !(min..=max).contains(&baud) {
         return Err(CliError::new(format!(
             "{option} {baud} is no baud rate a serial line can use: {min} to {max}"
@@ -214,71 +208,13 @@ pub(crate) fn parse_bauds(
     text: &str,
     any: bool,
 ) -> Result<Vec<u32>, CliError> {
-    let mut bauds = Vec::new();
-    for item in text.split(',').map(str::trim) {
-        if item.is_empty() {
-            return Err(CliError::new(format!("--bauds `{text}` has an empty item"))
-                .hint("e.g. --bauds 9600,115200"));
-        }
-        let baud: u32 = item
-            .parse()
-            .map_err(|_| CliError::new(format!("--bauds: `{item}` is not a baud rate")))?;
-        check_baud(device, "--bauds", baud, any)?;
-        if bauds.contains(&baud) {
-            return Err(CliError::new(format!("--bauds lists {baud} twice")));
-        }
-        bauds.push(baud);
-    }
-    Ok(bauds)
-}
-
-/// `scan --slaves 1-10,247`: addresses 1 to 247, ranges ascending, no address twice, not
-/// empty.
-pub(crate) fn parse_slaves(text: &str) -> Result<Vec<u8>, CliError> {
-    let example = "e.g. --slaves 1-10,247";
-    let (first, last) = SLAVES;
-    let address = |item: &str, part: &str| -> Result<u8, CliError> {
-        let number: u32 = part.trim().parse().map_err(|_| {
-            CliError::new(format!("--slaves: `{item}` is not an address or a range")).hint(example)
-        })?;
-        u8::try_from(number)
-            .ok()
-            .filter(|n| (first..=last).contains(n))
-            .ok_or_else(|| {
-                CliError::new(format!(
-                    "--slaves: {number} is no device address: scan {first} to {last}"
-                ))
-                .hint("0 is the broadcast address, 248 to 255 are reserved")
-            })
-    };
-    if text.trim().is_empty() {
-        return Err(CliError::new("--slaves is empty").hint(example));
-    }
-    let mut slaves: Vec<u8> = Vec::new();
-    for item in text.split(',').map(str::trim) {
-        if item.is_empty() {
-            return Err(
-                CliError::new(format!("--slaves `{text}` has an empty item")).hint(example),
-            );
-        }
-        let (from, to) = item.split_once('-').unwrap_or((item, item));
-        let (from, to) = (address(item, from)?, address(item, to)?);
-        if from > to {
-            return Err(
-                CliError::new(format!("--slaves: the range `{item}` runs backwards"))
-                    .hint(format!("write {to}-{from}")),
-            );
-        }
-        for slave in from..=to {
-            if slaves.contains(&slave) {
-                return Err(CliError::new(format!(
-                    "--slaves lists address {slave} twice (in `{item}`)"
-                )));
-            }
-            slaves.push(slave);
-        }
-    }
-    Ok(slaves)
+    scan::parse_bauds(text, "--bauds", |baud| {
+        check_baud(device, "--bauds", baud, any)
+    })
+    .map_err(|refused| match refused {
+        BaudListError::Refused(error) => error,
+        other => CliError::listed(&other, other.hint()),
+    })
 }
 
 /// What a command does, in words for a sentence (`stores the current parameters…`).

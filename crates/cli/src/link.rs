@@ -65,20 +65,8 @@ impl Target {
     /// The model's factory line format with `--baud`, `--parity`, `--data-bits` and
     /// `--stop-bits` applied.
     pub(crate) fn line_format(&self, device: &DeviceInfo) -> LineFormat {
-        let mut format = line_format(device);
-        if let Some(baud) = self.baud {
-            format.baud = baud;
-        }
-        if let Some(parity) = self.parity {
-            format.parity = parity.parity();
-        }
-        if let Some(bits) = self.data_bits {
-            format.data_bits = bits;
-        }
-        if let Some(bits) = self.stop_bits {
-            format.stop_bits = bits;
-        }
-        format
+        let parity = self.parity.map(ParityArg::parity);
+        line_format(device).changed(self.baud, parity, self.data_bits, self.stop_bits)
     }
 }
 

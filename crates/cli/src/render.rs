@@ -37,13 +37,7 @@ pub(crate) fn pretty(json: &Json) -> String {
 }
 
 /// `name  value` lines, the values aligned.
-pub(crate) fn values_text(values: &[(&'static RegisterInfo, Value)]) -> String {
-    let width = values.iter().map(|(r, _)| r.name.len()).max().unwrap_or(0);
-    values
-        .iter()
-        .map(|(r, v)| format!("{:<width$}  {v}\n", r.name))
-        .collect()
-}
+pub(crate) use optobus_inspect::values_text;
 
 /// A value for scripts ([`Value`]'s serialisation).
 pub(crate) fn value_json(value: &Value) -> Json {

@@ -128,6 +128,23 @@ impl LineFormat {
         }
     }
 
+    /// This format with each setting that is given in its place (a device's factory format
+    /// with the rate, parity, data bits or stop bits a user gives).
+    pub fn changed(
+        self,
+        baud: Option<u32>,
+        parity: Option<Parity>,
+        data_bits: Option<u8>,
+        stop_bits: Option<u8>,
+    ) -> Self {
+        Self {
+            baud: baud.unwrap_or(self.baud),
+            parity: parity.unwrap_or(self.parity),
+            data_bits: data_bits.unwrap_or(self.data_bits),
+            stop_bits: stop_bits.unwrap_or(self.stop_bits),
+        }
+    }
+
     /// Checks that the format describes a line that can carry data.
     pub const fn check(&self) -> Result<(), LineFormatError> {
         if self.baud == 0 {
@@ -192,6 +209,25 @@ mod tests {
         // 38.5 bit times.
         assert_eq!(even.frame_gap(), Duration::from_nanos(4_010_417));
         assert_eq!(even.transmit_time(8), Duration::from_nanos(9_166_667));
+    }
+
+    #[test]
+    fn a_format_changed_takes_each_setting_given_and_keeps_the_others() {
+        let factory = LineFormat {
+            parity: Parity::Even,
+            ..LineFormat::new(9_600)
+        };
+        assert_eq!(factory.changed(None, None, None, None), factory);
+        let changed = factory.changed(Some(115_200), None, Some(7), Some(2));
+        let expected = LineFormat {
+            baud: 115_200,
+            data_bits: 7,
+            parity: Parity::Even,
+            stop_bits: 2,
+        };
+        assert_eq!(changed, expected);
+        let changed = factory.changed(None, Some(Parity::None), None, None);
+        assert_eq!(changed, LineFormat::new(9_600));
     }
 
     #[test]

@@ -49,5 +49,6 @@ pub use optobus_codec::EncodeError;
 pub use parse::{base_unit, code_list, in_base_unit, parse_value, ParseError};
 pub use resolve::{resolve, resolve_one, resolve_readable, ResolveError};
 pub use value::{
-    accepted_values_text, decode_readings, decode_value, decode_values, range_text, Value,
+    accepted_values_text, decode_readings, decode_value, decode_values, range_text, values_text,
+    Value,
 };

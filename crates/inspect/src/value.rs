@@ -200,6 +200,16 @@ pub fn decode_value(register: &'static RegisterInfo, words: &[u16]) -> Value {
     }
 }
 
+/// Values as `name  value` lines, one per register, the values aligned after the longest
+/// name (what `read`, `watch` and a running bus's terminal view show).
+pub fn values_text(values: &[(&'static RegisterInfo, Value)]) -> String {
+    let width = values.iter().map(|(r, _)| r.name.len()).max().unwrap_or(0);
+    values
+        .iter()
+        .map(|(r, v)| format!("{:<width$}  {v}\n", r.name))
+        .collect()
+}
+
 /// What a register takes, as the register maps show it: its codes (`idle (0), save (1)`), each
 /// packed field's codes, or its range in its units; empty when it has none of them.
 pub fn accepted_values_text(register: &RegisterInfo) -> String {

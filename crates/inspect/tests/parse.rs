@@ -2,7 +2,8 @@
 
 use optobus_device::{DeviceInfo, RegisterInfo};
 use optobus_inspect::{
-    decode_value, parse_hex, parse_value, resolve, Error, HexError, ParseError, ResolveError,
+    decode_value, parse_hex, parse_value, resolve, values_text, Error, HexError, ParseError,
+    ResolveError,
 };
 
 const P: &DeviceInfo = &optobus_p_series::DEVICE;
@@ -293,4 +294,21 @@ fn quantities_convert_to_their_base_units_by_prefix() {
         None,
         "no base unit known"
     );
+}
+
+#[test]
+fn values_are_shown_a_line_each_aligned_after_the_longest_name() {
+    let light_power = register(P, "light_power");
+    let words = parse_value(light_power, "42.5").unwrap_or_default();
+    let distance = register(P, "distance_1");
+    let values = [
+        (light_power, decode_value(light_power, &words)),
+        (distance, decode_value(distance, &[0, 0])),
+    ];
+    let value = decode_value(distance, &[0, 0]);
+    assert_eq!(
+        values_text(&values),
+        format!("light_power  42.5 %\ndistance_1   {value}\n")
+    );
+    assert_eq!(values_text(&[]), "");
 }

@@ -9,8 +9,8 @@
 //! It also holds what such a run is made of and nothing below it owns: the
 //! [recording format](mod@recording) (writer and reader side by side), the [demo bus](mod@demo),
 //! the MQTT publisher's counts as Prometheus series ([`mqtt_metrics`]), the bounded,
-//! counted queue towards a slow writer ([`outlet`]), and the lines a run tells its operator
-//! ([`journal`]).
+//! counted queue towards a slow writer ([`outlet`]), the lines a run tells its operator
+//! ([`journal`]), and the run as a terminal shows it ([`terminal`]).
 #![forbid(unsafe_code)]
 
 pub mod demo;
@@ -20,6 +20,7 @@ pub mod mqtt_metrics;
 pub mod outlet;
 mod output;
 pub mod recording;
+pub mod terminal;
 
 use std::path::PathBuf;
 use std::sync::Arc;

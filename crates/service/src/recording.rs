@@ -25,6 +25,9 @@
 //! - a column per input, `device.register [unit]`: the value it was computed from, `NaN` when
 //!   the input had none.
 //!
+//! A buffer download (`optobus buffer`, [`buffer_csv`]) is `index,value_<unit>` and a row per
+//! value, an empty cell where the device marked the value invalid.
+//!
 //! [`read`] reads it back (and a buffer download, `index,value`) as numeric series.
 
 use std::collections::HashMap;
@@ -36,6 +39,7 @@ use std::time::SystemTime;
 
 use optobus_bus::{BusFile, MeasurementEvent, Sample};
 use optobus_device::{FieldInfo, RegisterInfo, ValueKind};
+use optobus_driver::{BufferTiming, Fixed};
 use optobus_inspect::Value;
 use optobus_spec::source::{open_limited, size_text, ReadError};
 
@@ -70,7 +74,7 @@ fn fields_of(register: &RegisterInfo) -> &'static [FieldInfo] {
 }
 
 /// One column's header: a name and, in brackets, its unit (`distance_1 [mm]`).
-fn header(name: &str, unit: Option<&str>) -> String {
+pub fn header(name: &str, unit: Option<&str>) -> String {
     match unit {
         Some(unit) => format!("{name} [{unit}]"),
         None => name.to_owned(),
@@ -374,6 +378,50 @@ impl DeviceCsv {
     }
 }
 
+/// A buffer download as CSV: `index,value_<unit>` (`index,value` without a unit), then a row
+/// per value, oldest first, its exact number or an empty cell where the device marked it
+/// invalid.
+pub fn buffer_csv(unit: &str, values: &[Option<Fixed>]) -> String {
+    let mut csv = if unit.is_empty() {
+        String::from("index,value\n")
+    } else {
+        format!("index,value_{unit}\n")
+    };
+    for (index, value) in values.iter().enumerate() {
+        let value = value.as_ref().map(Fixed::to_string);
+        csv.push_str(&format!("{index},{}\n", value.unwrap_or_default()));
+    }
+    csv
+}
+
+/// A buffer download as points for a chart: the x axis label and a point per value, at its
+/// time since the first in a unit that suits the span (`time [ms]`), or at its index
+/// (`index`) when the buffer's `timing` is unknown; `None` where a value is invalid.
+pub fn buffer_points(
+    timing: Option<BufferTiming>,
+    values: &[Option<Fixed>],
+) -> (String, Vec<(f64, Option<f64>)>) {
+    let count = values.len();
+    let last = timing.map_or(0.0, |t| t.time_of(count.saturating_sub(1)).as_secs_f64());
+    let (unit, per_second) = match last {
+        _ if timing.is_none() => ("", 1.0),
+        last if last >= 10.0 => ("s", 1.0),
+        last if last >= 0.01 => ("ms", 1e3),
+        _ => ("µs", 1e6),
+    };
+    let label = match timing {
+        Some(_) => format!("time [{unit}]"),
+        None => "index".to_owned(),
+    };
+    let x = |index: usize| match timing {
+        Some(timing) => timing.time_of(index).as_secs_f64() * per_second,
+        None => index as f64,
+    };
+    let points = values.iter().enumerate();
+    let points = points.map(|(i, v)| (x(i), v.map(Fixed::to_f64)));
+    (label, points.collect())
+}
+
 /// The largest recording [`read`] takes: 256 MiB, some three million rows of five values
 /// (hours of `optobus record` at the fastest serial line). Its points take about two and a
 /// half times the file in memory (some 700 MB at the limit); a larger file is refused rather
@@ -501,4 +549,47 @@ fn point(x: f64, cell: &str, download: bool) -> Option<(f64, Option<f64>)> {
         return None;
     }
     Some((x, cell.parse::<f64>().ok().filter(|y| y.is_finite())))
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use optobus_driver::Scale;
+
+    use super::*;
+
+    fn millimetres(raw: i64) -> Option<Fixed> {
+        Some(Fixed::new(raw, Scale::Decimal { exponent: -3 }))
+    }
+
+    #[test]
+    fn a_buffer_download_is_index_and_value_an_invalid_value_an_empty_cell() {
+        let values = [millimetres(1500), None, millimetres(-250)];
+        assert_eq!(
+            buffer_csv("mm", &values),
+            "index,value_mm\n0,1.500\n1,\n2,-0.250\n"
+        );
+        assert_eq!(buffer_csv("", &[]), "index,value\n");
+    }
+
+    #[test]
+    fn a_buffer_download_is_drawn_over_its_time_in_a_unit_that_suits_the_span() {
+        let values = [millimetres(1000), None, millimetres(3000)];
+        let (label, points) = buffer_points(None, &values);
+        assert_eq!(label, "index");
+        assert_eq!(points, [(0.0, Some(1.0)), (1.0, None), (2.0, Some(3.0))]);
+        let timing = |micros, ratio| BufferTiming {
+            interval: Duration::from_micros(micros),
+            ratio,
+        };
+        let (label, points) = buffer_points(Some(timing(5_000, 2)), &values);
+        assert_eq!(label, "time [ms]");
+        assert_eq!(points[2], (20.0, Some(3.0)));
+        let (label, points) = buffer_points(Some(timing(10, 1)), &values);
+        assert_eq!(label, "time [µs]");
+        assert_eq!(points[1], (10.0, None));
+        let (label, _) = buffer_points(Some(timing(5_000_000, 1)), &values);
+        assert_eq!(label, "time [s]");
+    }
 }

@@ -324,6 +324,16 @@ impl BusFile {
             .map_err(LoadError::Rejected)
     }
 
+    /// A bus of one line and one device on it (its line index 0), with no measurements and no
+    /// outputs: a tool's bus for a single device.
+    pub fn one_device(line: LineConfig, device: DeviceConfig) -> Self {
+        Self {
+            lines: vec![line],
+            devices: vec![DeviceConfig { line: 0, ..device }],
+            measurements: Measurements::default(),
+        }
+    }
+
     /// The devices on line `line`.
     pub fn devices_on(&self, line: usize) -> impl Iterator<Item = (usize, &DeviceConfig)> {
         self.devices
@@ -406,6 +416,18 @@ impl DeviceConfig {
             faults: None,
             writable: Writable::default(),
         }
+    }
+
+    /// The device with a poll of its measurements every `every`: the spec's `measurements`
+    /// group, or else its first group (no poll for a model without groups).
+    pub fn polling_measurements(mut self, every: Duration) -> Result<Self, String> {
+        let groups = self.device.groups;
+        let group = groups.iter().find(|g| g.name == "measurements");
+        if let Some(group) = group.or(groups.first()) {
+            let poll = PollConfig::new(self.device, group.name, Some(every))?;
+            self.polls.push(poll);
+        }
+        Ok(self)
     }
 
     /// The simulated device a `simulated: true` line puts in this device's place: its model

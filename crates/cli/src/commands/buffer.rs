@@ -7,7 +7,8 @@ use std::time::Duration;
 use clap::Args;
 use optobus_chart::{check_out, draw, Series};
 use optobus_device::{DeviceInfo, RegisterInfo};
-use optobus_driver::{BufferRefusal, BufferRequest, BufferTiming, Core, Encode, Fixed};
+use optobus_driver::{BufferRefusal, BufferRequest, Core, Encode, Fixed};
+use optobus_service::recording::{buffer_csv, buffer_points, header};
 
 use crate::connect::{DeviceArgs, Global};
 use crate::error::{driver_error, CliError};
@@ -97,34 +98,16 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
     bar.finish();
     let unit = values_register.unit.unwrap_or("");
     if let Some(path) = &args.plot {
-        let (x_label, x_of) = time_axis(timing, values.len());
-        let points = values.iter().enumerate();
-        let points = points.map(|(i, v)| (x_of(i), v.as_ref().map(|v| v.to_f64())));
-        let label = if unit.is_empty() {
-            what.to_owned()
-        } else {
-            format!("{what} [{unit}]")
-        };
-        let series = Series {
-            label,
-            points: points.collect(),
-        };
-        draw(path, &x_label, &[series])?;
+        let (x_label, points) = buffer_points(timing, &values);
+        let label = header(what, Some(unit).filter(|unit| !unit.is_empty()));
+        draw(path, &x_label, &[Series { label, points }])?;
     }
     if global.json && args.out.is_none() {
         // Exact text, as every quantity in the tool's JSON; null where invalid.
         print(&serde_json::json!({"unit": unit, "values": values}).to_string());
         return Ok(());
     }
-    let mut csv = if unit.is_empty() {
-        String::from("index,value\n")
-    } else {
-        format!("index,value_{unit}\n")
-    };
-    for (index, value) in values.iter().enumerate() {
-        let value = value.as_ref().map(Fixed::to_string);
-        csv.push_str(&format!("{index},{}\n", value.unwrap_or_default()));
-    }
+    let csv = buffer_csv(unit, &values);
     match &args.out {
         Some(path) => {
             std::fs::write(path, csv)
@@ -138,27 +121,6 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
         None => print(&csv),
     }
     Ok(())
-}
-
-/// The x axis of `count` buffered values: their time since the first, in a unit that suits
-/// the span, or their index when the buffer's timing is unknown.
-fn time_axis(timing: Option<BufferTiming>, count: usize) -> (String, impl Fn(usize) -> f64) {
-    let last = timing.map_or(0.0, |t| t.time_of(count.saturating_sub(1)).as_secs_f64());
-    let (unit, per_second) = match last {
-        _ if timing.is_none() => ("", 1.0),
-        last if last >= 10.0 => ("s", 1.0),
-        last if last >= 0.01 => ("ms", 1e3),
-        _ => ("µs", 1e6),
-    };
-    let label = match timing {
-        Some(_) => format!("time [{unit}]"),
-        None => "index".to_owned(),
-    };
-    let x = move |index: usize| match timing {
-        Some(timing) => timing.time_of(index).as_secs_f64() * per_second,
-        None => index as f64,
-    };
-    (label, x)
 }
 
 /// A buffered read-out refused before anything was opened or sent, said with its option.

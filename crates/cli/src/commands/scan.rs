@@ -7,7 +7,7 @@ use std::time::Duration;
 use clap::Args;
 use optobus_device::DeviceInfo;
 use optobus_driver::identify::Verdict;
-use optobus_driver::scan::{scan, ConnectAt, ScanStep};
+use optobus_driver::scan::{parse_slaves, scan, ConnectAt, ScanStep, DEVICE_ADDRESSES};
 use optobus_driver::transport::Client;
 
 use crate::connect::{DeviceArgs, Global};
@@ -48,9 +48,9 @@ pub(crate) async fn run(global: &Global, args: &ScanArgs) -> Result<(), CliError
             .unwrap_or_else(|| vec![9600]),
     };
     let slaves = match &args.slaves {
-        Some(text) => inputs::parse_slaves(text)?,
+        Some(text) => parse_slaves(text, "--slaves")?,
         None => {
-            let (first, last) = inputs::SLAVES;
+            let (first, last) = DEVICE_ADDRESSES;
             (device.slaves.0.max(first)..=device.slaves.1.min(last)).collect()
         }
     };

@@ -6,8 +6,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Args;
-use optobus_bus::file::Measurements;
-use optobus_bus::{BusFile, DeviceConfig, LineConfig, PollConfig, Port};
+use optobus_bus::{BusFile, DeviceConfig, LineConfig, Port};
 use optobus_device::DeviceInfo;
 use optobus_service::{HttpConfig, Options, OutputsConfig, Service, ServiceFile};
 
@@ -52,20 +51,8 @@ fn one_device(global: &Global, every: Duration) -> Result<BusFile, CliError> {
         let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.clone());
         one.model = path.display().to_string();
     }
-    let group = device
-        .groups
-        .iter()
-        .find(|g| g.name == "measurements")
-        .or(device.groups.first());
-    if let Some(group) = group {
-        let poll = PollConfig::new(device, group.name, Some(every)).map_err(CliError::new)?;
-        one.polls.push(poll);
-    }
-    Ok(BusFile {
-        lines: vec![line],
-        devices: vec![one],
-        measurements: Measurements::default(),
-    })
+    let one = one.polling_measurements(every).map_err(CliError::new)?;
+    Ok(BusFile::one_device(line, one))
 }
 
 pub(crate) async fn run(global: &Global, args: &UiArgs) -> Result<(), CliError> {
