@@ -1,14 +1,14 @@
 //! Bus files that the tests of several crates (bus, console, MQTT, service, the tool) run, as
 //! YAML text: each test reads it with its own catalogue, so this crate needs none of theirs.
 
-/// The measurement line of the tests: two heads facing each other 20 mm apart, `top` (slave
-/// 1) and `bottom` (slave 2), on one simulated line (`rs485`, 115200 baud, any format), each
-/// polling `distance_1`, and the measurement `gap` = `20mm - top.distance_1 -
+/// The measurement line of the tests: two P series heads facing each other 20 mm apart,
+/// `top` at slave 1 and `bottom` at slave 2, on one simulated line (`rs485`, 115200 baud, any
+/// format), each polling `distance_1`, and the measurement `gap` = `20mm - top.distance_1 -
 /// bottom.distance_1` (the object's thickness between them), its inputs at most 1 s apart.
 ///
 /// Start from [`two_heads_gap`], set what the test needs, and take the YAML from
-/// [`text`](Self::text). The line's mapping ends in `any_format: true }`, and it stands on line 3
-/// of the text, where a diagnostic about the line points.
+/// [`text`](Self::text). The line's mapping ends in `any_format: true }`, and it stands on
+/// line 3 of the text, where a diagnostic about the line points.
 #[derive(Clone, Debug)]
 pub struct TwoHeadsGap {
     timeout: Option<String>,
