@@ -5,9 +5,7 @@ mod common;
 use std::time::Duration;
 
 use common::{counting_words, DeviceSide};
-use optobus_codec::{
-    rtu, ExceptionCode, ExceptionShape, FrameShape, Request, Response, Words,
-};
+use optobus_codec::{rtu, ExceptionCode, ExceptionShape, FrameShape, Request, Response, Words};
 use optobus_transport::{
     Error, LineFormat, Parity, ReadFunction, RtuClient, RtuConfig, Shared, Transport, WriteValue,
 };
