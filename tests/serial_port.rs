@@ -80,6 +80,37 @@ fn open(path: &std::path::Path) -> optobus_transport::SerialStream {
     .expect("open the pty")
 }
 
+/// Sends the read of holding registers 0 to 59 (the request of [`expected_reply`]).
+async fn ask_for_the_reply(port: &mut optobus_transport::SerialStream) {
+    port.write_all(&rtu_frame(1, &holding(0, 60)))
+        .await
+        .unwrap();
+    port.flush().await.unwrap();
+}
+
+/// Asks for the reply of [`expected_reply`] and leaves it unread while it arrives: how many
+/// times the runtime's thread (counted by `unparks`) woke meanwhile.
+async fn wakes_while_the_reply_arrives_unread(
+    port: &mut optobus_transport::SerialStream,
+    unparks: &AtomicU64,
+) -> u64 {
+    ask_for_the_reply(port).await;
+    let before = unparks.load(Ordering::Relaxed);
+    // The reply takes 130 ms to cross a 9600 baud line.
+    tokio::time::sleep(Duration::from_millis(600)).await;
+    unparks.load(Ordering::Relaxed) - before
+}
+
+/// Reads the 125 bytes of the reply of [`expected_reply`] (within 10 s).
+async fn read_reply(port: &mut optobus_transport::SerialStream) -> Vec<u8> {
+    let mut reply = vec![0; 125];
+    timeout(Duration::from_secs(10), port.read_exact(&mut reply))
+        .await
+        .expect("the reply within 10 s")
+        .unwrap();
+    reply
+}
+
 /// Issue 28, point 9: a reply arriving a character at a time while nobody reads the port
 /// wakes nobody. tokio-serial's stream stays in tokio's edge-triggered reactor, which wakes
 /// the runtime's thread for each of the 125 characters (and the RTU client, which sleeps
@@ -92,20 +123,8 @@ fn bytes_arriving_unread_wake_nobody() {
     let (runtime, unparks) = runtime_counting_wakes();
     runtime.block_on(async {
         let mut port = open(&path);
-        port.write_all(&rtu_frame(1, &holding(0, 60)))
-            .await
-            .unwrap();
-        port.flush().await.unwrap();
-        let before = unparks.load(Ordering::Relaxed);
-        // The reply takes 130 ms to cross a 9600 baud line.
-        tokio::time::sleep(Duration::from_millis(600)).await;
-        let while_unread = unparks.load(Ordering::Relaxed) - before;
-        let mut reply = [0; 125];
-        timeout(Duration::from_secs(10), port.read_exact(&mut reply))
-            .await
-            .expect("the reply within 10 s")
-            .unwrap();
-        assert_eq!(reply.to_vec(), expected_reply(&simulator));
+        let while_unread = wakes_while_the_reply_arrives_unread(&mut port, &unparks).await;
+        assert_eq!(read_reply(&mut port).await, expected_reply(&simulator));
         // The sleep's own end wakes the thread once.
         assert!(
             while_unread < 10,
@@ -138,20 +157,8 @@ fn a_read_given_up_lets_bytes_arriving_unread_wake_nobody() {
             Poll::Ready(given_up.is_ready())
         })
         .await;
-        port.write_all(&rtu_frame(1, &holding(0, 60)))
-            .await
-            .unwrap();
-        port.flush().await.unwrap();
-        let before = unparks.load(Ordering::Relaxed);
-        // The reply takes 130 ms to cross a 9600 baud line.
-        tokio::time::sleep(Duration::from_millis(600)).await;
-        let while_unread = unparks.load(Ordering::Relaxed) - before;
-        let mut reply = [0; 125];
-        timeout(Duration::from_secs(10), port.read_exact(&mut reply))
-            .await
-            .expect("the reply within 10 s")
-            .unwrap();
-        assert_eq!(reply.to_vec(), expected_reply(&simulator));
+        let while_unread = wakes_while_the_reply_arrives_unread(&mut port, &unparks).await;
+        assert_eq!(read_reply(&mut port).await, expected_reply(&simulator));
         assert!(
             while_unread < 10,
             "the runtime's thread woke {while_unread} times while 125 bytes arrived unread"
@@ -207,15 +214,7 @@ async fn a_read_dropped_while_waiting_leaves_the_port_usable() {
         assert!(timeout(Duration::from_millis(20), port.read(&mut byte))
             .await
             .is_err());
-        port.write_all(&rtu_frame(1, &holding(0, 60)))
-            .await
-            .unwrap();
-        port.flush().await.unwrap();
-        let mut reply = vec![0; expected.len()];
-        timeout(Duration::from_secs(10), port.read_exact(&mut reply))
-            .await
-            .expect("the reply within 10 s")
-            .unwrap();
-        assert_eq!(reply, expected);
+        ask_for_the_reply(&mut port).await;
+        assert_eq!(read_reply(&mut port).await, expected);
     }
 }

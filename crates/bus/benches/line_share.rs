@@ -106,12 +106,8 @@ fn shares(polls: &[u64]) -> Vec<f64> {
 }
 
 async fn bus_run(format: LineFormat, duration: Duration) -> Run {
-    let Counted {
-        stream,
-        bytes,
-        stats,
-    } = line(format);
-    let bus = Bus::new(bus_file(format)).with_stream("bench", stream);
+    let counted = line(format);
+    let bus = Bus::new(bus_file(format)).with_stream("bench", counted.stream);
     let mut events = bus.subscribe();
     let first_register: Vec<&str> = models()
         .iter()
@@ -135,26 +131,22 @@ async fn bus_run(format: LineFormat, duration: Duration) -> Run {
         }
     }
     let elapsed = started.elapsed();
-    let transactions = stats.frames();
-    let bytes = bytes.load(Ordering::Relaxed);
+    let transactions = counted.stats.frames();
+    let bytes = counted.bytes.load(Ordering::Relaxed);
     drop(running);
     Run {
         spread: spread(&polls),
         ratio: limit_ratio(format, bytes, transactions, elapsed),
         errors,
-        gap_violations: stats.gap_violations(),
+        gap_violations: counted.stats.gap_violations(),
         polls: polls.clone(),
     }
 }
 
 async fn direct_run(format: LineFormat, duration: Duration) -> Run {
-    let Counted {
-        stream,
-        bytes,
-        stats,
-    } = line(format);
+    let counted = line(format);
     let client = Shared::new(RtuClient::with_config(
-        stream,
+        counted.stream,
         RtuConfig {
             line: Some(format),
             timeout: Duration::from_millis(500),
@@ -191,12 +183,12 @@ async fn direct_run(format: LineFormat, duration: Duration) -> Run {
         spread: spread(&polls),
         ratio: limit_ratio(
             format,
-            bytes.load(Ordering::Relaxed),
-            stats.frames(),
+            counted.bytes.load(Ordering::Relaxed),
+            counted.stats.frames(),
             elapsed,
         ),
         errors,
-        gap_violations: stats.gap_violations(),
+        gap_violations: counted.stats.gap_violations(),
         polls: polls.clone(),
     }
 }

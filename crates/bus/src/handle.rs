@@ -283,18 +283,25 @@ impl Handle {
         self.entry(name).ok().map(|entry| entry.device)
     }
 
+    /// Queues the job `job` makes for device `device` (its index on its line, and where to
+    /// send the outcome) on the device's line, and waits for the outcome.
     async fn send<T>(
         &self,
-        line: usize,
-        job: impl FnOnce(oneshot::Sender<Result<T, optobus_driver::Error>>) -> Job,
+        device: &str,
+        job: impl FnOnce(usize, oneshot::Sender<Result<T, optobus_driver::Error>>) -> Job,
     ) -> Result<T, JobError> {
+        let entry = self.entry(device)?;
+        let (line, index) = (entry.line, entry.index);
         let (done, result) = oneshot::channel();
         let queues = &self.lines[line];
         let queue = &queues.senders[self.source.index()];
         if self.source == Source::Api {
-            queue.send(job(done)).await.map_err(|_| JobError::Stopped)?;
+            queue
+                .send(job(index, done))
+                .await
+                .map_err(|_| JobError::Stopped)?;
         } else {
-            match queue.try_send(job(done)) {
+            match queue.try_send(job(index, done)) {
                 Ok(()) => {}
                 Err(mpsc::error::TrySendError::Full(_)) => {
                     queues.busy[self.source.index()].fetch_add(1, Ordering::Relaxed);
@@ -322,7 +329,8 @@ impl Handle {
         words: Vec<u16>,
         broadcast: bool,
     ) -> Result<(), JobError> {
-        let entry = self.entry(device)?;
+        // An unknown device is said before anything about the register.
+        self.entry(device)?;
         if !register.access.writable() || words.len() != usize::from(register.words) {
             return Err(Refusal::NotWritable(register.name).into());
         }
@@ -332,8 +340,7 @@ impl Handle {
                 register: register.name,
                 why,
             })?;
-        let index = entry.index;
-        self.send(entry.line, |done| Job::Write {
+        self.send(device, |index, done| Job::Write {
             device: index,
             register,
             words,
@@ -351,9 +358,7 @@ impl Handle {
         command: &'static CommandInfo,
         register: &'static RegisterInfo,
     ) -> Result<(), JobError> {
-        let entry = self.entry(device)?;
-        let index = entry.index;
-        self.send(entry.line, |done| Job::Run {
+        self.send(device, |index, done| Job::Run {
             device: index,
             command,
             register,
@@ -440,9 +445,7 @@ impl Handle {
     pub async fn download_buffer(&self, device: &str) -> Result<Buffered, JobError> {
         let outcome = async {
             self.policy(device)?.buffer()?;
-            let entry = self.entry(device)?;
-            let index = entry.index;
-            self.send(entry.line, |done| Job::Buffer {
+            self.send(device, |index, done| Job::Buffer {
                 device: index,
                 done,
             })
@@ -468,9 +471,7 @@ impl Handle {
         device: &str,
         registers: Vec<&'static RegisterInfo>,
     ) -> Result<Vec<Value>, JobError> {
-        let entry = self.entry(device)?;
-        let index = entry.index;
-        self.send(entry.line, |done| Job::Read {
+        self.send(device, |index, done| Job::Read {
             device: index,
             registers,
             done,

@@ -140,20 +140,15 @@ mod running {
     use tokio::sync::broadcast::error::{RecvError, TryRecvError};
     use tokio::sync::broadcast::Receiver;
 
-    const GAP: &str = "
-lines:
-  - { name: rs485, simulated: true, baud: 115200, any_format: true }
-devices:
-  - { name: top, model: p-series, slave: 1, timeout: 100ms, poll: [{ read: distance_1, every: 20ms }] }
-  - { name: bottom, model: p-series, slave: 2, timeout: 100ms, poll: [{ read: distance_1, every: 20ms }] }
-measurements:
-  - name: gap
-    expr: 20mm - top.distance_1 - bottom.distance_1
-    unit: mm
-    limits: { lo: 9.9mm, hi: 10.1mm }
-    stats: 50
-    max_skew: 1s           # how close the inputs are is a bench's matter, not a test's
-";
+    /// The measurement line of the tests (`optobus_testkit::bus_files`), with a unit and
+    /// statistics.
+    fn gap_file() -> String {
+        optobus_testkit::bus_files::two_heads_gap()
+            .timeout("100ms")
+            .unit("mm")
+            .stats(50)
+            .text()
+    }
 
     async fn measurement(events: &mut Receiver<Event>) -> std::sync::Arc<MeasurementEvent> {
         loop {
@@ -170,7 +165,7 @@ measurements:
     /// `max_skew` of each other, judged and summed up; its JSON is the documented contract.
     #[tokio::test]
     async fn the_running_bus_computes_the_gap_from_the_samples_it_carries() {
-        let bus = Bus::new(super::parse(GAP).unwrap());
+        let bus = Bus::new(super::parse(&gap_file()).unwrap());
         let mut events = bus.subscribe();
         let _running = bus.start().expect("starts");
         let mut counts = Vec::new();
@@ -201,7 +196,7 @@ measurements:
     /// library's handle (the statistics start again with them).
     #[tokio::test]
     async fn judgement_counts_are_kept_and_reset_through_the_handle() {
-        let bus = Bus::new(super::parse(GAP).unwrap());
+        let bus = Bus::new(super::parse(&gap_file()).unwrap());
         let mut events = bus.subscribe();
         let running = bus.start().expect("starts");
         let handle = running.handle();
@@ -234,7 +229,7 @@ measurements:
     /// made of a stale reading is ever given.
     #[tokio::test]
     async fn an_offline_head_makes_the_gap_invalid_with_the_reason() {
-        let bus = Bus::new(super::parse(GAP).unwrap());
+        let bus = Bus::new(super::parse(&gap_file()).unwrap());
         let mut events = bus.subscribe();
         let running = bus.start().expect("starts");
         measurement(&mut events)
@@ -353,7 +348,7 @@ client.close()
         ignore = "pymodbus is not installed (pip install pymodbus, or Debian package python3-pymodbus)"
     )]
     async fn a_pymodbus_read_of_the_virtual_unit_equals_the_json() {
-        let bus = Bus::new(super::parse(&gateway(GAP)).unwrap());
+        let bus = Bus::new(super::parse(&gateway(&gap_file())).unwrap());
         let mut events = bus.subscribe();
         let running = bus.start().expect("starts");
         let address = running.gateway_address("rs485").unwrap();
@@ -437,7 +432,8 @@ client.close()
 
     #[test]
     fn a_measurements_unit_of_a_device_is_refused_where_it_is_given() {
-        let clash = gateway(GAP).replace("127.0.0.1:0 }", "127.0.0.1:0, measurements_unit: 2 }");
+        let clash =
+            gateway(&gap_file()).replace("127.0.0.1:0 }", "127.0.0.1:0, measurements_unit: 2 }");
         let rendered = super::parse(&clash).expect_err("unit 2 is bottom's");
         assert!(
             rendered.contains(
@@ -447,10 +443,11 @@ client.close()
         );
         assert!(rendered.contains("bus.yaml:3:"), "{rendered}");
         // By default 255, which no device can have; any other free unit id may be given.
-        let file = super::parse(&gateway(GAP)).unwrap();
+        let file = super::parse(&gateway(&gap_file())).unwrap();
         let config = file.lines[0].gateway.as_ref().unwrap();
         assert_eq!(config.measurements_unit, 255);
-        let free = gateway(GAP).replace("127.0.0.1:0 }", "127.0.0.1:0, measurements_unit: 100 }");
+        let free =
+            gateway(&gap_file()).replace("127.0.0.1:0 }", "127.0.0.1:0, measurements_unit: 100 }");
         let config = super::parse(&free).unwrap().lines[0]
             .gateway
             .clone()

@@ -134,6 +134,17 @@ async fn text_of(client: &Client, css: &str) -> String {
     element.text().await.unwrap()
 }
 
+/// Clicks the element at `locator`.
+async fn click(client: &Client, locator: Locator<'_>) {
+    client
+        .find(locator)
+        .await
+        .unwrap_or_else(|e| panic!("{locator:?} to click: {e}"))
+        .click()
+        .await
+        .unwrap();
+}
+
 /// Waits until the text at `css` is one `ready` accepts.
 async fn until_text(client: &Client, css: &str, ready: impl Fn(&str) -> bool) -> String {
     for _ in 0..100 {
@@ -209,16 +220,12 @@ async fn an_out_of_range_edit_shows_the_refusal_and_changes_nothing(
     let power = optobus_p_series::DEVICE.register("light_power").unwrap();
     let head = running.simulator("head").unwrap();
     let before = head.peek(Table::Holding, power.address);
-    let card = "article[data-device='head']";
-    client
-        .find(Locator::XPath(
-            "//article[@data-device='head']//button[text()='Registers']",
-        ))
-        .await
-        .unwrap_or_else(|_| panic!("{card} has a Registers button"))
-        .click()
-        .await
-        .unwrap();
+    // The head's card's Registers button.
+    click(
+        client,
+        Locator::XPath("//article[@data-device='head']//button[text()='Registers']"),
+    )
+    .await;
     let row = "tr[data-register='light_power']";
     let input = client
         .wait()
@@ -226,26 +233,22 @@ async fn an_out_of_range_edit_shows_the_refusal_and_changes_nothing(
         .await
         .unwrap();
     input.send_keys("150 %").await.unwrap();
-    client
-        .find(Locator::Css(&format!("{row} button[data-action='set']")))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(
+        client,
+        Locator::Css(&format!("{row} button[data-action='set']")),
+    )
+    .await;
     let refusal = until_text(client, &format!("{row} .refusal"), |t| !t.is_empty()).await;
     assert!(refusal.contains("light_power"), "{refusal}");
     assert_eq!(head.peek(Table::Holding, power.address), before);
     // A valid value goes through and is the device's afterwards.
     input.clear().await.unwrap();
     input.send_keys("12.5").await.unwrap();
-    client
-        .find(Locator::Css(&format!("{row} button[data-action='set']")))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(
+        client,
+        Locator::Css(&format!("{row} button[data-action='set']")),
+    )
+    .await;
     let accepted = until_text(client, &format!("{row} .accepted"), |t| !t.is_empty()).await;
     assert_eq!(accepted, "set: 12.5 %");
     assert_eq!(head.peek(Table::Holding, power.address), Some(vec![125]));
@@ -254,13 +257,11 @@ async fn an_out_of_range_edit_shows_the_refusal_and_changes_nothing(
 /// The page reads a register now with a POST (a line read is no simple cross-site request).
 async fn a_register_is_read_with_a_post(client: &Client) {
     let row = "tr[data-register='light_power']";
-    client
-        .find(Locator::Css(&format!("{row} button[data-action='read']")))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(
+        client,
+        Locator::Css(&format!("{row} button[data-action='read']")),
+    )
+    .await;
     let read = until_text(client, &format!("{row} td.num"), |t| !t.is_empty()).await;
     assert_eq!(read, "12.5 %");
 }
@@ -315,21 +316,9 @@ fn wrote_command(running: &Running, command: &str) -> bool {
 }
 
 async fn a_drastic_command_asks_before_it_acts(client: &Client, running: &Running) {
-    client
-        .find(Locator::Css("button[data-tab='commands']"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(client, Locator::Css("button[data-tab='commands']")).await;
     let save = "button[data-command='save_parameters']";
-    client
-        .find(Locator::Css(save))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(client, Locator::Css(save)).await;
     let question = client.get_alert_text().await.expect("a confirmation");
     assert!(question.contains("save_parameters"), "{question}");
     client.dismiss_alert().await.unwrap();
@@ -338,13 +327,7 @@ async fn a_drastic_command_asks_before_it_acts(client: &Client, running: &Runnin
     })
     .await;
     assert!(!wrote_command(running, "save_parameters"));
-    client
-        .find(Locator::Css(save))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(client, Locator::Css(save)).await;
     client.accept_alert().await.unwrap();
     until_text(client, "#command-result", |t| t == "save_parameters: done").await;
     assert!(wrote_command(running, "save_parameters"));
@@ -461,13 +444,7 @@ async fn a_measurement_shows_its_value_badge_limits_axes_and_statistics(client: 
 }
 
 async fn a_screenshot_is_written(client: &Client) {
-    client
-        .find(Locator::Css("button[data-tab='registers']"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click(client, Locator::Css("button[data-tab='registers']")).await;
     client
         .execute("window.scrollTo(0, 0)", vec![])
         .await

@@ -13,23 +13,15 @@ use optobus_console::HttpConfig;
 use serde_json::Value;
 use tower::ServiceExt;
 
-const GAP: &str = "
-lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
-devices:
-  - { name: top, model: p-series, slave: 1, timeout: 50ms, poll: [{ read: distance_1, every: 20ms }] }
-  - { name: bottom, model: p-series, slave: 2, timeout: 50ms, poll: [{ read: distance_1, every: 20ms }] }
-measurements:
-  - name: gap
-    expr: 20mm - top.distance_1 - bottom.distance_1
-    unit: mm
-    limits: { lo: 9.9mm, hi: 10.1mm, hh: 12mm, hysteresis: 0.001mm }
-    stats: 50
-    max_skew: 1s
-";
-
 fn start() -> Running {
+    let gap = optobus_testkit::bus_files::two_heads_gap()
+        .timeout("50ms")
+        .unit("mm")
+        .limits("{ lo: 9.9mm, hi: 10.1mm, hh: 12mm, hysteresis: 0.001mm }")
+        .stats(50)
+        .text();
     let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);
-    let file = BusFile::parse("bus.yaml", GAP, Path::new("."), &catalogue)
+    let file = BusFile::parse("bus.yaml", &gap, Path::new("."), &catalogue)
         .unwrap_or_else(|e| panic!("{}", e.render()));
     Bus::new(file).start().unwrap()
 }

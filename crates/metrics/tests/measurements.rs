@@ -8,21 +8,6 @@ use std::time::{Duration, SystemTime};
 use optobus_bus::{Bus, BusFile, Catalogue, Event, MeasurementEvent};
 use optobus_metrics::Metrics;
 
-const GAP: &str = "
-lines:
-  - { name: rs485, simulated: true, baud: 115200, any_format: true }
-devices:
-  - { name: top, model: p-series, slave: 1, poll: [{ read: distance_1, every: 20ms }] }
-  - { name: bottom, model: p-series, slave: 2, poll: [{ read: distance_1, every: 20ms }] }
-measurements:
-  - name: gap
-    expr: 20mm - top.distance_1 - bottom.distance_1
-    limits: { lo: 9.9mm, hi: 10.1mm }
-    max_skew: 1s
-outputs:
-  metrics: 0
-";
-
 /// The value of the series `name{labels}` in Prometheus text.
 fn series(text: &str, name: &str, labels: &str) -> Option<f64> {
     let prefix = format!("{name}{{{labels}}} ");
@@ -37,8 +22,11 @@ fn series(text: &str, name: &str, labels: &str) -> Option<f64> {
     ignore = "promtool is not installed (Debian package prometheus)"
 )]
 async fn a_measurement_is_exported_in_base_units_with_its_judgements_counted() {
+    let gap = optobus_testkit::bus_files::two_heads_gap()
+        .outputs("{ metrics: 0 }")
+        .text();
     let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);
-    let file = BusFile::parse("bus.yaml", GAP, Path::new("."), &catalogue)
+    let file = BusFile::parse("bus.yaml", &gap, Path::new("."), &catalogue)
         .unwrap_or_else(|e| panic!("{}", e.render()));
     let metrics = Metrics::new(&file);
     let bus = Bus::new(file);

@@ -50,17 +50,9 @@ impl Identity {
 }
 
 /// The discovery configurations of every polled register of every device of `file`, and of
-/// its measurements (see [`measurements`]), as (topic, payload), for a publisher with `client_id` and topic `prefix`.
-pub fn configurations(
-    file: &BusFile,
-    discovery_prefix: &str,
-    client_id: &str,
-    prefix: &str,
-) -> Vec<(String, Json)> {
-    configurations_with(file, discovery_prefix, client_id, prefix, &HashMap::new())
-}
-
-/// [`configurations`], with what each device (by name) said about itself in its device block.
+/// its measurements (see [`measurements`]), as (topic, payload), for a publisher with
+/// `client_id` and topic `prefix`, with what each device (by name) said about itself
+/// (`identities`) in its device block.
 pub fn configurations_with(
     file: &BusFile,
     discovery_prefix: &str,

@@ -8,26 +8,21 @@ use std::time::Duration;
 use common::{Broker, Watcher};
 use optobus_bus::Bus;
 use optobus_codec::value::Fixed;
+use optobus_testkit::bus_files::{two_heads_gap, TwoHeadsGap};
 use serde_json::Value as Json;
 
+/// The measurement line of the tests (`optobus_testkit::bus_files`), polled every 50 ms, the
+/// gap's statistics over 100 values.
+fn gap_file() -> TwoHeadsGap {
+    two_heads_gap().every("50ms").stats(100)
+}
+
 fn file(port: u16) -> common::File {
-    let text = format!(
-        "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
-devices:
-  - {{ name: top, model: p-series, slave: 1, poll: [{{ read: distance_1, every: 50ms }}] }}
-  - {{ name: bottom, model: p-series, slave: 2, poll: [{{ read: distance_1, every: 50ms }}] }}
-measurements:
-  - name: gap
-    expr: 20mm - top.distance_1 - bottom.distance_1
-    limits: {{ lo: 9.9mm, hi: 10.1mm }}
-    stats: 100
-    max_skew: 1s
-outputs:
-  mqtt: {{ broker: 127.0.0.1:{port}, prefix: plant }}
-"
-    );
+    let text = gap_file()
+        .outputs(&format!(
+            "{{ mqtt: {{ broker: 127.0.0.1:{port}, prefix: plant }} }}"
+        ))
+        .text();
     common::parse(&text)
 }
 
@@ -141,27 +136,13 @@ async fn home_assistant_has_a_sensor_per_measurement_and_its_judgement_on_a_devi
     retain(broker.port, gone, r#"{"name": "thickness"}"#).await;
     let discovery = Watcher::start(broker.port, "ha-measurements", "homeassistant/#").await;
     let values = Watcher::start(broker.port, "ha-values", "plant/measurements/#").await;
-    let text = format!(
-        "
-lines:
-  - {{ name: rs485, simulated: true, baud: 115200, any_format: true }}
-devices:
-  - {{ name: top, model: p-series, slave: 1, poll: [{{ read: distance_1, every: 50ms }}] }}
-  - {{ name: bottom, model: p-series, slave: 2, poll: [{{ read: distance_1, every: 50ms }}] }}
-measurements:
-  - name: gap
-    expr: 20mm - top.distance_1 - bottom.distance_1
-    limits: {{ lo: 9.9mm, hi: 10.1mm }}
-    stats: 100
-    max_skew: 1s
-  - name: ratio
-    expr: top.distance_1 / bottom.distance_1
-    max_skew: 1s
-outputs:
-  mqtt: {{ broker: 127.0.0.1:{}, prefix: plant, homeassistant: true }}
-",
-        broker.port
-    );
+    let text = gap_file()
+        .measurement("ratio", "top.distance_1 / bottom.distance_1")
+        .outputs(&format!(
+            "{{ mqtt: {{ broker: 127.0.0.1:{}, prefix: plant, homeassistant: true }} }}",
+            broker.port
+        ))
+        .text();
     let file = common::parse(&text);
     let bus = Bus::new(file.bus.clone());
     let _publisher = common::publish(&file, &bus);

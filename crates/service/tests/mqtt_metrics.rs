@@ -157,69 +157,47 @@ outputs:
             .join("\n")
     );
     assert!(counts.dropped > 0 && counts.queued == 20, "{counts:?}");
+    // Each series of the counts, its name after `optobus_mqtt_`, and the count it shows.
     let expected = [
-        ("optobus_mqtt_samples_published_total", counts.published),
-        ("optobus_mqtt_samples_dropped_total", counts.dropped),
-        ("optobus_mqtt_samples_requeued_total", counts.requeued),
-        ("optobus_mqtt_queue_samples", counts.queued as u64),
-        ("optobus_mqtt_in_flight_samples", counts.in_flight as u64),
-        ("optobus_mqtt_connected", u64::from(counts.connected)),
-        ("optobus_mqtt_connections_total", counts.connections),
-        ("optobus_mqtt_events_missed_total", counts.missed_events),
-        ("optobus_mqtt_writes_taken_total", counts.writes_taken),
+        ("samples_published_total", counts.published),
+        ("samples_dropped_total", counts.dropped),
+        ("samples_requeued_total", counts.requeued),
+        ("queue_samples", counts.queued as u64),
+        ("in_flight_samples", counts.in_flight as u64),
+        ("connected", u64::from(counts.connected)),
+        ("connections_total", counts.connections),
+        ("events_missed_total", counts.missed_events),
+        ("writes_taken_total", counts.writes_taken),
+        ("writes_too_large_total", counts.writes_too_large),
+        ("writes_busy_total", counts.writes_busy),
+        ("writes_retained_total", counts.writes_retained),
+        ("replies_dropped_total", counts.replies_dropped),
+        ("oversize_dropped_total", counts.oversize_dropped),
+        ("incoming_too_large_total", counts.incoming_too_large),
+        ("homeassistant_births_total", counts.homeassistant_births),
         (
-            "optobus_mqtt_writes_too_large_total",
-            counts.writes_too_large,
-        ),
-        ("optobus_mqtt_writes_busy_total", counts.writes_busy),
-        ("optobus_mqtt_writes_retained_total", counts.writes_retained),
-        ("optobus_mqtt_replies_dropped_total", counts.replies_dropped),
-        (
-            "optobus_mqtt_oversize_dropped_total",
-            counts.oversize_dropped,
-        ),
-        (
-            "optobus_mqtt_incoming_too_large_total",
-            counts.incoming_too_large,
-        ),
-        (
-            "optobus_mqtt_homeassistant_births_total",
-            counts.homeassistant_births,
-        ),
-        (
-            "optobus_mqtt_rediscoveries_coalesced_total",
+            "rediscoveries_coalesced_total",
             counts.rediscoveries_coalesced,
         ),
+        ("control_queue_messages", counts.control_queued as u64),
+        ("states_published_total", counts.states_published),
+        ("states_skipped_total", counts.states_skipped),
+        ("state_reads_total", counts.state_reads),
+        ("state_reads_busy_total", counts.state_reads_busy),
+        ("state_reads_failed_total", counts.state_reads_failed),
         (
-            "optobus_mqtt_control_queue_messages",
-            counts.control_queued as u64,
-        ),
-        (
-            "optobus_mqtt_states_published_total",
-            counts.states_published,
-        ),
-        ("optobus_mqtt_states_skipped_total", counts.states_skipped),
-        ("optobus_mqtt_state_reads_total", counts.state_reads),
-        (
-            "optobus_mqtt_state_reads_busy_total",
-            counts.state_reads_busy,
-        ),
-        (
-            "optobus_mqtt_state_reads_failed_total",
-            counts.state_reads_failed,
-        ),
-        (
-            "optobus_mqtt_state_reads_after_writes_total",
+            "state_reads_after_writes_total",
             counts.state_reads_after_writes,
         ),
         (
-            "optobus_mqtt_state_rereads_coalesced_total",
+            "state_rereads_coalesced_total",
             counts.state_rereads_coalesced,
         ),
     ];
     for (name, value) in expected {
+        let name = format!("optobus_mqtt_{name}");
         assert_eq!(
-            series(&text, name),
+            series(&text, &name),
             Some(value as f64),
             "{name} in\n{text}\n{counts:?}"
         );

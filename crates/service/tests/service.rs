@@ -15,11 +15,15 @@ fn scratch(name: &str) -> std::path::PathBuf {
 }
 
 fn bus() -> BusFile {
-    let text = "
+    parse("
 lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
 devices:
   - { name: head, model: p-series, slave: 1, timeout: 200ms, poll: [{ read: measurements, every: 20ms }] }
-";
+")
+}
+
+/// `text` read as a bus file of P series heads; a mistake in it fails the test.
+fn parse(text: &str) -> BusFile {
     BusFile::parse(
         "bus.yaml",
         text,
@@ -157,24 +161,11 @@ fn millionths(text: &str) -> i64 {
 #[tokio::test]
 async fn a_recording_has_a_csv_per_measurement_with_its_value_judgement_skew_and_inputs() {
     let dir = scratch("measurements");
-    let text = "
-lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
-devices:
-  - { name: top, model: p-series, slave: 1, timeout: 200ms, poll: [{ read: distance_1, every: 20ms }] }
-  - { name: bottom, model: p-series, slave: 2, timeout: 200ms, poll: [{ read: distance_1, every: 20ms }] }
-measurements:
-  - name: gap
-    expr: 20mm - top.distance_1 - bottom.distance_1
-    limits: { lo: 9.9mm, hi: 10.1mm }
-    max_skew: 1s
-";
-    let file = BusFile::parse(
-        "bus.yaml",
-        text,
-        ".".as_ref(),
-        &Catalogue::new([&optobus_p_series::DEVICE]),
-    )
-    .unwrap_or_else(|e| panic!("{}", e.render()));
+    let file = parse(
+        &optobus_testkit::bus_files::two_heads_gap()
+            .timeout("200ms")
+            .text(),
+    );
     let (say, _) = heard();
     let options = Options {
         record: Some(dir.clone()),

@@ -1,8 +1,9 @@
 //! What the tests of several optobus crates share: which peer programs they talk to (mbpoll,
 //! socat, mosquitto, openssl, promtool, Chromium, pymodbus) are installed, decided when the
 //! tests are built, promtool's check of a metrics exposition, a mosquitto started on a
-//! configuration, the load average benches print beside their figures, and (feature `http`)
-//! what the tests of the HTTP listeners share.
+//! configuration, the load average benches print beside their figures, the bus files several
+//! crates' tests run ([`bus_files`]), and (feature `http`) what the tests of the HTTP
+//! listeners share.
 //!
 //! A crate whose tests need peers calls [`build::peers`] from its build script, which sets the
 //! cfg `peer_<name>` for each peer found. Each such test carries
@@ -12,6 +13,7 @@
 //! build instead.
 
 pub mod build;
+pub mod bus_files;
 #[cfg(feature = "http")]
 pub mod http;
 

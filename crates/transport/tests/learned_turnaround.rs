@@ -4,16 +4,19 @@
 //! still read whole and right. The device here hands its reply over a character at a time,
 //! as a line-timed pty or a UART without a FIFO does.
 
+mod common;
+
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use optobus_codec::{rtu, Decoded, ExceptionShape, FrameShape, Request, Response, Words};
+use common::{counting_words, DeviceSide};
+use optobus_codec::{rtu, Request, Response, Words};
 use optobus_transport::timing::{set_sleep_through_replies, sleep_until_precise};
 use optobus_transport::{
     Flow, LineFormat, Observe, ReadFunction, RtuClient, RtuConfig, Tap, Transport,
 };
-use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream};
+use tokio::io::DuplexStream;
 use tokio::time::Instant;
 
 /// 9600 baud: a character is 1.04 ms, so a busy test machine's lateness of a few hundred
@@ -26,48 +29,33 @@ const COUNT: u16 = 6;
 /// A device that answers each read after the request's time on the line and the turnaround
 /// `turnaround` holds at that moment, its reply's bytes one character time apart, each word
 /// `address + i`.
-fn timed_device(mut stream: DuplexStream, turnaround: Arc<Mutex<Duration>>) {
+fn timed_device(stream: DuplexStream, turnaround: Arc<Mutex<Duration>>) {
     let format = LineFormat::new(BAUD);
     tokio::spawn(async move {
-        let shape = FrameShape {
-            exception: ExceptionShape::Standard,
-            four_byte_writes: &[],
-        };
-        let mut buf = Vec::new();
-        let mut chunk = [0u8; 256];
-        loop {
-            let n = match stream.read(&mut chunk).await {
-                Ok(0) | Err(_) => return,
-                Ok(n) => n,
+        let mut side = DeviceSide::new(stream, Vec::new());
+        while let Some((frame, consumed)) = side.next_request().await {
+            let Request::Read {
+                function,
+                address,
+                count,
+            } = frame.pdu
+            else {
+                continue;
             };
-            buf.extend_from_slice(&chunk[..n]);
-            while let Ok(Decoded::Frame { frame, consumed }) = rtu::decode_request(&buf, &shape) {
-                buf.drain(..consumed);
-                let Request::Read {
-                    function,
-                    address,
-                    count,
-                } = frame.pdu
-                else {
-                    continue;
-                };
-                let data: Vec<u8> = (0..count)
-                    .flat_map(|i| address.wrapping_add(i).to_be_bytes())
-                    .collect();
-                let response = Response::Read {
-                    function,
-                    words: Words::from_bytes(&data).unwrap(),
-                };
-                let mut out = [0u8; rtu::MAX_FRAME_LEN];
-                let len = rtu::encode_response(&mut out, frame.slave, &response).unwrap();
-                let wait = *turnaround.lock().unwrap();
-                // The request took its own time to cross the line, as it does on a wire.
-                let start = Instant::now() + format.transmit_time(consumed) + wait;
-                for (i, byte) in out[..len].iter().enumerate() {
-                    sleep_until_precise(start + format.transmit_time(i + 1)).await;
-                    if stream.write_all(&[*byte]).await.is_err() {
-                        return;
-                    }
+            let data = counting_words(address, count);
+            let response = Response::Read {
+                function,
+                words: Words::from_bytes(&data).unwrap(),
+            };
+            let mut out = [0u8; rtu::MAX_FRAME_LEN];
+            let len = rtu::encode_response(&mut out, frame.slave, &response).unwrap();
+            let wait = *turnaround.lock().unwrap();
+            // The request took its own time to cross the line, as it does on a wire.
+            let start = Instant::now() + format.transmit_time(consumed) + wait;
+            for (i, byte) in out[..len].iter().enumerate() {
+                sleep_until_precise(start + format.transmit_time(i + 1)).await;
+                if !side.send(&[*byte]).await {
+                    return;
                 }
             }
         }

@@ -1,14 +1,15 @@
 //! The own RTU client against a scripted device on an in-memory duplex: real bytes both ways.
 
+mod common;
+
 use std::time::Duration;
 
-use optobus_codec::{
-    rtu, Decoded, ExceptionCode, ExceptionShape, FrameShape, Request, Response, Words,
-};
+use common::{counting_words, DeviceSide};
+use optobus_codec::{rtu, ExceptionCode, ExceptionShape, FrameShape, Request, Response, Words};
 use optobus_transport::{
     Error, LineFormat, Parity, ReadFunction, RtuClient, RtuConfig, Shared, Transport, WriteValue,
 };
-use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream};
+use tokio::io::{AsyncWriteExt, DuplexStream};
 use tokio::sync::mpsc;
 
 /// What the scripted device does with the next request.
@@ -27,71 +28,56 @@ enum Act {
 /// A device task: decodes requests with the codec, replies per script, and reports every
 /// request it saw (slave, request) on `seen`.
 fn device(
-    mut stream: DuplexStream,
+    stream: DuplexStream,
     script: Vec<Act>,
     four_byte: Vec<u16>,
 ) -> mpsc::UnboundedReceiver<(u8, Request)> {
     let (seen_tx, seen_rx) = mpsc::unbounded_channel();
     tokio::spawn(async move {
-        let shape = FrameShape {
-            exception: ExceptionShape::Standard,
-            four_byte_writes: &four_byte,
-        };
+        let mut side = DeviceSide::new(stream, four_byte);
         let mut script = script.into_iter();
-        let mut buf = Vec::new();
-        let mut chunk = [0u8; 256];
-        loop {
-            let n = match stream.read(&mut chunk).await {
-                Ok(0) | Err(_) => return,
-                Ok(n) => n,
-            };
-            buf.extend_from_slice(&chunk[..n]);
-            while let Ok(Decoded::Frame { frame, consumed }) = rtu::decode_request(&buf, &shape) {
-                buf.drain(..consumed);
-                let _ = seen_tx.send((frame.slave, frame.pdu));
-                if frame.slave == 0 {
-                    continue;
+        while let Some((frame, _)) = side.next_request().await {
+            let _ = seen_tx.send((frame.slave, frame.pdu));
+            if frame.slave == 0 {
+                continue;
+            }
+            let mut out = [0u8; rtu::MAX_FRAME_LEN];
+            let reply = match script.next().unwrap_or(Act::Answer) {
+                Act::Silent => continue,
+                Act::Raw(bytes) => bytes,
+                Act::Exception(shape, code) => {
+                    let len = rtu::encode_exception(
+                        &mut out,
+                        frame.slave,
+                        frame.pdu.function_code(),
+                        ExceptionCode(code),
+                        shape,
+                    )
+                    .unwrap();
+                    out[..len].to_vec()
                 }
-                let mut out = [0u8; rtu::MAX_FRAME_LEN];
-                let reply = match script.next().unwrap_or(Act::Answer) {
-                    Act::Silent => continue,
-                    Act::Raw(bytes) => bytes,
-                    Act::Exception(shape, code) => {
-                        let len = rtu::encode_exception(
-                            &mut out,
-                            frame.slave,
-                            frame.pdu.function_code(),
-                            ExceptionCode(code),
-                            shape,
-                        )
-                        .unwrap();
-                        out[..len].to_vec()
-                    }
-                    Act::Answer => {
-                        let data: Vec<u8>;
-                        let response = match frame.pdu {
-                            Request::Read {
+                Act::Answer => {
+                    let data: Vec<u8>;
+                    let response = match frame.pdu {
+                        Request::Read {
+                            function,
+                            address,
+                            count,
+                        } => {
+                            data = counting_words(address, count);
+                            Response::Read {
                                 function,
-                                address,
-                                count,
-                            } => {
-                                data = (0..count)
-                                    .flat_map(|i| address.wrapping_add(i).to_be_bytes())
-                                    .collect();
-                                Response::Read {
-                                    function,
-                                    words: Words::from_bytes(&data).unwrap(),
-                                }
+                                words: Words::from_bytes(&data).unwrap(),
                             }
-                            Request::Write { address, value } => Response::Write { address, value },
-                        };
-                        let len = rtu::encode_response(&mut out, frame.slave, &response).unwrap();
-                        out[..len].to_vec()
-                    }
-                };
-                if stream.write_all(&reply).await.is_err() {
-                    return;
+                        }
+                        Request::Write { address, value } => Response::Write { address, value },
+                    };
+                    let len = rtu::encode_response(&mut out, frame.slave, &response).unwrap();
+                    out[..len].to_vec()
                 }
+            };
+            if !side.send(&reply).await {
+                return;
             }
         }
     });

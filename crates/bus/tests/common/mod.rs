@@ -2,6 +2,8 @@
 
 #![allow(dead_code, unreachable_pub)]
 
+pub mod gateway;
+
 use std::path::Path;
 
 use optobus_bus::{BusFile, Catalogue};

@@ -131,20 +131,6 @@ impl Reader {
         }
     }
 
-    /// Reads the `slot`th key of `map`, or `T::default()` when it is absent or null.
-    pub(crate) fn field_or_default<T: FromNode + Default>(
-        &mut self,
-        map: &Mapping<'_>,
-        path: &At<'_>,
-        slot: usize,
-    ) -> Option<T> {
-        let key = map.keys[slot];
-        let given = map.entries[slot].filter(|(_, value)| !value.is_null());
-        given.map_or(Some(T::default()), |(_, value)| {
-            T::from_node(value, &At::Key(path, key), self)
-        })
-    }
-
     /// The text of a scalar, or a report that `node` is not one.
     pub(super) fn scalar<'n>(
         &mut self,
@@ -502,6 +488,9 @@ macro_rules! record {
         $reader.field::<$ty>(&$map, $path, $slot)
     };
     (@read $reader:ident, $map:ident, $path:ident, $slot:ident, $ty:ty, default) => {
-        $reader.field_or_default::<$ty>(&$map, $path, $slot)
+        // Absent or null (`Option`'s own reading) is the default.
+        $reader
+            .field::<Option<$ty>>(&$map, $path, $slot)
+            .map(Option::unwrap_or_default)
     };
 }
