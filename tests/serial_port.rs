@@ -181,19 +181,8 @@ fn a_look_nobody_waits_for_leaves_the_port_out_of_the_reactor() {
         let mut nobody = Context::from_waker(optobus_transport::nobody_waits());
         let looked = Pin::new(&mut port).poll_read(&mut nobody, &mut ReadBuf::new(&mut byte));
         assert!(looked.is_pending(), "a byte to read before any request");
-        port.write_all(&rtu_frame(1, &holding(0, 60)))
-            .await
-            .unwrap();
-        let before = unparks.load(Ordering::Relaxed);
-        // The reply takes 130 ms to cross a 9600 baud line.
-        tokio::time::sleep(Duration::from_millis(600)).await;
-        let while_unread = unparks.load(Ordering::Relaxed) - before;
-        let mut reply = [0; 125];
-        timeout(Duration::from_secs(10), port.read_exact(&mut reply))
-            .await
-            .expect("the reply within 10 s")
-            .unwrap();
-        assert_eq!(reply.to_vec(), expected_reply(&simulator));
+        let while_unread = wakes_while_the_reply_arrives_unread(&mut port, &unparks).await;
+        assert_eq!(read_reply(&mut port).await, expected_reply(&simulator));
         assert!(
             while_unread < 10,
             "the runtime's thread woke {while_unread} times while 125 bytes arrived unread"

@@ -227,25 +227,14 @@ mod tests {
     use std::time::Duration;
 
     use optobus_bus::{Bus, Catalogue};
+    use optobus_testkit::bus_files::two_heads_gap;
 
     use super::*;
 
-    const GAP: &str = "
-lines: [{ name: rs485, simulated: true, baud: 115200, any_format: true }]
-devices:
-  - { name: top, model: p-series, slave: 1, timeout: 50ms, poll: [{ read: distance_1, every: 20ms }] }
-  - { name: bottom, model: p-series, slave: 2, timeout: 50ms, poll: [{ read: distance_1, every: 20ms }] }
-measurements:
-  - name: gap
-    expr: 20mm - top.distance_1 - bottom.distance_1
-    limits: { lo: 9.9mm, hi: 10.1mm }
-    stats: 100
-    max_skew: 1s
-";
-
     fn gap_bus() -> BusFile {
         let catalogue = Catalogue::new([&optobus_p_series::DEVICE]);
-        BusFile::parse("bus.yaml", GAP, Path::new("."), &catalogue)
+        let text = two_heads_gap().timeout("50ms").stats(100).text();
+        BusFile::parse("bus.yaml", &text, Path::new("."), &catalogue)
             .unwrap_or_else(|e| panic!("{}", e.render()))
     }
 
