@@ -90,10 +90,7 @@ async fn ask_for_the_reply(port: &mut SerialStream) {
 
 /// Asks for the reply of [`expected_reply`] and leaves it unread while it arrives: how many
 /// times the runtime's thread (counted by `unparks`) woke meanwhile.
-async fn wakes_while_the_reply_arrives_unread(
-    port: &mut SerialStream,
-    unparks: &AtomicU64,
-) -> u64 {
+async fn wakes_while_the_reply_arrives_unread(port: &mut SerialStream, unparks: &AtomicU64) -> u64 {
     ask_for_the_reply(port).await;
     let before = unparks.load(Ordering::Relaxed);
     // The reply takes 130 ms to cross a 9600 baud line.

@@ -22,12 +22,7 @@ fn parse(text: &str) -> Result<Option<MqttConfig>, String> {
     Ok(mqtt)
 }
 
-const BUS: &str = "
-lines:
-  - { name: rs485, simulated: true }
-devices:
-  - { name: top, model: p-series, slave: 1 }
-";
+use optobus_testkit::bus_files::ONE_HEAD as BUS;
 
 #[test]
 fn a_password_written_in_the_file_is_refused_without_being_shown() {

@@ -290,10 +290,9 @@ mod tests {
         assert_eq!(line, expected);
     }
 
-    #[test]
-    fn an_invalid_value_shows_a_dash_and_why() {
-        let mut view = TerminalView::new(&gap_bus());
-        view.measurement(&Arc::new(MeasurementEvent {
+    /// The gap's event while its top head is offline, 1.5 ms apart from the bottom.
+    fn top_offline() -> Arc<MeasurementEvent> {
+        Arc::new(MeasurementEvent {
             measurement: "gap".into(),
             unit: "mm".into(),
             value: Err("top is offline".into()),
@@ -303,7 +302,13 @@ mod tests {
             stats: None,
             counts: None,
             time: std::time::SystemTime::now(),
-        }));
+        })
+    }
+
+    #[test]
+    fn an_invalid_value_shows_a_dash_and_why() {
+        let mut view = TerminalView::new(&gap_bus());
+        view.measurement(&top_offline());
         assert!(
             view.text("")
                 .ends_with("\nmeasurements\ngap  —  (top is offline)  skew 1.50 ms\n"),
@@ -314,17 +319,7 @@ mod tests {
 
     #[test]
     fn a_measurement_is_one_line_for_a_pipe_and_its_event_for_a_script() {
-        let event = Event::Measurement(Arc::new(MeasurementEvent {
-            measurement: "gap".into(),
-            unit: "mm".into(),
-            value: Err("top is offline".into()),
-            inputs: Vec::new(),
-            skew: Duration::from_micros(1500),
-            judgement: None,
-            stats: None,
-            counts: None,
-            time: std::time::SystemTime::now(),
-        }));
+        let event = Event::Measurement(top_offline());
         let line = event_line(&event, false).expect("a line");
         assert!(line.ends_with("  gap  invalid: top is offline"), "{line}");
         let json: serde_json::Value =

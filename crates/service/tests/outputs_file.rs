@@ -19,12 +19,7 @@ fn parse(text: &str) -> Result<ServiceFile, String> {
     parse_in("/etc/optobus", text)
 }
 
-const BUS: &str = "
-lines:
-  - { name: rs485, simulated: true }
-devices:
-  - { name: top, model: p-series, slave: 1 }
-";
+use optobus_testkit::bus_files::ONE_HEAD as BUS;
 
 #[test]
 fn mqtt_and_metrics_outputs_read_into_their_settings() {

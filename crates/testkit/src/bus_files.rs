@@ -113,6 +113,15 @@ impl TwoHeadsGap {
     }
 }
 
+/// The outputs' tests' bus: one P series head `top` at slave 1 on a simulated line `rs485`,
+/// polling nothing; a test appends its `outputs:` section after it.
+pub const ONE_HEAD: &str = "
+lines:
+  - { name: rs485, simulated: true }
+devices:
+  - { name: top, model: p-series, slave: 1 }
+";
+
 #[cfg(test)]
 mod tests {
     use super::*;
