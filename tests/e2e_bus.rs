@@ -6,7 +6,7 @@ use optobus_ccs::Ccs;
 use optobus_driver::transport::{Error as WireError, RtuClient, Shared};
 use optobus_driver::{rtu_config, Error};
 use optobus_p_series::PSeries;
-use optobus_simulator::{Bus, Simulator};
+use optobus_simulator::{Simulator, Slaves};
 use optobus_tests::e2e;
 
 #[tokio::test(start_paused = true)]
@@ -17,7 +17,7 @@ async fn two_drivers_share_one_port_from_two_tasks() {
     let ccs_sim = Simulator::new(&optobus_ccs::DEVICE)
         .slave(2)
         .sentinel_every(0);
-    let (stream, _server) = Bus::new([p_sim.clone(), ccs_sim.clone()]).duplex();
+    let (stream, _server) = Slaves::new([p_sim.clone(), ccs_sim.clone()]).duplex();
     let line = Shared::new(RtuClient::with_config(
         stream,
         rtu_config(&optobus_p_series::DEVICE),

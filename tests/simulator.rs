@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use optobus_codec::{tcp, ExceptionShape, ReadFunction, Request, WriteValue};
 use optobus_device::{DeviceInfo, Table};
-use optobus_simulator::{Bus, Quirks, Reply, Simulator};
+use optobus_simulator::{Quirks, Reply, Simulator, Slaves};
 use optobus_tests::generated::{ccs, lc_rs, mini, p_series, rangefinder};
 use optobus_tests::golden::{self, Direction, Transport};
 use optobus_tests::specs;
@@ -174,8 +174,8 @@ async fn lc_rs_exceptions_in_its_counted_word_shape() {
 async fn broadcasts_are_carried_out_and_never_answered() {
     let a = Simulator::new(&p_series::DEVICE);
     let b = Simulator::new(&p_series::DEVICE).slave(2);
-    let bus = Bus::new([a.clone(), b.clone()]);
-    let (stream, _server) = bus.duplex();
+    let slaves = Slaves::new([a.clone(), b.clone()]);
+    let (stream, _server) = slaves.duplex();
     let mut line = Line {
         stream,
         shape: ExceptionShape::Standard,
@@ -194,11 +194,11 @@ async fn broadcasts_are_carried_out_and_never_answered() {
 #[tokio::test(start_paused = true)]
 async fn two_families_share_one_line() {
     // A rangefinder (10-byte FC06) and an LC-RS (counted-word exceptions) on one port.
-    let bus = Bus::new([
+    let slaves = Slaves::new([
         Simulator::new(&rangefinder::DEVICE),
         Simulator::new(&lc_rs::DEVICE),
     ]);
-    let (stream, _server) = bus.duplex();
+    let (stream, _server) = slaves.duplex();
     let mut line = Line {
         stream,
         shape: ExceptionShape::Standard,

@@ -243,7 +243,7 @@ async fn serve_pty() {
         Simulator::new(&optobus_p_series::DEVICE).slave(1),
         Simulator::new(&optobus_ccs::DEVICE).slave(2),
     ];
-    let pty = optobus_simulator::Bus::new(devices)
+    let pty = optobus_simulator::Slaves::new(devices)
         .serve_pty_line(Line::new(LineFormat::new(BAUD)))
         .expect("a pty");
     println!("{}", pty.path().display());

@@ -68,7 +68,7 @@ fn line(format: LineFormat) -> Counted<impl optobus_bus::Stream> {
         .collect();
     let line = Line::new(format);
     let stats = line.stats();
-    let (stream, _server) = optobus_simulator::Bus::new(simulators).duplex_line(line);
+    let (stream, _server) = optobus_simulator::Slaves::new(simulators).duplex_line(line);
     let bytes = Arc::new(AtomicU64::new(0));
     let counter = Arc::clone(&bytes);
     let tap = Tap::new(stream, move |_: Flow, chunk: &[u8]| {

@@ -46,7 +46,7 @@ async fn run(hours: u64) {
     let mut file = bus_file("serial: memory, baud: 115200", &devices);
     // In memory: no t3.5 and no transmit time.
     file.lines[0].format = None;
-    let (stream, _server) = optobus_simulator::Bus::new(simulators(&models())).duplex();
+    let (stream, _server) = optobus_simulator::Slaves::new(simulators(&models())).duplex();
     let bus = Bus::new(file).with_stream("bench", stream);
     let mut events = bus.subscribe();
     let running = bus.start().expect("starts");

@@ -328,7 +328,7 @@ fn port_opener(
     simulators: Vec<Simulator>,
 ) -> Opener {
     match port {
-        Port::Simulated => Opener::Simulated(optobus_simulator::Bus::new(simulators), format),
+        Port::Simulated => Opener::Simulated(optobus_simulator::Slaves::new(simulators), format),
         #[cfg(feature = "serial")]
         Port::Serial(path) => Opener::Port(optobus_transport::Port::Serial(
             optobus_transport::SerialSettings {

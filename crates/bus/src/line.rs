@@ -68,7 +68,7 @@ pub(crate) enum Opener {
     /// A stream handed over once (a test's in-memory line); afterwards the line stays closed.
     Stream(Option<Box<dyn Stream>>),
     /// Simulated devices behind an emulated line, a new connection each time.
-    Simulated(optobus_simulator::Bus, Option<LineFormat>),
+    Simulated(optobus_simulator::Slaves, Option<LineFormat>),
     /// A serial port, RTU over TCP or Modbus TCP, opened by the transport (none without the
     /// `serial` and `tcp` features).
     #[cfg(any(feature = "serial", feature = "tcp"))]

@@ -70,7 +70,7 @@ async fn a_write_goes_ahead_of_the_polls() {
                 .push(if exchange.function == 6 { 'W' } else { 'R' });
         });
     let confocal = Simulator::new(&optobus_ccs::DEVICE).slave(2);
-    let (stream, _server) = optobus_simulator::Bus::new([head.clone(), confocal]).duplex();
+    let (stream, _server) = optobus_simulator::Slaves::new([head.clone(), confocal]).duplex();
     let text = TWO.replace("simulated: true", "serial: memory");
     let bus = Bus::new(file(&text)).with_stream("rs485", stream);
     let running = bus.start().unwrap();
@@ -146,7 +146,7 @@ async fn network_writes_are_refused_unless_listed_and_read_as_optobus_set_reads_
                 log.lock().unwrap().push(exchange.function);
             }
         });
-    let (stream, _server) = optobus_simulator::Bus::new([head.clone()]).duplex();
+    let (stream, _server) = optobus_simulator::Slaves::new([head.clone()]).duplex();
     let text = "
 lines: [{ name: rs485, serial: memory, baud: 115200 }]
 devices:
@@ -274,7 +274,7 @@ async fn a_flood_of_network_jobs_is_refused_beyond_its_queue_and_the_polls_keep_
                 log.lock().unwrap().push(if job { 'J' } else { 'P' });
             }
         });
-    let (stream, _server) = optobus_simulator::Bus::new([head.clone()]).duplex();
+    let (stream, _server) = optobus_simulator::Slaves::new([head.clone()]).duplex();
     let text = "
 lines: [{ name: rs485, serial: memory, baud: 115200 }]
 devices:

@@ -22,7 +22,7 @@ fn start(text: &str) -> (optobus_bus::Running, Log, Simulator) {
         Simulator::new(&optobus_ccs::DEVICE).slave(2),
     ];
     let head = members[0].clone();
-    let (stream, _server) = optobus_simulator::Bus::new(members).duplex();
+    let (stream, _server) = optobus_simulator::Slaves::new(members).duplex();
     let log: Log = Arc::default();
     let record = Arc::clone(&log);
     let tap = Tap::new(stream, move |flow: Flow, bytes: &[u8]| {

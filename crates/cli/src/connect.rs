@@ -9,7 +9,7 @@ use optobus_driver::{Core, PartialRead};
 use optobus_inspect::{decode_values, Value};
 
 use crate::error::{driver_error, CliError};
-use crate::link::{self, Target};
+use crate::target::{self, Target};
 use crate::{inputs, models};
 
 /// Options every command takes: which model, and how to print.
@@ -240,7 +240,7 @@ impl Global {
         device: &'static DeviceInfo,
         slave: u8,
     ) -> Result<Core<Client>, CliError> {
-        let link = link::open(device, slave, &self.target).await?;
+        let link = target::open(device, slave, &self.target).await?;
         Core::new(link, slave, device).map_err(CliError::from)
     }
 }
@@ -253,7 +253,7 @@ impl ConnectAs for LinksAs<'_> {
     type Error = CliError;
 
     async fn connect_as(&mut self, model: &'static DeviceInfo) -> Result<Client, CliError> {
-        link::open(model, model.default_slave, self.0).await
+        target::open(model, model.default_slave, self.0).await
     }
 }
 

@@ -9,10 +9,10 @@ mod commands;
 mod connect;
 mod error;
 mod inputs;
-mod link;
 mod log;
 mod models;
 mod render;
+mod target;
 
 use std::process::ExitCode;
 

@@ -186,7 +186,7 @@ fn measurement_text(event: &MeasurementEvent) -> String {
 /// `None` for the other events (writes are in the audit trail, on stderr).
 pub fn event_line(event: &Event, json: bool) -> Option<String> {
     match event {
-        Event::Sample(sample) if json => Some(sample_json(sample)),
+        Event::Sample(sample) if json => Some(sample_line(sample)),
         Event::Sample(sample) => Some(format!(
             "{}  {}  {}  {}",
             time_of_day(),
@@ -213,7 +213,7 @@ pub fn event_line(event: &Event, json: bool) -> Option<String> {
 }
 
 /// One JSON line for a sample: the bus's fields, its time with the local offset.
-fn sample_json(sample: &Sample) -> String {
+fn sample_line(sample: &Sample) -> String {
     let mut json = serde_json::to_value(sample).unwrap_or_default();
     if let Some(object) = json.as_object_mut() {
         object.insert("time".into(), local_time(sample.replied).into());

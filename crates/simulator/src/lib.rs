@@ -7,12 +7,12 @@
 //!
 //! ```no_run
 //! # async fn demo(device: &'static optobus_device::DeviceInfo) -> std::io::Result<()> {
-//! use optobus_simulator::{Bus, Simulator};
+//! use optobus_simulator::{Slaves, Simulator};
 //! let sim = Simulator::new(device).slave(5);
 //! let (stream, _server) = sim.duplex(); // an RTU line in memory
 //! let server = sim.serve_tcp("127.0.0.1:0").await?; // Modbus TCP
 //! let pty = sim.serve_pty()?; // a terminal mbpoll can open: pty.path()
-//! let bus = Bus::new([sim.clone(), Simulator::new(device).slave(6)]); // two slaves, one line
+//! let slaves = Slaves::new([sim.clone(), Simulator::new(device).slave(6)]); // two slaves, one line
 //! sim.set_silent(true); // stops answering
 //! # Ok(()) }
 //! ```
@@ -61,7 +61,7 @@
 //! # Behaviour on the wire
 //!
 //! - **Framing**: RTU with CRC (requests split across reads, back-to-back frames, garbage
-//!   skipped, bad CRCs ignored; see [`Bus`]), Modbus TCP with MBAP (transaction and unit id
+//!   skipped, bad CRCs ignored; see [`Slaves`]), Modbus TCP with MBAP (transaction and unit id
 //!   echoed), both through `optobus-codec` with the device's `FrameShape` (LC-RS's 7-byte
 //!   counted-word exceptions, the rangefinder's 10-byte FC06 echo).
 //! - **Addresses**: frames for other slaves are ignored; broadcast (slave 0) writes are
@@ -137,7 +137,7 @@ pub use model::Reply;
 #[cfg(unix)]
 pub use pty::Pty;
 pub use quirks::{BufferReadCount, Quirks, UnreadableReads};
-pub use rtu::Bus;
+pub use rtu::Slaves;
 pub use served::{Member, Protocol, ServedLine};
 pub use sim::{Exchange, PokeError, RegisterState, Simulator};
 pub use tcp::TcpServer;

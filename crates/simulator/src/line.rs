@@ -32,7 +32,7 @@ use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
 use crate::faults::Plan;
-use crate::rtu::Bus;
+use crate::rtu::Slaves;
 use crate::sim::Simulator;
 
 /// How long before each of its times the line stops sleeping on a kernel timer and watches the
@@ -242,14 +242,14 @@ impl Wire {
     }
 }
 
-impl Bus {
+impl Slaves {
     /// An in-memory RTU line timed like a serial line: the returned stream is the client's
     /// end; the line is served on a spawned task until the client's end is dropped. Needs a
     /// tokio runtime.
     pub fn duplex_line(&self, line: Line) -> (DuplexStream, JoinHandle<io::Result<()>>) {
         let (client, server) = tokio::io::duplex(4096);
-        let bus = self.clone();
-        let task = tokio::spawn(async move { bus.serve_line(server, &line).await });
+        let slaves = self.clone();
+        let task = tokio::spawn(async move { slaves.serve_line(server, &line).await });
         (client, task)
     }
 
@@ -311,16 +311,16 @@ impl Bus {
 }
 
 impl Simulator {
-    /// An in-memory RTU line to this device timed as `line`; see [`Bus::duplex_line`].
+    /// An in-memory RTU line to this device timed as `line`; see [`Slaves::duplex_line`].
     pub fn duplex_line(&self, line: Line) -> (DuplexStream, JoinHandle<io::Result<()>>) {
-        Bus::new([self.clone()]).duplex_line(line)
+        Slaves::new([self.clone()]).duplex_line(line)
     }
 
-    /// Serves Modbus RTU on any byte stream timed as `line`; see [`Bus::serve_line`].
+    /// Serves Modbus RTU on any byte stream timed as `line`; see [`Slaves::serve_line`].
     pub async fn serve_line<IO>(&self, io: IO, line: &Line) -> io::Result<()>
     where
         IO: AsyncRead + AsyncWrite + Unpin,
     {
-        Bus::new([self.clone()]).serve_line(io, line).await
+        Slaves::new([self.clone()]).serve_line(io, line).await
     }
 }

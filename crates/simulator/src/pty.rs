@@ -10,7 +10,7 @@ use rustix::termios::{tcgetattr, tcsetattr, ttyname, OptionalActions};
 use tokio::task::JoinHandle;
 
 use crate::line::Line;
-use crate::rtu::Bus;
+use crate::rtu::Slaves;
 use crate::sim::Simulator;
 
 /// A pseudo-terminal served on a spawned task; dropping it stops serving.
@@ -40,14 +40,14 @@ impl Drop for Pty {
     }
 }
 
-impl Bus {
+impl Slaves {
     /// Serves the line on a new pseudo-terminal in raw mode; needs a tokio runtime.
     pub fn serve_pty(&self) -> io::Result<Pty> {
         self.open_pty(None)
     }
 
     /// Serves the line on a new pseudo-terminal in raw mode, timed as `line` (see
-    /// [`Bus::serve_line`]); needs a tokio runtime. The pty itself adds no timing of its own
+    /// [`Slaves::serve_line`]); needs a tokio runtime. The pty itself adds no timing of its own
     /// beyond the kernel's latency, so bytes reach the client no earlier than `line` says.
     pub fn serve_pty_line(&self, line: Line) -> io::Result<Pty> {
         self.open_pty(Some(line))
@@ -61,11 +61,11 @@ impl Bus {
         tcsetattr(&terminal, OptionalActions::Now, &termios)?;
         let name = ttyname(&terminal, Vec::new())?;
         let path = PathBuf::from(OsStr::from_bytes(name.as_bytes()));
-        let bus = self.clone();
+        let slaves = self.clone();
         let task = tokio::spawn(async move {
             match line {
-                Some(line) => bus.serve_line(master, &line).await,
-                None => bus.serve(master).await,
+                Some(line) => slaves.serve_line(master, &line).await,
+                None => slaves.serve(master).await,
             }
         });
         Ok(Pty {
@@ -77,14 +77,14 @@ impl Bus {
 }
 
 impl Simulator {
-    /// Serves this device on a new pseudo-terminal; see [`Bus::serve_pty`].
+    /// Serves this device on a new pseudo-terminal; see [`Slaves::serve_pty`].
     pub fn serve_pty(&self) -> io::Result<Pty> {
-        Bus::new([self.clone()]).serve_pty()
+        Slaves::new([self.clone()]).serve_pty()
     }
 
     /// Serves this device on a new pseudo-terminal timed as `line`; see
-    /// [`Bus::serve_pty_line`].
+    /// [`Slaves::serve_pty_line`].
     pub fn serve_pty_line(&self, line: Line) -> io::Result<Pty> {
-        Bus::new([self.clone()]).serve_pty_line(line)
+        Slaves::new([self.clone()]).serve_pty_line(line)
     }
 }

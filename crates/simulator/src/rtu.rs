@@ -31,7 +31,7 @@ const MAX_PENDING: usize = 4 * rtu::MAX_FRAME_LEN;
 /// Each frame is decoded with every member's frame shape; the member whose address it
 /// carries answers, and a broadcast is carried out by all of them.
 #[derive(Clone, Debug)]
-pub struct Bus {
+pub struct Slaves {
     members: Vec<Simulator>,
     frame_gap: Duration,
     faults: Option<Injector>,
@@ -40,7 +40,7 @@ pub struct Bus {
 /// A reply's bytes and the faults of the member that sent it.
 pub(crate) type Answer = (Vec<u8>, Option<Injector>);
 
-impl Bus {
+impl Slaves {
     /// A line with `members` on it.
     pub fn new(members: impl IntoIterator<Item = Simulator>) -> Self {
         Self {
@@ -57,7 +57,7 @@ impl Bus {
         self
     }
 
-    /// Counts and log of the faults given with [`Bus::faults`].
+    /// Counts and log of the faults given with [`Slaves::faults`].
     pub fn fault_stats(&self) -> Option<FaultStats> {
         self.faults.as_ref().map(Injector::stats)
     }
@@ -85,8 +85,8 @@ impl Bus {
     /// spawned task until the client's end is dropped. Needs a tokio runtime.
     pub fn duplex(&self) -> (DuplexStream, JoinHandle<io::Result<()>>) {
         let (client, server) = tokio::io::duplex(4096);
-        let bus = self.clone();
-        let task = tokio::spawn(async move { bus.serve(server).await });
+        let slaves = self.clone();
+        let task = tokio::spawn(async move { slaves.serve(server).await });
         (client, task)
     }
 
@@ -209,9 +209,9 @@ fn encode(member: &Simulator, slave: u8, reply: &Reply) -> Option<Vec<u8>> {
 }
 
 impl Simulator {
-    /// An in-memory RTU line to this device; see [`Bus::duplex`].
+    /// An in-memory RTU line to this device; see [`Slaves::duplex`].
     pub fn duplex(&self) -> (DuplexStream, JoinHandle<io::Result<()>>) {
-        Bus::new([self.clone()]).duplex()
+        Slaves::new([self.clone()]).duplex()
     }
 
     /// Serves Modbus RTU on any byte stream until it reaches end of file or fails.
@@ -219,6 +219,6 @@ impl Simulator {
     where
         IO: AsyncRead + AsyncWrite + Unpin,
     {
-        Bus::new([self.clone()]).serve(io).await
+        Slaves::new([self.clone()]).serve(io).await
     }
 }

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::task::JoinHandle;
 
-use crate::{Bus, Exchange, Faults, Line, Reply, Simulator, TcpServer};
+use crate::{Exchange, Faults, Line, Reply, Simulator, Slaves, TcpServer};
 
 /// A device of a [`ServedLine`].
 #[derive(Clone, Debug)]
@@ -36,7 +36,7 @@ pub enum Protocol {
 #[derive(Clone, Debug)]
 pub struct ServedLine {
     members: Vec<Member>,
-    bus: Bus,
+    slaves: Slaves,
     /// The faults given for the whole line.
     faults: Option<Faults>,
     /// Whether they are in the line's replies (RTU) rather than each device's (TCP).
@@ -87,13 +87,13 @@ impl ServedLine {
                 }
             })
             .collect();
-        let mut bus = Bus::new(members.iter().map(|member| member.simulator.clone()));
+        let mut slaves = Slaves::new(members.iter().map(|member| member.simulator.clone()));
         if let Some(faults) = faults.as_ref().filter(|_| on_the_line) {
-            bus = bus.faults(faults.clone());
+            slaves = slaves.faults(faults.clone());
         }
         Self {
             members,
-            bus,
+            slaves,
             faults,
             on_the_line,
             one_device: false,
@@ -127,8 +127,8 @@ impl ServedLine {
     #[cfg(unix)]
     pub fn serve_pty(&self, timing: Option<Line>) -> io::Result<crate::Pty> {
         match timing {
-            Some(line) => self.bus.serve_pty_line(line),
-            None => self.bus.serve_pty(),
+            Some(line) => self.slaves.serve_pty_line(line),
+            None => self.slaves.serve_pty(),
         }
     }
 
@@ -138,11 +138,11 @@ impl ServedLine {
     where
         IO: AsyncRead + AsyncWrite + Unpin + Send + 'static,
     {
-        let bus = self.bus.clone();
+        let slaves = self.slaves.clone();
         tokio::spawn(async move {
             match timing {
-                Some(line) => bus.serve_line(io, &line).await,
-                None => bus.serve(io).await,
+                Some(line) => slaves.serve_line(io, &line).await,
+                None => slaves.serve(io).await,
             }
         })
     }
@@ -152,7 +152,7 @@ impl ServedLine {
     pub async fn serve_tcp(&self, address: SocketAddr) -> io::Result<TcpServer> {
         match self.members.first().filter(|_| self.one_device) {
             Some(member) => member.simulator.serve_tcp(address).await,
-            None => self.bus.serve_tcp(address).await,
+            None => self.slaves.serve_tcp(address).await,
         }
     }
 
@@ -163,7 +163,7 @@ impl ServedLine {
             .faults
             .as_ref()
             .filter(|_| self.on_the_line)
-            .zip(self.bus.fault_stats())
+            .zip(self.slaves.fault_stats())
             .map(|(faults, stats)| stats.summary(faults).to_string());
         let each = self.members.iter().filter_map(|member| {
             let stats = member.simulator.fault_stats()?;

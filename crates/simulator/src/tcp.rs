@@ -4,7 +4,7 @@
 //! transaction id (P series 5.1.2 .. 5.3.2). A frame with a protocol id other than 0 or an
 //! impossible length is skipped by its MBAP length; a connection that cannot be framed any
 //! more is closed. Devices without a `tcp` transport can be served too, like an RTU-to-TCP
-//! gateway would. A [`Bus`] served over TCP is such a gateway in front of its line: the unit
+//! gateway would. [`Slaves`] served over TCP are such a gateway in front of their line: the unit
 //! id picks the device, and a unit id no device has gets exception 0B (gateway target device
 //! failed to respond), as mbusd and the bus's own gateway answer.
 
@@ -20,7 +20,7 @@ use tokio::task::{JoinHandle, JoinSet};
 use crate::faults::{self, Framing, Plan};
 use crate::model::{Envelope, Incoming, Reply};
 use crate::names;
-use crate::rtu::Bus;
+use crate::rtu::Slaves;
 use crate::sim::Simulator;
 
 /// Who answers a Modbus TCP request.
@@ -48,7 +48,7 @@ impl<'a> Answerer<'a> {
 /// Exception 0B, gateway target device failed to respond.
 const TARGET_FAILED: u16 = 0x0B;
 
-impl Bus {
+impl Slaves {
     /// Listens on `addr` and serves the line's devices over Modbus TCP on a spawned task, as
     /// a TCP-to-RTU gateway in front of them would: the unit id picks the device (by its
     /// address), and a unit id no device has is answered with exception 0B (gateway target

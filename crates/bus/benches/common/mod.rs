@@ -59,7 +59,7 @@ pub(crate) fn emulated_line(
 ) -> (tokio::io::DuplexStream, LineStats) {
     let line = Line::new(format);
     let stats = line.stats();
-    let (stream, _server) = optobus_simulator::Bus::new(simulators).duplex_line(line);
+    let (stream, _server) = optobus_simulator::Slaves::new(simulators).duplex_line(line);
     (stream, stats)
 }
 

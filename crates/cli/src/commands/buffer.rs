@@ -15,7 +15,7 @@ use crate::error::{driver_error, CliError};
 use crate::log::note;
 use crate::log::progress_bar;
 use crate::render::{counted, print};
-use crate::{inputs, link, models};
+use crate::{inputs, models, target};
 
 #[derive(Debug, Args)]
 pub(crate) struct BufferArgs {
@@ -57,7 +57,7 @@ pub(crate) async fn run(global: &Global, args: &BufferArgs) -> Result<(), CliErr
     let (buffer, values_register, source) = (request.buffer, request.values, request.source);
     let slave = global.answering_slave(device, "buffer")?;
     global.check_line(device)?;
-    let link = link::open(device, slave, &global.target).await?;
+    let link = target::open(device, slave, &global.target).await?;
     let mut core = Core::new(link, slave, device).map_err(|e| driver_error(e, None))?;
     let code = source.as_ref().map(|s| s.code);
     core.start_buffering(code.as_ref().map(|c| c as &dyn Encode), count)

@@ -12,11 +12,11 @@ use optobus_driver::transport::Client;
 
 use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
-use crate::link::Target;
 use crate::log::note;
 use crate::log::progress_bar;
 use crate::render::print;
-use crate::{inputs, link, models};
+use crate::target::{self, Target};
+use crate::{inputs, models};
 
 #[derive(Debug, Args)]
 pub(crate) struct ScanArgs {
@@ -138,6 +138,6 @@ impl ConnectAt for LinksAt<'_> {
     ) -> Result<Client, CliError> {
         let mut target = self.0.clone();
         target.baud = Some(baud);
-        link::open(model, model.default_slave, &target).await
+        target::open(model, model.default_slave, &target).await
     }
 }

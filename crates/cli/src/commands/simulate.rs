@@ -18,7 +18,7 @@ use crate::connect::{DeviceArgs, Global};
 use crate::error::CliError;
 use crate::log::note;
 use crate::render::{counted, print};
-use crate::{inputs, link, models};
+use crate::{inputs, models, target};
 
 /// `optobus simulate`'s arguments.
 #[derive(Debug, Args)]
@@ -405,7 +405,7 @@ fn serve_rtu(
 /// stdout.
 async fn serve_tcp(global: &Global, served: &ServedLine) -> Result<Served, CliError> {
     let address = global.target.tcp.as_deref().unwrap_or("127.0.0.1:5020");
-    let address = link::resolve_tcp(address, 5020).await?;
+    let address = target::resolve_tcp(address, 5020).await?;
     let server = served.serve_tcp(address).await.map_err(|e| {
         CliError::failed(format!("cannot listen on {address}: {e}"))
             .hint("is another server using the port? try --tcp 127.0.0.1:0")
